@@ -1,4 +1,36 @@
+/* Private state of the IMU model (see model.c for the conventions). A plain struct without
+ * pointers: saving an FMU state is a memcpy, and instances share nothing. */
 #ifndef IMU_MODEL_STATE_H
 #define IMU_MODEL_STATE_H
-typedef struct { double dummy; } ModelPrivate;
+
+#include <stdint.h>
+
+/* Input knots kept for the interpolation inside a step and for the time offset (|dt| < h needs
+ * the knot one step back; one spare for a shorter previous step). */
+#define IMU_MAX_KNOTS 4
+
+/* The motion at one communication point: values and time derivatives (orders 1..3). */
+typedef struct {
+    double t;
+    double w[3];     /* omega, rad/s */
+    double wd[3][3]; /* wd[k][i]: (k+1)-th derivative of omega_i (wd[0] = alpha) */
+    double f[3];     /* specific force at the plate point, m/s2 */
+    double fd[3][3]; /* fd[k][i]: (k+1)-th derivative of f_i */
+    double tenv;     /* temperature_env, degC */
+} ImuKnot;
+
+/* xoshiro256** state */
+typedef struct {
+    uint64_t s[4];
+} ImuRng;
+
+typedef struct {
+    ImuKnot knot[IMU_MAX_KNOTS]; /* oldest first */
+    int nknots;
+    ImuRng rng[2];      /* [0] gyro stream, [1] accelerometer stream */
+    double gm[2][3];    /* Gauss-Markov bias-instability state at the current time */
+    double rw[2][3];    /* rate / acceleration random-walk bias at the current time */
+    double resid[2][3]; /* count residual carried to the next sample (output kind 2) */
+} ModelPrivate;
+
 #endif

@@ -1,0 +1,470 @@
+"""IMU FMU physics against independent computations: closed forms, a Python restatement of each
+effect's formula (domain.md §4), an Allan deviation computed here, an attitude integrated with
+scipy. Never against numbers captured from the FMU."""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+from scipy.integrate import solve_ivp
+
+from support import Slave
+
+G = 9.80665
+OMEGA_IE = 7.2921151467e-5
+AX = "xyz"
+OUT = [f"gyro.{c}" for c in AX] + [f"acc.{c}" for c in AX]
+IN = [f"omega.{c}" for c in AX] + [f"f.{c}" for c in AX] + [f"alpha.{c}" for c in AX]
+OFF = ("xy", "xz", "yx", "yz", "zx", "zy")
+PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")
+
+
+# ------------------------------------------------------------------------------ drivers
+
+def motion(w, f, a=(0.0, 0.0, 0.0)) -> dict:
+    return dict(zip(IN, [*map(float, w), *map(float, f), *map(float, a)]))
+
+
+def run(fmu, params: dict, profile, h: float, n: int, timing: int = 0, extra_out=()):
+    """Step an IMU n times. profile(t) -> dict of input values at t (or None: constant inputs
+    from params). timing 0 sets the inputs at t+h before doStep(t, h), timing 1 those at t.
+    Returns (times at the end of each step, outputs[n, 6 + len(extra_out)])."""
+    start = dict(params, input_timing=timing)
+    if profile is not None:
+        start.update(profile(0.0))
+    s = Slave(fmu, start)
+    names = OUT + list(extra_out)
+    vout = [s.vr(v) for v in names]
+    out = np.empty((n, len(names)))
+    ts = np.empty(n)
+    try:
+        for k in range(n):
+            if profile is not None:
+                u = profile(s.time + h if timing == 0 else s.time)
+                s.fmu.setReal([s.vr(v) for v in u], list(u.values()))
+            s.step(h)
+            ts[k] = s.time
+            out[k] = s.fmu.getReal(vout)
+    finally:
+        s.close()
+    return ts, out
+
+
+def rot(axis, angle) -> np.ndarray:
+    """Rodrigues matrix, active rotation about unit axis."""
+    n = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -n[2], n[1]], [n[2], 0, -n[0]], [-n[1], n[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def cube_attitudes() -> list[np.ndarray]:
+    """The 24 proper rotations mapping axes onto axes."""
+    mats = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1, -1), repeat=3):
+            C = np.zeros((3, 3))
+            for r, (c, sg) in enumerate(zip(perm, signs)):
+                C[r, c] = sg
+            if np.linalg.det(C) > 0:
+                mats.append(C)
+    assert len(mats) == 24
+    return mats
+
+
+# ------------------------------------------------------------------------------ ideal outputs
+
+@pytest.mark.parametrize("k", range(24))
+def test_static_attitudes_ideal(imu_fmu, k):
+    lat = np.radians(39.9)
+    C = cube_attitudes()[k] @ rot([0.3, -0.2, 1.0], 0.7)  # C_n^b: cube attitude off a generic one
+    w = C @ [0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)]
+    f = C @ [0.0, 0.0, G]
+    h = 0.005
+    _, y = run(imu_fmu, {}, lambda t: motion(w, f), h, 5)
+    np.testing.assert_allclose(y[:, :3], np.tile(w * h, (5, 1)), rtol=0, atol=1e-12 * OMEGA_IE * h)
+    np.testing.assert_allclose(y[:, 3:], np.tile(f * h, (5, 1)), rtol=0, atol=1e-12 * G * h)
+
+
+def test_constant_rate_rotation_ideal(imu_fmu):
+    """Rotation at constant rate about a body-fixed axis n: f_b(t) = R(n, Wt)^T f0 (Rodrigues),
+    integrated in closed form."""
+    n = np.array([0.2, -0.5, 0.84])
+    n /= np.linalg.norm(n)
+    W, h, N = 0.8, 0.01, 200
+    f0 = np.array([1.0, 2.0, G])
+    w = W * n
+
+    def f_of(t):
+        th = W * t
+        return f0 * np.cos(th) - np.cross(n, f0) * np.sin(th) + n * (n @ f0) * (1 - np.cos(th))
+
+    def int_f(ta, tb):  # closed-form integral of f_of
+        a, b = W * ta, W * tb
+        return (f0 * (np.sin(b) - np.sin(a)) + np.cross(n, f0) * (np.cos(b) - np.cos(a))
+                + n * (n @ f0) * ((b - a) - (np.sin(b) - np.sin(a)))) / W
+
+    ts, y = run(imu_fmu, {}, lambda t: motion(w, f_of(t)), h, N)
+    np.testing.assert_allclose(y[:, :3].sum(0), w * ts[-1], rtol=1e-13, atol=1e-14)
+    exact = np.array([int_f(t - h, t) for t in ts])
+    assert np.max(np.abs(y[:, 3:] - exact)) < 1e-11  # Hermite: h^5/720 g W^4 ~ 6e-12
+    np.testing.assert_allclose(y[:, 3:].sum(0), int_f(0, ts[-1]), rtol=0, atol=1e-10)
+
+
+# ------------------------------------------------------------------------------ effects
+
+def ref_rates(p: dict, w, f, s: float, t0: float = 0.0) -> np.ndarray:
+    """domain.md §4 restated: instantaneous [gyro xyz, acc xyz] for constant omega, f, alpha = 0
+    at sensor time s (temperature modes 0/1 only)."""
+    P = lambda k: p.get(k, 0.0)  # noqa: E731
+    T = P("temperature.start") if "temperature.start" in p else 25.0
+    if p.get("temperature.mode", 0) == 1:
+        T += P("temperature.rate") * (s - t0)
+    dT = T - p.get("temperature.ref", 25.0)
+    out = np.zeros(6)
+    idx = {c: k for k, c in enumerate(AX)}
+    for sensor, base in (("gyro", 0), ("acc", 3)):
+        for i, c in enumerate(AX):
+            if sensor == "gyro":
+                x = np.asarray(w, float)
+            else:
+                r = np.array([P(f"acc.lever.{c}.{k}") for k in AX])
+                x = np.asarray(f, float) + np.cross(w, np.cross(w, r))
+            y = (1 + P(f"{sensor}.sf.{c}") + P(f"{sensor}.sf_temp.{c}") * dT) * x[i]
+            y += P(f"{sensor}.sf_asym.{c}") * abs(x[i])
+            y += sum(P(f"{sensor}.mis.{c}{d}") * x[idx[d]] for d in AX if d != c)
+            y += P(f"{sensor}.bias.{c}") + P(f"{sensor}.temp.{c}") * dT + P(f"{sensor}.drift.{c}") * (s - t0)
+            if sensor == "gyro":
+                y += sum(P(f"gyro.gsens.{c}{d}") * f[idx[d]] for d in AX)
+                y += sum(P(f"gyro.g2sens.{c}.{jk}") * f[idx[jk[0]]] * f[idx[jk[1]]] for jk in PAIRS)
+            else:
+                y += P(f"acc.k2.{c}") * x[i] ** 2 + P(f"acc.k3.{c}") * x[i] ** 3
+                y += sum(P(f"acc.cross.{c}{d}") * x[i] * x[idx[d]] for d in AX if d != c)
+            out[base + i] = y
+    return out
+
+
+def _vec(name, v):
+    return {f"{name}.{c}": v[k] for k, c in enumerate(AX)}
+
+
+_rng = np.random.default_rng(12345)
+_r = lambda n, s: (_rng.standard_normal(n) * s).tolist()  # noqa: E731
+
+EFFECTS = {
+    "gyro.bias": _vec("gyro.bias", _r(3, 1e-4)),
+    "gyro.sf": _vec("gyro.sf", _r(3, 1e-3)),
+    "gyro.sf_asym": _vec("gyro.sf_asym", _r(3, 1e-3)),
+    "gyro.mis": {f"gyro.mis.{ij}": v for ij, v in zip(OFF, _r(6, 1e-3))},
+    "gyro.gsens": {f"gyro.gsens.{i}{j}": v for (i, j), v in zip(itertools.product(AX, AX), _r(9, 1e-5))},
+    "gyro.g2sens": {f"gyro.g2sens.{i}.{jk}": v
+                    for (i, jk), v in zip(itertools.product(AX, PAIRS), _r(18, 1e-6))},
+    "gyro.temp": {**_vec("gyro.temp", _r(3, 1e-6)), "temperature.start": 31.0},
+    "gyro.sf_temp": {**_vec("gyro.sf_temp", _r(3, 1e-5)), "temperature.start": 18.0},
+    "gyro.drift": _vec("gyro.drift", _r(3, 1e-5)),
+    "acc.bias": _vec("acc.bias", _r(3, 1e-3)),
+    "acc.sf": _vec("acc.sf", _r(3, 1e-3)),
+    "acc.sf_asym": _vec("acc.sf_asym", _r(3, 1e-3)),
+    "acc.mis": {f"acc.mis.{ij}": v for ij, v in zip(OFF, _r(6, 1e-3))},
+    "acc.k2": _vec("acc.k2", _r(3, 1e-4)),
+    "acc.k3": _vec("acc.k3", _r(3, 1e-5)),
+    "acc.cross": {f"acc.cross.{ij}": v for ij, v in zip(OFF, _r(6, 1e-4))},
+    "acc.lever (centripetal)": {f"acc.lever.{i}.{k}": v
+                                for (i, k), v in zip(itertools.product(AX, AX), _r(9, 0.05))},
+    "acc.temp": {**_vec("acc.temp", _r(3, 1e-5)), "temperature.start": 40.0},
+    "acc.sf_temp": {**_vec("acc.sf_temp", _r(3, 1e-5)), "temperature.start": 10.0},
+    "acc.drift": _vec("acc.drift", _r(3, 1e-4)),
+    "temperature ramp": {**_vec("gyro.temp", _r(3, 1e-6)), **_vec("acc.temp", _r(3, 1e-5)),
+                         **_vec("gyro.sf_temp", _r(3, 1e-5)), **_vec("acc.sf_temp", _r(3, 1e-5)),
+                         "temperature.mode": 1, "temperature.start": 20.0,
+                         "temperature.rate": 0.5, "temperature.ref": 22.0},
+}
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+@pytest.mark.parametrize("effect", list(EFFECTS))
+def test_effect_adds_its_formula(imu_fmu, effect, sign):
+    """Constant rate about n with f parallel to n (so f stays constant in the body): every term
+    is affine in time and its integral is the formula at mid-step times h."""
+    n = np.array([0.3, -0.5, 0.81])
+    n /= np.linalg.norm(n)
+    w, f = sign * 1.3 * n, -sign * G * n  # both signs: every component changes sign
+    p = EFFECTS[effect]
+    h, N = 0.01, 6
+    ts, y = run(imu_fmu, p, lambda t: motion(w, f), h, N, extra_out=["temperature"])
+    ideal = np.concatenate([w, f]) * h
+    for k, t in enumerate(ts):
+        expect = ref_rates(p, w, f, t - h / 2) * h
+        contribution = expect - ideal
+        assert np.max(np.abs(contribution)) > 1e-12  # the effect is visible
+        np.testing.assert_allclose(y[k, :6] - ideal, contribution, rtol=1e-9, atol=1e-15)
+    if p.get("temperature.mode") == 1:
+        np.testing.assert_allclose(y[:, 6], p["temperature.start"] + p["temperature.rate"] * ts,
+                                   rtol=1e-14)
+
+
+def test_sf_asym_is_proportional_to_abs_rate(imu_fmu):
+    p = {"gyro.sf_asym.x": 1e-3, "acc.sf_asym.y": 2e-3}
+    h = 0.01
+    for sign in (1, -1):
+        w, f = [sign * 0.5, 0, 0], [0, sign * 3.0, 0]
+        _, y = run(imu_fmu, p, lambda t: motion(w, f), h, 2)
+        assert y[-1, 0] - sign * 0.5 * h == pytest.approx(1e-3 * 0.5 * h, rel=1e-9)
+        assert y[-1, 4] - sign * 3.0 * h == pytest.approx(2e-3 * 3.0 * h, rel=1e-9)
+
+
+def test_lever_arm_tangential(imu_fmu):
+    """Constant alpha from rest, omega = alpha t, f parallel (constant): f'(i) = f + alpha x r_i
+    + t^2 alpha x (alpha x r_i); integral closed form."""
+    a = np.array([0.4, -1.1, 0.7])
+    f = 2.0 * a
+    lever = np.array(_r(9, 0.05)).reshape(3, 3)
+    p = {f"acc.lever.{i}.{k}": lever[ii, kk] for ii, i in enumerate(AX) for kk, k in enumerate(AX)}
+    h, N = 0.01, 20
+    ts, y = run(imu_fmu, p, lambda t: motion(a * t, f, a), h, N)
+    for k, tb in enumerate(ts):
+        ta = tb - h
+        for i in range(3):
+            r = lever[i]
+            exact = (f + np.cross(a, r)) * h + np.cross(a, np.cross(a, r)) * (tb**3 - ta**3) / 3
+            assert y[k, 3 + i] == pytest.approx(exact[i], rel=1e-11, abs=1e-15)
+        np.testing.assert_allclose(y[k, :3], a * (tb**2 - ta**2) / 2, rtol=1e-11, atol=1e-16)
+
+
+@pytest.mark.parametrize("timing", [0, 1])
+@pytest.mark.parametrize("frac", [0.3, -0.45])
+def test_time_offset_linear_ramp(imu_fmu, timing, frac):
+    """omega = a t: the sample labelled t holds int_{t-h+dt}^{t+dt} a s ds = a h (t - h/2 + dt)."""
+    a = np.array([0.5, -0.2, 0.9])
+    h, N = 0.01, 10
+    dt = frac * h
+    ts, y = run(imu_fmu, {"imu.time_offset": dt}, lambda t: motion(a * t, [0, 0, 0], a), h, N,
+                timing=timing)
+    exact = np.outer(ts - h / 2 + dt, a) * h
+    np.testing.assert_allclose(y[:, :3], exact, rtol=1e-11, atol=1e-17)
+
+
+def test_temperature_input_mode(imu_fmu):
+    """Mode 2: temperature_env linear in time; the output follows it and the bias term integrates
+    the (linearly interpolated) temperature."""
+    p = {"temperature.mode": 2, "gyro.temp.z": 1e-5, "acc.temp.x": 2e-4, "temperature.ref": 20.0}
+    env = lambda t: 25.0 + 3.0 * t  # noqa: E731
+    h = 0.02
+    ts, y = run(imu_fmu, p, lambda t: {**motion([0, 0, 0], [0, 0, 0]), "temperature_env": env(t)},
+                h, 5, extra_out=["temperature"])
+    np.testing.assert_allclose(y[:, 6], env(ts), rtol=1e-14)
+    np.testing.assert_allclose(y[:, 2], 1e-5 * (env(ts - h / 2) - 20.0) * h, rtol=1e-12)
+    np.testing.assert_allclose(y[:, 3], 2e-4 * (env(ts - h / 2) - 20.0) * h, rtol=1e-12)
+
+
+# ------------------------------------------------------------------------------ noise
+
+def allan(increments: np.ndarray, h: float, m: int) -> np.ndarray:
+    """Overlapping Allan deviation at tau = m h from per-sample increments (columns = axes)."""
+    theta = np.vstack([np.zeros((1, increments.shape[1])), np.cumsum(increments, axis=0)])
+    d = theta[2 * m:] - 2 * theta[m:-m] + theta[:-2 * m]
+    tau = m * h
+    return np.sqrt(np.mean(d**2, axis=0) / (2 * tau**2))
+
+
+def test_allan_white_noise(imu_fmu):
+    N_g, N_a, h, n = 2e-4, 3e-4, 0.01, 40000
+    _, y = run(imu_fmu, {"gyro.noise.arw": N_g, "acc.noise.vrw": N_a, "seed": 11}, None, h, n)
+    dens = np.array([N_g] * 3 + [N_a] * 3)
+    for m in (1, 10, 100):
+        est = allan(y, h, m) * np.sqrt(m * h)
+        err = np.max(np.abs(est / dens - 1))
+        print(f"ARW/VRW at tau={m * h:g}s: worst axis error {err:.3%}")
+        assert err < 0.10
+
+
+def test_allan_bias_instability(imu_fmu):
+    """Gauss-Markov with T = bi_tau: the Allan deviation peaks at 0.664 B near tau = 1.89 T."""
+    B_g, B_a, T, h, n = 1e-5, 2e-4, 1.0, 0.05, 60000
+    p = {"gyro.noise.bi": B_g, "gyro.noise.bi_tau": T, "acc.noise.bi": B_a, "acc.noise.bi_tau": T,
+         "seed": 5}
+    _, y = run(imu_fmu, p, None, h, n)
+    ms = np.unique(np.round(np.geomspace(4, 200, 40)).astype(int))
+    ad = np.array([allan(y, h, m) for m in ms])  # [tau, axis]
+    peak = ad.max(0) / np.array([B_g] * 3 + [B_a] * 3)
+    tau_peak = ms[ad.argmax(0)] * h
+    err = np.abs(peak / 0.664 - 1)
+    print(f"BI peak / (0.664 B) per axis: {np.round(peak / 0.664, 3)}, tau_peak {tau_peak} s "
+          f"(theory 1.89 s); worst error {err.max():.3%}")
+    assert err.max() < 0.10
+    assert np.all((tau_peak > 1.0) & (tau_peak < 4.0))
+
+
+def test_allan_rate_random_walk(imu_fmu):
+    K_g, K_a, h, n = 1e-6, 1e-5, 0.1, 60000
+    _, y = run(imu_fmu, {"gyro.noise.rrw": K_g, "acc.noise.rrw": K_a, "seed": 3}, None, h, n)
+    dens = np.array([K_g] * 3 + [K_a] * 3)
+    ms = (50, 100, 200)
+    est = np.array([allan(y, h, m) / np.sqrt(m * h / 3) for m in ms]).mean(0) / dens
+    # each axis is noisy (few independent long clusters); the mean over the six axes is the check
+    print(f"RRW estimate / K per axis {np.round(est, 3)}, mean {est.mean():.4f}")
+    assert abs(est.mean() - 1) < 0.10
+    assert np.all(np.abs(est - 1) < 0.35)
+
+
+NOISY = {"gyro.noise.arw": 1e-4, "gyro.noise.bi": 1e-5, "gyro.noise.rrw": 1e-6,
+         "acc.noise.vrw": 1e-4, "acc.noise.bi": 1e-4, "acc.noise.rrw": 1e-5,
+         "gyro.noise.bi_tau": 5.0, "acc.noise.bi_tau": 3.0}
+
+
+def test_seed_reproducible_and_distinct(imu_fmu):
+    prof = lambda t: motion([0.1, 0.2, -0.3], [0.0, 0.0, G])  # noqa: E731
+    _, a = run(imu_fmu, {**NOISY, "seed": 42}, prof, 0.01, 100)
+    _, b = run(imu_fmu, {**NOISY, "seed": 42}, prof, 0.01, 100)
+    _, c = run(imu_fmu, {**NOISY, "seed": 43}, prof, 0.01, 100)
+    assert np.array_equal(a, b)  # bit-identical
+    assert not np.any(a == c)
+
+
+def test_instances_independent(imu_fmu):
+    n, h = 50, 0.01
+    separate = [run(imu_fmu, {**NOISY, "seed": s}, None, h, n)[1] for s in (1, 2)]
+    slaves = [Slave(imu_fmu, {**NOISY, "seed": s}, name=f"imu{s}") for s in (1, 2)]
+    got = [np.empty((n, 6)) for _ in slaves]
+    try:
+        for k in range(n):
+            for s, g in zip(slaves, got):
+                s.step(h)
+                g[k] = s.get(*OUT)
+    finally:
+        for s in slaves:
+            s.close()
+    assert np.array_equal(got[0], separate[0]) and np.array_equal(got[1], separate[1])
+
+
+def test_zero_density_keeps_other_realisation(imu_fmu):
+    """All draws are made whatever the densities: switching one on leaves the others' bits."""
+    _, a = run(imu_fmu, {"gyro.noise.arw": 1e-4, "seed": 9}, None, 0.01, 50)
+    _, b = run(imu_fmu, {"gyro.noise.arw": 1e-4, "acc.noise.vrw": 1e-3, "seed": 9}, None, 0.01, 50)
+    assert np.array_equal(a[:, :3], b[:, :3])
+
+
+# ------------------------------------------------------------------------------ coupling error
+
+def _profile():
+    """Rates: sums of sinusoids about all three axes; attitude integrated by scipy (DOP853 at
+    tolerance 1e-13), f_b = C_n^b [0, 0, g] and its integral as extra states."""
+    amp = np.array([[0.4, 0.15], [0.3, 0.2], [0.5, 0.1]])
+    frq = 2 * np.pi * np.array([[0.7, 2.3], [1.1, 1.7], [0.5, 2.9]])
+    ph = np.array([[0.0, 1.0], [0.5, 2.0], [1.5, 0.3]])
+    w = lambda t: (amp * np.sin(frq * t + ph)).sum(1)  # noqa: E731
+    a = lambda t: (amp * frq * np.cos(frq * t + ph)).sum(1)  # noqa: E731
+    int_w = lambda t: (-amp / frq * np.cos(frq * t + ph)).sum(1)  # noqa: E731
+    gn = np.array([0.0, 0.0, G])
+
+    def rhs(t, x):
+        C = x[:9].reshape(3, 3)  # C_b^n
+        wt = w(t)
+        K = np.array([[0, -wt[2], wt[1]], [wt[2], 0, -wt[0]], [-wt[1], wt[0], 0]])
+        return np.concatenate([(C @ K).ravel(), C.T @ gn])
+
+    return w, a, int_w, rhs
+
+
+def _coupling(imu_fmu, timing, h=0.005, T=2.0):
+    w, a, int_w, rhs = _profile()
+    n = int(round(T / h))
+    grid = np.arange(n + 1) * h
+    sol = solve_ivp(rhs, (0, T), np.concatenate([np.eye(3).ravel(), np.zeros(3)]),
+                    method="DOP853", rtol=1e-13, atol=1e-14, t_eval=grid)
+    C = sol.y[:9].T.reshape(-1, 3, 3)
+    f = np.einsum("kji,j->ki", C, [0.0, 0.0, G])
+    int_f = np.diff(sol.y[9:].T, axis=0)
+    table = {round(t / h): k for k, t in enumerate(grid)}
+    prof = lambda t: motion(w(t), f[table[round(t / h)]], a(t))  # noqa: E731
+    _, y = run(imu_fmu, {}, prof, h, n, timing=timing)
+    int_wk = np.array([int_w(grid[k + 1]) - int_w(grid[k]) for k in range(n)])
+    sig_g = np.radians(0.002) / 60 * np.sqrt(h)  # ARW 0.002 deg/sqrt(h)
+    sig_a = 10e-6 * G * np.sqrt(h)  # VRW 10 ug/sqrt(Hz)
+    return (np.max(np.abs(y[:, :3] - int_wk)) / sig_g, np.max(np.abs(y[:, 3:] - int_f)) / sig_a)
+
+
+def test_coupling_error_below_noise(imu_fmu):
+    rg, ra = _coupling(imu_fmu, timing=0)
+    print(f"coupling error / per-sample noise, input_timing 0: gyro {rg:.2e}, acc {ra:.2e}")
+    assert rg < 0.01 and ra < 0.01
+    rg1, ra1 = _coupling(imu_fmu, timing=1)
+    print(f"coupling error / per-sample noise, input_timing 1: gyro {rg1:.2e}, acc {ra1:.2e}")
+    assert rg1 > rg and ra1 > ra
+
+
+# ------------------------------------------------------------------------------ counts
+
+def test_counts_track_increments(imu_fmu):
+    p = {**NOISY, "seed": 4, "gyro.count_weight": 1e-6, "acc.count_weight": 1e-5}
+    prof = lambda t: motion([0.3, -0.1, 0.05], [0.1, 0.2, G])  # noqa: E731
+    _, inc = run(imu_fmu, p, prof, 0.005, 300)
+    _, cnt = run(imu_fmu, {**p, "gyro.output": 2, "acc.output": 2}, prof, 0.005, 300)
+    assert np.array_equal(cnt, np.round(cnt))
+    wts = np.array([1e-6] * 3 + [1e-5] * 3)
+    diff = np.abs(np.cumsum(cnt, 0) * wts - np.cumsum(inc, 0)) / wts
+    assert diff.max() <= 0.5 + 1e-6  # remainder carried: never more than half a count
+
+
+def test_rate_output_is_increment_over_h(imu_fmu):
+    prof = lambda t: motion([0.3, -0.1, 0.05], [0.1, 0.2, G])  # noqa: E731
+    _, inc = run(imu_fmu, {**NOISY, "seed": 4}, prof, 0.005, 20)
+    _, rate = run(imu_fmu, {**NOISY, "seed": 4, "gyro.output": 1, "acc.output": 1}, prof, 0.005, 20)
+    np.testing.assert_allclose(rate, inc / 0.005, rtol=1e-14)
+
+
+# ------------------------------------------------------------------------------ bad input
+
+@pytest.mark.parametrize("name,value", [
+    ("gyro.bias.x", float("nan")),
+    ("acc.lever.y.z", float("inf")),
+    ("gyro.noise.arw", -1e-6),
+    ("acc.noise.rrw", -1.0),
+    ("gyro.noise.bi_tau", 0.0),
+    ("gyro.output", 5),
+    ("acc.output", -1),
+    ("input_timing", 2),
+    ("temperature.mode", 3),
+])
+def test_bad_parameter_named(imu_fmu, name, value):
+    s = Slave(imu_fmu, {name: value}, initialize=False)
+    try:
+        with pytest.raises(FMICallException):
+            s.fmu.exitInitializationMode()
+        assert any(st >= 3 and f"parameter {name} =" in msg for st, msg in s.log), s.log
+    finally:
+        s.fmu.freeInstance()
+
+
+def test_count_weight_zero_in_counts_mode(imu_fmu):
+    s = Slave(imu_fmu, {"acc.output": 2, "acc.count_weight": 0.0}, initialize=False)
+    try:
+        with pytest.raises(FMICallException):
+            s.fmu.exitInitializationMode()
+        assert any("acc.count_weight" in msg for _, msg in s.log)
+    finally:
+        s.fmu.freeInstance()
+    Slave(imu_fmu, {"acc.count_weight": 0.0}).close()  # fine when counts are not output
+
+
+def test_time_offset_not_below_step(imu_fmu):
+    s = Slave(imu_fmu, {"imu.time_offset": 0.01})
+    try:
+        with pytest.raises(FMICallException):
+            s.step(0.005)
+        assert any("imu.time_offset" in msg for _, msg in s.log)
+    finally:
+        s.fmu.freeInstance()
+
+
+def test_nonfinite_input_named(imu_fmu):
+    s = Slave(imu_fmu, {})
+    try:
+        s.step(0.01)
+        s.set({"omega.y": float("nan")})
+        with pytest.raises(FMICallException):
+            s.step(0.01)
+        assert any("input omega.y" in msg for _, msg in s.log)
+    finally:
+        s.fmu.freeInstance()
