@@ -198,7 +198,7 @@ def test_instances_are_independent(model, version, unzipped):
     a = Instance(d, md, "a", scenario(model, 0))
     b = Instance(d, md, "b", scenario(model, 1))
     ra, rb = [], []
-    for _ in range(n):  # interleaved, b one step behind a's output read
+    for _ in range(n):  # interleaved on one loaded binary: a, b, a, b, ...
         ra.append(a.step())
         rb.append(b.step())
     a.close()
@@ -530,3 +530,49 @@ def test_config_h_agrees_with_model_description(model, version):
         time_vr = int(re.search(r"#define TIME_VR (\d+)", header).group(1))
         indep = [v for v in md.modelVariables if v.causality == "independent"]
         assert [v.valueReference for v in indep] == [time_vr]
+
+
+@pytest.mark.parametrize("version", (2, 3))
+@pytest.mark.parametrize("model", MODELS)
+def test_bad_parameter_is_named_and_reset_recovers(model, version, unzipped):
+    """The contract: model_initialize checks every parameter and names the bad one. A NaN is
+    bad for any parameter. After the error, reset brings the instance back to life."""
+    d, md = unzipped(fmu(model, version))
+    table = load_table(model)
+    param = next(v for v in table.reals if v.causality == "parameter")
+    inst = Instance.__new__(Instance)  # instantiate by hand: initialisation must fail
+    inst.md, inst.fmi3, inst.log = md, version == 3, []
+    inst.vars = {v.name: v for v in md.modelVariables}
+    f = inst.fmu = (FMU3Slave if inst.fmi3 else FMU2Slave)(
+        guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="bad")
+    if inst.fmi3:
+        f.instantiate(logMessage=inst._log3)
+    else:
+        from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(
+            lambda env, name, st, cat, msg: inst.log.append((int(st), msg.decode())))
+        f.instantiate(callbacks=cb)
+        f.setupExperiment(startTime=0.0)
+
+    def enter():
+        if inst.fmi3:
+            f.enterInitializationMode(startTime=0.0)
+        else:
+            f.enterInitializationMode()
+
+    enter()
+    inst.set(dict(scenario(model), **{param.name: float("nan")}))
+    with pytest.raises(Exception):
+        f.exitInitializationMode()
+    assert any(st >= 3 and param.name in msg for st, msg in inst.log), inst.log
+    f.reset()
+    if not inst.fmi3:
+        f.setupExperiment(startTime=0.0)
+    enter()
+    inst.set(scenario(model))
+    f.exitInitializationMode()
+    inst.t, inst.out_vrs = 0.0, [v.valueReference for v in real_outputs(md)]
+    assert np.all(np.isfinite(inst.run(5)))
+    inst.close()

@@ -176,12 +176,13 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
     ModelStatus st;
     if (!c) return fmi3Error;
     if (!allowed(c, IN(MODE_INITIALIZATION), "fmi3ExitInitializationMode")) return fmi3Error;
-    if (SELF->failed) return bad_call(c, "fmi3ExitInitializationMode after a failed attempt; reset");
+    /* as in FMI 2: a failed attempt may be retried after the master corrected a parameter */
     st = model_initialize(&SELF->m);
     if (st >= MS_ERROR) {
         SELF->failed = 1;
         return (fmi3Status)st;
     }
+    SELF->failed = 0;
     SELF->m.initialized = 1;
     SELF->mode = MODE_STEP;
     return (fmi3Status)st;
