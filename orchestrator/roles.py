@@ -1,0 +1,139 @@
+"""Roles: the named set of variables a unit must offer to be plugged into a place of a system,
+and the check of a unit against its role (with a supplier's name mapping and unit conversion).
+
+The orchestrator knows roles only as data; the domain registers its roles (see
+``components.roles``) with :func:`register_role`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+from orchestrator import si
+from orchestrator.units import Unit, VarInfo
+
+
+@dataclass(frozen=True)
+class RoleVariable:
+    name: str
+    causality: str  # input, output, parameter
+    type: str = "Real"
+    unit: str | None = None  # SI unit the role exchanges
+    required: bool = True
+    description: str = ""
+
+
+@dataclass
+class Role:
+    name: str
+    variables: list[RoleVariable]
+    description: str = ""
+
+    def variable(self, name: str) -> RoleVariable | None:
+        return next((v for v in self.variables if v.name == name), None)
+
+
+_ROLE_FACTORIES: dict[str, Callable[..., Role]] = {}
+
+
+def register_role(name: str, factory: Callable[..., Role]) -> None:
+    """``factory(**options)`` builds the role (options come from the system file, e.g. axes)."""
+    _ROLE_FACTORIES[name] = factory
+
+
+def get_role(name: str, **options) -> Role:
+    if name not in _ROLE_FACTORIES:
+        known = ", ".join(sorted(_ROLE_FACTORIES)) or "none registered"
+        raise KeyError(f"unknown role {name!r} (known: {known})")
+    return _ROLE_FACTORIES[name](**options)
+
+
+def known_roles() -> list[str]:
+    return sorted(_ROLE_FACTORIES)
+
+
+@dataclass(frozen=True)
+class Binding:
+    """How one role variable is reached in a unit: its name there and the conversion
+    SI = factor * unit_value + offset."""
+
+    role_name: str
+    unit_name: str
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass
+class RoleCheck:
+    unit: str
+    role: str
+    problems: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    bindings: dict[str, Binding] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+    def report(self) -> str:
+        head = f"unit {self.unit} against role {self.role}: " + (
+            "conforms" if self.ok else f"{len(self.problems)} problem(s)")
+        lines = [head] + [f"  - {p}" for p in self.problems] + [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+def _conversion(rv: RoleVariable, v: VarInfo) -> tuple[float, float] | str:
+    """(factor, offset) from the unit's declared unit to the role's SI unit, or a problem."""
+    if rv.unit is None or rv.type != "Real":
+        return 1.0, 0.0
+    want, f_role, off_role = si.parse(rv.unit)
+    if not v.unit:
+        return (1.0, 0.0)
+    if v.base_exponents is not None:
+        have, factor, offset = v.base_exponents, v.unit_factor, v.unit_offset
+    else:
+        try:
+            have, factor, offset = si.parse(v.unit)
+        except si.UnitParseError:
+            return (f"{v.name}: unit {v.unit!r} has no unit definition in the FMU and is not an SI "
+                    f"unit string; expected {rv.unit}")
+    if tuple(have) != tuple(want):
+        return f"{v.name}: unit {v.unit!r} cannot be converted to {rv.unit}"
+    # SI = factor * value + offset, then into the role's (possibly offset) unit
+    return factor / f_role, (offset - off_role) / f_role
+
+
+def check_unit(unit: Unit, role: Role, mapping: dict[str, str] | None = None) -> RoleCheck:
+    """Check *unit* against *role*. ``mapping`` maps role names to the unit's own names."""
+    mapping = dict(mapping or {})
+    res = RoleCheck(unit.name, role.name)
+    for key in mapping:
+        if role.variable(key) is None:
+            res.problems.append(f"mapping names {key!r}, which is not a variable of role {role.name}")
+    for rv in role.variables:
+        name = mapping.get(rv.name, rv.name)
+        v = unit.variables.get(name)
+        if v is None:
+            if rv.required:
+                via = f" (mapped to {name!r})" if name != rv.name else ""
+                res.problems.append(f"missing {rv.causality} {rv.name}{via} [{rv.unit or '-'}, {rv.type}]")
+            else:
+                res.notes.append(f"optional {rv.causality} {rv.name} not offered")
+            continue
+        caus_ok = v.causality == rv.causality or (
+            rv.causality == "parameter" and v.causality in ("parameter", "calculatedParameter"))
+        if not caus_ok:
+            res.problems.append(f"{name}: causality {v.causality}, role {role.name} needs {rv.causality}")
+        if v.type != rv.type:
+            res.problems.append(f"{name}: type {v.type}, role {role.name} needs {rv.type}")
+        conv = _conversion(rv, v)
+        if isinstance(conv, str):
+            res.problems.append(conv)
+            continue
+        if rv.unit and rv.type == "Real" and not v.unit:
+            res.notes.append(f"{name}: no unit declared, taken as {rv.unit}")
+        elif conv != (1.0, 0.0):
+            res.notes.append(f"{name}: {v.unit} converted to {rv.unit} (x {conv[0]:.12g}"
+                             + (f", + {conv[1]:g})" if conv[1] else ")"))
+        res.bindings[rv.name] = Binding(rv.name, name, *conv)
+    return res

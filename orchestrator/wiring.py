@@ -1,0 +1,177 @@
+"""From a system description and loaded units to scalar connections and a stepping order.
+
+Names on connections are resolved through each unit's role bindings (role name -> the unit's
+own name and unit conversion); a vector prefix (``plate.omega``) expands to its components.
+Every distinct source output gets one slot of the exchange array; values in slots are SI.
+"""
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+
+from orchestrator.roles import Binding
+from orchestrator.system import System, SystemError_
+from orchestrator.units import Unit
+
+VECTOR_SUFFIXES = (("x", "y", "z"), ("w", "x", "y", "z"))
+
+
+class AlgebraicLoopError(Exception):
+    """Units whose outputs depend instantaneously on each other's outputs in a cycle."""
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    unit: str
+    name: str        # name as written (role name where the unit has a role)
+    var: str         # the unit's own variable name
+    factor: float    # SI = factor * unit value + offset
+    offset: float
+
+
+@dataclass(frozen=True)
+class ScalarConnection:
+    source: Endpoint
+    target: Endpoint
+    derivative_order: int = 0
+
+
+def _lookup(unit: Unit, bindings: dict[str, Binding], name: str) -> Endpoint | None:
+    b = bindings.get(name)
+    if b is not None:
+        return Endpoint(unit.name, name, b.unit_name, b.factor, b.offset)
+    if name in unit.variables:
+        return Endpoint(unit.name, name, name, 1.0, 0.0)
+    return None
+
+
+def resolve(unit: Unit, bindings: dict[str, Binding], name: str, where: str) -> list[Endpoint]:
+    """Scalar endpoints for *name* on *unit* (a vector prefix gives several)."""
+    e = _lookup(unit, bindings, name)
+    if e is not None:
+        return [e]
+    for suffixes in VECTOR_SUFFIXES:
+        parts = [_lookup(unit, bindings, f"{name}.{s}") for s in suffixes]
+        if all(parts):
+            return parts
+    candidates = list(bindings) + list(unit.variables)
+    close = difflib.get_close_matches(name, candidates, n=3)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    raise SystemError_(f"{where}: unit {unit.name} has no variable {name!r}{hint}")
+
+
+def expand_connections(system: System, units: dict[str, Unit],
+                       bindings: dict[str, dict[str, Binding]]) -> list[ScalarConnection]:
+    out: list[ScalarConnection] = []
+    seen_targets: dict[tuple, str] = {}
+    for i, c in enumerate(system.connections):
+        where = f"{system.source or 'system'}: connections[{i}] ({c.source} -> {c.target})"
+        su, sn = c.source.split(".", 1)
+        tu, tn = c.target.split(".", 1)
+        src = resolve(units[su], bindings.get(su, {}), sn, where)
+        dst = resolve(units[tu], bindings.get(tu, {}), tn, where)
+        if len(src) != len(dst):
+            raise SystemError_(f"{where}: {len(src)} source value(s) but {len(dst)} target value(s)")
+        for s, d in zip(src, dst):
+            sv, dv = units[su].variables[s.var], units[tu].variables[d.var]
+            if sv.causality != "output":
+                raise SystemError_(f"{where}: {su}.{s.var} is a {sv.causality}, not an output")
+            if dv.causality != "input":
+                raise SystemError_(f"{where}: {tu}.{d.var} is a {dv.causality}, not an input")
+            if c.derivative_order and (dv.type != "Real" or not units[tu].can_interpolate_inputs):
+                raise SystemError_(f"{where}: unit {tu} cannot take input derivatives "
+                                   "(canInterpolateInputs is false)")
+            key = (tu, d.var, c.derivative_order)
+            if key in seen_targets:
+                raise SystemError_(f"{where}: input {tu}.{d.var} is already driven by {seen_targets[key]}")
+            seen_targets[key] = f"{su}.{s.var}"
+            out.append(ScalarConnection(s, d, c.derivative_order))
+    return out
+
+
+def _tarjan(nodes: list[str], edges: dict[str, list[str]]) -> list[list[str]]:
+    """Strongly connected components, in reverse topological order of the condensation."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    comps: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in edges.get(v, []):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            comps.append(comp)
+
+    for v in nodes:
+        if v not in index:
+            visit(v)
+    return comps
+
+
+def stepping_order(system: System, conns: list[ScalarConnection]) -> list[str]:
+    """Gauss–Seidel order: sources before their consumers; units in a feedback cycle (broken by
+    the one-step delay of co-simulation) keep the order in which the system declares them."""
+    names = [u.name for u in system.units]
+    if system.order:
+        return list(system.order)
+    edges: dict[str, list[str]] = {n: [] for n in names}
+    for c in conns:
+        if c.source.unit != c.target.unit and c.target.unit not in edges[c.source.unit]:
+            edges[c.source.unit].append(c.target.unit)
+    comps = _tarjan(names, edges)[::-1]
+    rank = {n: i for i, n in enumerate(names)}
+    return [n for comp in comps for n in sorted(comp, key=rank.__getitem__)]
+
+
+def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
+                          feedthrough: dict[str, dict[str, list[str]]]) -> None:
+    """Refuse cycles made only of direct feed-through (output depends on input within a unit)
+    and connections: no step order can satisfy them without iteration."""
+    edges: dict[str, list[str]] = {}
+    for c in conns:
+        if c.derivative_order == 0:
+            edges.setdefault(f"{c.source.unit}.{c.source.var}", []).append(f"{c.target.unit}.{c.target.var}")
+    for unit, deps in feedthrough.items():
+        for out, ins in deps.items():
+            for i in ins:
+                edges.setdefault(f"{unit}.{i}", []).append(f"{unit}.{out}")
+    nodes = sorted(set(edges) | {w for ws in edges.values() for w in ws})
+    for comp in _tarjan(nodes, edges):
+        if len(comp) > 1:
+            raise AlgebraicLoopError(
+                "algebraic loop (outputs that depend instantaneously on each other): "
+                + " -> ".join(sorted(comp)) + ". Break it with a unit that has no direct "
+                "feed-through, or set the order explicitly and accept a one-step delay.")
+
+
+def fmu_feedthrough(unit: Unit) -> dict[str, list[str]]:
+    """Direct dependencies of outputs on inputs declared by an FMU's ModelStructure, or by a
+    Python component's ``feedthrough`` attribute."""
+    md = getattr(unit, "md", None)
+    if md is None:
+        comp = getattr(unit, "component", None)
+        return dict(getattr(comp, "feedthrough", {}) or {})
+    out: dict[str, list[str]] = {}
+    for o in md.outputs or []:
+        deps = o.dependencies or []
+        ins = [d.name for d in deps if d.causality == "input"]
+        if ins:
+            out[o.variable.name] = ins
+    return out
