@@ -77,6 +77,8 @@ VARIABLES = [
     integer("n_axes", "parameter", 3, "number of stages (1 to 3), outer first", min=1, max=3),
     real("servo.rate", "parameter", CONTROL_RATE_HZ, "Hz",
          "controller rate; the communication step must be a multiple of its period"),
+    real("servo.feedforward", "parameter", 1.0, "1",
+         "1: add J*alpha_ref + B*omega_ref to the controller torque, 0: pure feedback"),
     real("servo.friction_smoothing", "parameter", 1e-3, "rad/s",
          "velocity scale of the smoothed Coulomb friction tanh(w / w_s)"),
     real("site.latitude", "parameter", 39.9 * DEG, "rad", "geodetic latitude"),

@@ -1,0 +1,583 @@
+/* calbench turntable: gimbal chain, base, Earth, and one discrete servo loop per axis.
+ *
+ * Conventions (see also /work/shared/design/domain.md §1-§5)
+ * -----------------------------------------------------------
+ * Frames: n = ENU (x east, y north, z up); b0 = turntable base; stage k = frame carried by the
+ *   k-th axis (1 outer, 2 middle, 3 inner); p = plate = frame of the innermost used stage.
+ * C_x^y maps vectors given in frame x to frame y.
+ * Rotations are active and right-handed. R(a, t) is the Rodrigues matrix
+ *   R = I + sin t [a]x + (1 - cos t) [a]x^2;  Rot(w) = R(w/|w|, |w|) for a rotation vector w.
+ * Base: C_b0^n = R(x, base.tilt.x) R(y, base.tilt.y) R(z, base.azimuth).
+ * Axis k: a_k = Rot(delta_k) normalize(<a>.axis), delta_k = <a>.nonorth (rotation vector in
+ *   the previous stage's frame; exact Rodrigues rotation of the axis vector, not linearised).
+ * Wobble of axis k (amplitude A, phase phi): the stage transform is
+ *   T_k = C_k^{k-1} = Rot(w_k) R(a_k, t_k),  w_k = A [cos(t_k + phi) u + sin(t_k + phi) v],
+ *   u = normalize(e_j x a_k), e_j the basis vector (x, then y, then z on ties) with the smallest
+ *   |a_k . e_j|, v = a_k x u.  Because w_k = R(a_k, t_k + phi) (A u), the same transform is
+ *   T_k = R(a_k, t_k + phi) Rot(A u) R(a_k, -phi): a rigid rotation about a_k of a body mounted
+ *   with a fixed tilt. Its relative angular rate in stage-k axes is therefore EXACTLY
+ *   rho_k = t'_k b_k with the constant unit vector b_k = R(a_k, phi) Rot(-A u) a_k
+ *   (= a_k when A = 0). This is the "rate contribution of the wobble", exact rather than only to
+ *   first order, and it keeps plate.omega the true derivative of the attitude.
+ * Chain: C_p^b0 = T_1 T_2 T_3 (only the n_axes used stages); C_p^n = C_b0^n C_p^b0.
+ * Rates (plate axes, Earth rate included), recursion from the base outwards:
+ *   omega_0 = C_n^b0 omega_ie^n,  omega_k = T_k^T omega_{k-1} + t'_k b_k
+ *   alpha_0 = 0,  alpha_k = T_k^T alpha_{k-1} + t''_k b_k + (T_k^T omega_{k-1}) x (t'_k b_k)
+ *   (the last term is d/dt T_k^T applied to omega_{k-1}).
+ * Earth: omega_ie^n = [0, Omega cos L, Omega sin L]; gravity g = site.gravity if > 0, else WGS-84
+ *   normal gravity (Somigliana) with the second-order height correction. Specific force at rest
+ *   f^n = [0, 0, +g]; plate.f = C_n^p f^n at the axes' intersection (no lever arm).
+ * plate.q: quaternion of C_p^n, scalar first, w >= 0.
+ * Outputs are computed from the TRUE angles, rates and accelerations; the acceleration at the
+ *   end of a step is the left limit (torque of the last controller tick).
+ *
+ * Servo (per axis, controller period T = 1 / servo.rate; time is an integer tick count):
+ *   tick k at t_k: (1) the reference generator holds (th_ref, w_ref) at t_k and chooses the
+ *   constant acceleration a_ref over [t_k, t_k+T] (rate and acceleration limited, time-optimal
+ *   braking curve, exact snap onto the target when within one tick's reach); (2) the encoder
+ *   reads the true angle (harmonic errors, then quantisation to 2 pi / 2^bits, round to nearest);
+ *   (3) e = th_ref - th_meas, u = D(z) e + ff (J a_ref + B w_mid), w_mid the reference rate at
+ *   the middle of the tick (the mean rate over the tick, which is what a constant torque has to
+ *   overcome for viscous friction), saturated at +-torque_max; (4) the plant
+ *   J th'' = u - B th' - Tc tanh(th' / w_s) is integrated over the tick with u held (ZOH), by
+ *   classical RK4.  A pure step in position mode appears in th_ref one tick later (th_ref(t_k)
+ *   was committed at the previous tick), like any discrete reference.
+ * Position mode target: p(t) = angle_cmd + rate_cmd (t - t_comm), t_comm = start of the doStep.
+ */
+#include <math.h>
+#include <string.h>
+#include "model_instance.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+/* RK4 is run with |lambda| h <= RK4_LAMBDA_H, lambda the stiffest local eigenvalue of the axis
+ * ODE, (B + Tc / w_s) / J. At 0.05 the local error of RK4 on that mode is ~(0.05)^5 / 120 ~ 3e-9
+ * relative, far below anything the encoder can see; with the default parameters one RK4 step per
+ * 0.5 ms tick suffices (|lambda| h ~ 0.03), so the default costs one RK4 step per tick. */
+#define RK4_LAMBDA_H 0.05
+#define MAX_SUBSTEPS 1000
+
+/* ------------------------------------------------------------------ value references */
+
+typedef struct {
+    int axis[3], nonorth[3];
+    int inertia, viscous, coulomb, torque_max, rate_max, acc_max, angle0;
+    int b0, b1, b2, a1, a2;
+    int bits; /* Integer */
+    int h1_amp, h1_phase, h2_amp, h2_phase, wob_amp, wob_phase;
+    int mode; /* Integer */
+    int angle_cmd, rate_cmd;
+    int angle, rate, angle_true, angle_ref, torque;
+} AxisVR;
+
+#define AXIS_VR(n)                                                                              \
+    {{VR_##n##_axis_x, VR_##n##_axis_y, VR_##n##_axis_z},                                       \
+     {VR_##n##_nonorth_x, VR_##n##_nonorth_y, VR_##n##_nonorth_z},                              \
+     VR_##n##_inertia, VR_##n##_viscous, VR_##n##_coulomb, VR_##n##_torque_max,                 \
+     VR_##n##_rate_max, VR_##n##_acc_max, VR_##n##_angle0,                                      \
+     VR_##n##_ctrl_b0, VR_##n##_ctrl_b1, VR_##n##_ctrl_b2, VR_##n##_ctrl_a1, VR_##n##_ctrl_a2,  \
+     VR_##n##_encoder_bits,                                                                     \
+     VR_##n##_encoder_h1_amp, VR_##n##_encoder_h1_phase, VR_##n##_encoder_h2_amp,               \
+     VR_##n##_encoder_h2_phase, VR_##n##_wobble_amp, VR_##n##_wobble_phase,                     \
+     VR_##n##_mode, VR_##n##_angle_cmd, VR_##n##_rate_cmd,                                      \
+     VR_##n##_angle, VR_##n##_rate, VR_##n##_angle_true, VR_##n##_angle_ref, VR_##n##_torque}
+
+static const AxisVR AXVR[TT_MAX_AXES] = {AXIS_VR(outer), AXIS_VR(middle), AXIS_VR(inner)};
+
+#define R(vr) (m->s.r[(vr)])
+#define I(vr) (m->s.i[(vr) - INTEGER_VR_BASE])
+
+/* ------------------------------------------------------------------ small vector algebra */
+
+static double dot3(const double a[3], const double b[3]) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void cross3(const double a[3], const double b[3], double out[3]) {
+    double t[3];
+    t[0] = a[1] * b[2] - a[2] * b[1];
+    t[1] = a[2] * b[0] - a[0] * b[2];
+    t[2] = a[0] * b[1] - a[1] * b[0];
+    memcpy(out, t, sizeof t);
+}
+
+static double norm3(const double a[3]) { return sqrt(dot3(a, a)); }
+
+static void scale3(double a[3], double s) {
+    a[0] *= s;
+    a[1] *= s;
+    a[2] *= s;
+}
+
+/* out = M x (out may alias x) */
+static void mat_vec(const double M[3][3], const double x[3], double out[3]) {
+    double t[3];
+    int i;
+    for (i = 0; i < 3; i++) t[i] = M[i][0] * x[0] + M[i][1] * x[1] + M[i][2] * x[2];
+    memcpy(out, t, sizeof t);
+}
+
+/* out = M^T x (out may alias x): the inverse transformation of a direction cosine matrix */
+static void mat_tvec(const double M[3][3], const double x[3], double out[3]) {
+    double t[3];
+    int i;
+    for (i = 0; i < 3; i++) t[i] = M[0][i] * x[0] + M[1][i] * x[1] + M[2][i] * x[2];
+    memcpy(out, t, sizeof t);
+}
+
+/* out = A B (out may alias A or B) */
+static void mat_mul(const double A[3][3], const double B[3][3], double out[3][3]) {
+    double t[3][3];
+    int i, j;
+    for (i = 0; i < 3; i++)
+        for (j = 0; j < 3; j++) t[i][j] = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
+    memcpy(out, t, sizeof t);
+}
+
+static void mat_identity(double M[3][3]) {
+    memset(M, 0, 9 * sizeof(double));
+    M[0][0] = M[1][1] = M[2][2] = 1.0;
+}
+
+/* Rodrigues: active right-hand rotation by angle t about the unit vector a. */
+static void rodrigues(const double a[3], double t, double M[3][3]) {
+    double s = sin(t), c1 = 1.0 - cos(t);
+    double K[3][3] = {{0.0, -a[2], a[1]}, {a[2], 0.0, -a[0]}, {-a[1], a[0], 0.0}};
+    double K2[3][3];
+    int i, j;
+    mat_mul(K, K, K2);
+    for (i = 0; i < 3; i++)
+        for (j = 0; j < 3; j++) M[i][j] = (i == j ? 1.0 : 0.0) + s * K[i][j] + c1 * K2[i][j];
+}
+
+/* Rotation by a rotation vector (axis * angle); the identity for the zero vector. */
+static void rot_vec(const double w[3], double M[3][3]) {
+    double n = norm3(w), a[3];
+    if (!(n > 0.0)) {
+        mat_identity(M);
+        return;
+    }
+    a[0] = w[0] / n;
+    a[1] = w[1] / n;
+    a[2] = w[2] / n;
+    rodrigues(a, n, M);
+}
+
+/* Quaternion (w, x, y, z), w >= 0, of the rotation matrix C (Shepperd's method: divide by the
+ * largest of the four candidate components, so no precision is lost near 180 deg). */
+static void dcm_to_quat(const double C[3][3], double q[4]) {
+    double tr = C[0][0] + C[1][1] + C[2][2], s, n;
+    int k;
+    if (tr >= C[0][0] && tr >= C[1][1] && tr >= C[2][2]) {
+        s = 2.0 * sqrt(1.0 + tr);
+        q[0] = 0.25 * s;
+        q[1] = (C[2][1] - C[1][2]) / s;
+        q[2] = (C[0][2] - C[2][0]) / s;
+        q[3] = (C[1][0] - C[0][1]) / s;
+    } else if (C[0][0] >= C[1][1] && C[0][0] >= C[2][2]) {
+        s = 2.0 * sqrt(1.0 + C[0][0] - C[1][1] - C[2][2]);
+        q[0] = (C[2][1] - C[1][2]) / s;
+        q[1] = 0.25 * s;
+        q[2] = (C[0][1] + C[1][0]) / s;
+        q[3] = (C[0][2] + C[2][0]) / s;
+    } else if (C[1][1] >= C[2][2]) {
+        s = 2.0 * sqrt(1.0 - C[0][0] + C[1][1] - C[2][2]);
+        q[0] = (C[0][2] - C[2][0]) / s;
+        q[1] = (C[0][1] + C[1][0]) / s;
+        q[2] = 0.25 * s;
+        q[3] = (C[1][2] + C[2][1]) / s;
+    } else {
+        s = 2.0 * sqrt(1.0 - C[0][0] - C[1][1] + C[2][2]);
+        q[0] = (C[1][0] - C[0][1]) / s;
+        q[1] = (C[0][2] + C[2][0]) / s;
+        q[2] = (C[1][2] + C[2][1]) / s;
+        q[3] = 0.25 * s;
+    }
+    n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (q[0] < 0.0) n = -n;
+    for (k = 0; k < 4; k++) q[k] /= n;
+}
+
+static double clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+/* ------------------------------------------------------------------ Earth */
+
+/* WGS-84 normal gravity (Somigliana) with the second-order free-air height correction. */
+static double normal_gravity(double lat, double h) {
+    const double a = 6378137.0, f = 1.0 / 298.257223563, mm = 0.00344978650684;
+    double s2 = sin(lat) * sin(lat);
+    double g0 = 9.7803253359 * (1.0 + 0.00193185265241 * s2) / sqrt(1.0 - 0.00669437999013 * s2);
+    return g0 * (1.0 - 2.0 / a * (1.0 + f + mm - 2.0 * f * s2) * h + 3.0 * h * h / (a * a));
+}
+
+/* ------------------------------------------------------------------ gimbal geometry */
+
+/* Stage transform T = C_k^{k-1} = Rot(w) R(a, th) with the wobble tilt w of the convention. */
+static void stage_matrix(const TTAxis *x, double th, double T[3][3]) {
+    double Ra[3][3], W[3][3], w[3];
+    int i;
+    rodrigues(x->a, th, Ra);
+    if (x->wob_amp == 0.0) {
+        memcpy(T, Ra, sizeof Ra);
+        return;
+    }
+    for (i = 0; i < 3; i++)
+        w[i] = x->wob_amp * (cos(th + x->wob_phase) * x->u[i] + sin(th + x->wob_phase) * x->v[i]);
+    rot_vec(w, W);
+    mat_mul(W, Ra, T);
+}
+
+/* Set a (non-orthogonality applied), the wobble basis u, v and the rate axis b of one stage
+ * from its parameters. Returns 0 when the axis vector is zero. */
+static int stage_geometry(ModelInstance *m, const AxisVR *vr, TTAxis *x) {
+    double a0[3], d[3], D[3][3], W0[3][3], Rp[3][3], tilt[3], n, best;
+    int k, j = 0;
+    for (k = 0; k < 3; k++) {
+        a0[k] = R(vr->axis[k]);
+        d[k] = R(vr->nonorth[k]);
+    }
+    n = norm3(a0);
+    if (!(n > 0.0)) return 0;
+    scale3(a0, 1.0 / n);
+    rot_vec(d, D);
+    mat_vec(D, a0, x->a);
+    scale3(x->a, 1.0 / norm3(x->a)); /* remove rounding: a stays a unit vector */
+    /* u: basis vector least aligned with a (x, then y, then z on ties), crossed with a */
+    best = fabs(x->a[0]);
+    for (k = 1; k < 3; k++)
+        if (fabs(x->a[k]) < best) {
+            best = fabs(x->a[k]);
+            j = k;
+        }
+    {
+        double e[3] = {0.0, 0.0, 0.0};
+        e[j] = 1.0;
+        cross3(e, x->a, x->u);
+    }
+    scale3(x->u, 1.0 / norm3(x->u));
+    cross3(x->a, x->u, x->v);
+    x->wob_amp = R(vr->wob_amp);
+    x->wob_phase = R(vr->wob_phase);
+    /* b = R(a, phi) Rot(-A u) a: see the header comment */
+    for (k = 0; k < 3; k++) tilt[k] = -x->wob_amp * x->u[k];
+    rot_vec(tilt, W0);
+    rodrigues(x->a, x->wob_phase, Rp);
+    mat_vec(W0, x->a, x->b);
+    mat_vec(Rp, x->b, x->b);
+    return 1;
+}
+
+/* Plate outputs (attitude, inertial rate and acceleration, specific force) from the true
+ * angles, rates and accelerations of the used stages. */
+static void plate_outputs(ModelInstance *m) {
+    ModelPrivate *p = &m->s.p;
+    double C[3][3], T[3][3], w[3], al[3], wc[3], rho[3], t[3], fn[3] = {0.0, 0.0, p->g}, f[3];
+    double q[4];
+    int k, i;
+    memcpy(C, p->C_b0n, sizeof C);
+    memcpy(w, p->w_ie_b0, sizeof w);
+    memset(al, 0, sizeof al);
+    for (k = 0; k < p->n_axes; k++) {
+        const TTAxis *x = &p->ax[k];
+        stage_matrix(x, x->th, T);
+        mat_mul(C, T, C);
+        mat_tvec(T, w, wc);   /* previous stage's rate in this stage's axes */
+        mat_tvec(T, al, al);
+        for (i = 0; i < 3; i++) rho[i] = x->thd * x->b[i];
+        cross3(wc, rho, t);   /* transport term d/dt(T^T) omega_{k-1} */
+        for (i = 0; i < 3; i++) {
+            al[i] += x->thdd * x->b[i] + t[i];
+            w[i] = wc[i] + rho[i];
+        }
+    }
+    mat_tvec(C, fn, f);
+    dcm_to_quat(C, q);
+    R(VR_plate_omega_x) = w[0];
+    R(VR_plate_omega_y) = w[1];
+    R(VR_plate_omega_z) = w[2];
+    R(VR_plate_alpha_x) = al[0];
+    R(VR_plate_alpha_y) = al[1];
+    R(VR_plate_alpha_z) = al[2];
+    R(VR_plate_f_x) = f[0];
+    R(VR_plate_f_y) = f[1];
+    R(VR_plate_f_z) = f[2];
+    R(VR_plate_q_w) = q[0];
+    R(VR_plate_q_x) = q[1];
+    R(VR_plate_q_y) = q[2];
+    R(VR_plate_q_z) = q[3];
+}
+
+/* ------------------------------------------------------------------ servo */
+
+/* Encoder reading of a true (multi-turn) angle: harmonic errors, then quantisation to
+ * 2 pi / 2^bits rounded to the nearest count (bits = 0: no quantisation). */
+static double encoder(ModelInstance *m, const AxisVR *vr, double th) {
+    int bits = I(vr->bits);
+    double y = th + R(vr->h1_amp) * sin(th + R(vr->h1_phase)) +
+               R(vr->h2_amp) * sin(2.0 * th + R(vr->h2_phase));
+    double q;
+    if (bits == 0) return y;
+    q = ldexp(2.0 * M_PI, -bits);
+    return round(y / q) * q;
+}
+
+/* Angular acceleration of the axis under torque u (smoothed Coulomb friction). */
+static double axis_acc(ModelInstance *m, const AxisVR *vr, double thd, double u) {
+    return (u - R(vr->viscous) * thd -
+            R(vr->coulomb) * tanh(thd / R(VR_servo_friction_smoothing))) / R(vr->inertia);
+}
+
+/* Integrate the axis over one controller tick with the torque held, classical RK4. */
+static void plant_tick(ModelInstance *m, const AxisVR *vr, TTAxis *x) {
+    int n = m->s.p.substeps, i;
+    double h = m->s.p.T / n, u = x->torque;
+    for (i = 0; i < n; i++) {
+        double th = x->th, w = x->thd;
+        double k1p = w, k1v = axis_acc(m, vr, w, u);
+        double k2p = w + 0.5 * h * k1v, k2v = axis_acc(m, vr, k2p, u);
+        double k3p = w + 0.5 * h * k2v, k3v = axis_acc(m, vr, k3p, u);
+        double k4p = w + h * k3v, k4v = axis_acc(m, vr, k4p, u);
+        x->th = th + h / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p);
+        x->thd = w + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+    }
+    x->thdd = axis_acc(m, vr, x->thd, u);
+}
+
+/* Reference generator: from (th_ref, w_ref) at t_k choose the acceleration a_ref held over the
+ * tick, aiming at position p1 and rate v at t_k + T (position mode) and return the state at
+ * t_k + T through th1 / w1. Near-time-optimal: the desired rate at the end of the tick is the
+ * target rate plus the braking-curve rate sqrt(2 a_max |e|) for the error left after coasting
+ * one tick (evaluating the curve one tick ahead is what removes the discrete overshoot); when
+ * the target is reachable within one tick's acceleration the reference snaps exactly onto it, so
+ * it rests on the target without chatter. */
+static void ref_position(const TTAxis *x, double p1, double v, double amax, double wmax, double T,
+                         double *th1, double *w1, double *acc) {
+    double e1, vd;
+    v = clamp(v, -wmax, wmax);
+    if (fabs(v - x->w_ref) <= amax * T &&
+        fabs(p1 - (x->th_ref + 0.5 * (x->w_ref + v) * T)) <= 0.5 * amax * T * T) {
+        *th1 = p1;
+        *w1 = v;
+        *acc = (v - x->w_ref) / T;
+        return;
+    }
+    e1 = p1 - (x->th_ref + x->w_ref * T);
+    vd = clamp(v + copysign(sqrt(2.0 * amax * fabs(e1)), e1), -wmax, wmax);
+    *acc = clamp((vd - x->w_ref) / T, -amax, amax);
+    *th1 = x->th_ref + x->w_ref * T + 0.5 * *acc * T * T;
+    *w1 = x->w_ref + *acc * T;
+}
+
+/* Rate mode: the reference rate approaches rate_cmd at the acceleration limit; the angle
+ * integrates it exactly (constant acceleration over the tick). */
+static void ref_rate(const TTAxis *x, double v, double amax, double wmax, double T, double *th1,
+                     double *w1, double *acc) {
+    v = clamp(v, -wmax, wmax);
+    *acc = clamp((v - x->w_ref) / T, -amax, amax);
+    *w1 = fabs(v - x->w_ref) <= amax * T ? v : x->w_ref + *acc * T;
+    *th1 = x->th_ref + 0.5 * (x->w_ref + *w1) * T;
+}
+
+/* One controller tick of one axis; j = ticks since the start of the current doStep. */
+static void servo_tick(ModelInstance *m, int k, long long j) {
+    ModelPrivate *p = &m->s.p;
+    const AxisVR *vr = &AXVR[k];
+    TTAxis *x = &p->ax[k];
+    double T = p->T, amax = R(vr->acc_max), wmax = R(vr->rate_max);
+    double J = R(vr->inertia), B = R(vr->viscous), umax = R(vr->torque_max);
+    double th1, w1, acc, e, ufb, uff, u;
+    /* (1) reference over [t_k, t_k + T] */
+    if (I(vr->mode) == 0) {
+        double p1 = R(vr->angle_cmd) + R(vr->rate_cmd) * ((double)(j + 1) * T);
+        ref_position(x, p1, R(vr->rate_cmd), amax, wmax, T, &th1, &w1, &acc);
+    } else {
+        ref_rate(x, R(vr->rate_cmd), amax, wmax, T, &th1, &w1, &acc);
+    }
+    /* (2) measurement, (3) control law */
+    e = x->th_ref - encoder(m, vr, x->th);
+    ufb = R(vr->b0) * e + R(vr->b1) * x->e1 + R(vr->b2) * x->e2 - R(vr->a1) * x->u1 -
+          R(vr->a2) * x->u2;
+    uff = R(VR_servo_feedforward) * (J * acc + B * 0.5 * (x->w_ref + w1));
+    u = clamp(ufb + uff, -umax, umax);
+    /* the controller remembers the feedback torque actually applied: when the motor saturates
+     * its integrator stops winding up (anti-windup of the direct-form filter) */
+    x->e2 = x->e1;
+    x->e1 = e;
+    x->u2 = x->u1;
+    x->u1 = u - uff;
+    x->torque = u;
+    /* (4) plant */
+    plant_tick(m, vr, x);
+    x->th_ref = th1;
+    x->w_ref = w1;
+    x->a_ref = acc;
+}
+
+/* ------------------------------------------------------------------ outputs, checks */
+
+static void axis_outputs(ModelInstance *m) {
+    int k;
+    for (k = 0; k < TT_MAX_AXES; k++) {
+        const AxisVR *vr = &AXVR[k];
+        const TTAxis *x = &m->s.p.ax[k];
+        int used = k < m->s.p.n_axes;
+        R(vr->angle) = used ? encoder(m, vr, x->th) : 0.0;
+        R(vr->rate) = x->thd;
+        R(vr->angle_true) = x->th;
+        R(vr->angle_ref) = x->th_ref;
+        R(vr->torque) = x->torque;
+    }
+}
+
+static ModelStatus check_positive(ModelInstance *m, int vr) {
+    if (!(R(vr) > 0.0)) {
+        model_log(m, MS_ERROR, "parameter %s = %g: expected > 0", REAL_NAME[vr], R(vr));
+        return MS_ERROR;
+    }
+    return MS_OK;
+}
+
+static ModelStatus check_mode(ModelInstance *m, const AxisVR *vr) {
+    int mode = I(vr->mode);
+    if (mode != 0 && mode != 1) {
+        model_log(m, MS_ERROR, "input %s = %d: expected 0 (position) or 1 (rate)",
+                  INTEGER_NAME[vr->mode - INTEGER_VR_BASE], mode);
+        return MS_ERROR;
+    }
+    return MS_OK;
+}
+
+static ModelStatus check_axis(ModelInstance *m, const AxisVR *vr) {
+    int bits = I(vr->bits);
+    if (check_positive(m, vr->inertia) || check_positive(m, vr->torque_max) ||
+        check_positive(m, vr->rate_max) || check_positive(m, vr->acc_max) ||
+        model_check_real(m, vr->viscous, 0.0, INFINITY, ">= 0") ||
+        model_check_real(m, vr->coulomb, 0.0, INFINITY, ">= 0"))
+        return MS_ERROR;
+    if (bits < 0 || bits > 32) {
+        model_log(m, MS_ERROR, "parameter %s = %d: expected 0 (no quantisation) to 32",
+                  INTEGER_NAME[vr->bits - INTEGER_VR_BASE], bits);
+        return MS_ERROR;
+    }
+    return check_mode(m, vr);
+}
+
+static ModelStatus check_parameters(ModelInstance *m) {
+    int vr, k, n = I(VR_n_axes);
+    for (vr = 0; vr < N_REAL; vr++)
+        if (REAL_CAUSALITY[vr] == CAUS_PARAMETER &&
+            model_check_real(m, vr, -INFINITY, INFINITY, "a finite value"))
+            return MS_ERROR;
+    if (n < 1 || n > TT_MAX_AXES) {
+        model_log(m, MS_ERROR, "parameter n_axes = %d: expected 1, 2 or 3", n);
+        return MS_ERROR;
+    }
+    if (check_positive(m, VR_servo_rate) || check_positive(m, VR_servo_friction_smoothing) ||
+        model_check_real(m, VR_site_gravity, 0.0, INFINITY, ">= 0 (0: WGS-84 normal gravity)") ||
+        model_check_real(m, VR_site_latitude, -M_PI / 2, M_PI / 2, "in [-pi/2, pi/2]"))
+        return MS_ERROR;
+    for (k = 0; k < n; k++)
+        if (check_axis(m, &AXVR[k])) return MS_ERROR;
+    return MS_OK;
+}
+
+/* RK4 substeps per tick: enough that |lambda| h <= RK4_LAMBDA_H on every used axis. */
+static ModelStatus choose_substeps(ModelInstance *m) {
+    ModelPrivate *p = &m->s.p;
+    double ws = R(VR_servo_friction_smoothing), need = 1.0;
+    int k;
+    for (k = 0; k < p->n_axes; k++) {
+        const AxisVR *vr = &AXVR[k];
+        double lam = (R(vr->viscous) + R(vr->coulomb) / ws) / R(vr->inertia);
+        need = fmax(need, ceil(lam * p->T / RK4_LAMBDA_H));
+    }
+    if (!(need <= MAX_SUBSTEPS)) {
+        model_log(m, MS_ERROR,
+                  "parameter servo.friction_smoothing = %g: expected larger, the friction law "
+                  "would need %g RK4 substeps per controller tick (limit %d)", ws, need,
+                  MAX_SUBSTEPS);
+        return MS_ERROR;
+    }
+    p->substeps = (int)need;
+    return MS_OK;
+}
+
+ModelStatus model_initialize(ModelInstance *m) {
+    ModelPrivate *p = &m->s.p;
+    double Rx[3][3], Ry[3][3], Rz[3][3];
+    const double ex[3] = {1, 0, 0}, ey[3] = {0, 1, 0}, ez[3] = {0, 0, 1};
+    double lat = R(VR_site_latitude), Om = R(VR_site_earth_rate);
+    int k;
+    memset(p, 0, sizeof *p);
+    if (check_parameters(m)) return MS_ERROR;
+    p->n_axes = I(VR_n_axes);
+    p->T = 1.0 / R(VR_servo_rate);
+    if (choose_substeps(m)) return MS_ERROR;
+    rodrigues(ex, R(VR_base_tilt_x), Rx);
+    rodrigues(ey, R(VR_base_tilt_y), Ry);
+    rodrigues(ez, R(VR_base_azimuth), Rz);
+    mat_mul(Rx, Ry, p->C_b0n);
+    mat_mul(p->C_b0n, Rz, p->C_b0n);
+    p->w_ie_n[0] = 0.0;
+    p->w_ie_n[1] = Om * cos(lat);
+    p->w_ie_n[2] = Om * sin(lat);
+    mat_tvec(p->C_b0n, p->w_ie_n, p->w_ie_b0);
+    p->g = R(VR_site_gravity) > 0.0 ? R(VR_site_gravity) : normal_gravity(lat, R(VR_site_height));
+    for (k = 0; k < p->n_axes; k++) {
+        TTAxis *x = &p->ax[k];
+        if (!stage_geometry(m, &AXVR[k], x)) {
+            model_log(m, MS_ERROR,
+                      "parameter %s.axis = (%g, %g, %g): expected a non-zero axis vector",
+                      k == 0 ? "outer" : (k == 1 ? "middle" : "inner"), R(AXVR[k].axis[0]),
+                      R(AXVR[k].axis[1]), R(AXVR[k].axis[2]));
+            return MS_ERROR;
+        }
+        x->th = x->th_ref = R(AXVR[k].angle0);
+    }
+    axis_outputs(m);
+    plate_outputs(m);
+    return MS_OK;
+}
+
+static ModelStatus check_inputs(ModelInstance *m) {
+    int k;
+    for (k = 0; k < m->s.p.n_axes; k++) {
+        const AxisVR *vr = &AXVR[k];
+        int in[2] = {vr->angle_cmd, vr->rate_cmd}, i;
+        for (i = 0; i < 2; i++)
+            if (!isfinite(R(in[i]))) {
+                model_log(m, MS_ERROR, "input %s = %g: expected a finite value",
+                          REAL_NAME[in[i]], R(in[i]));
+                return MS_ERROR;
+            }
+        if (check_mode(m, vr)) return MS_ERROR;
+    }
+    return MS_OK;
+}
+
+ModelStatus model_do_step(ModelInstance *m, double h) {
+    ModelPrivate *p = &m->s.p;
+    double ratio = h / p->T, n = round(ratio);
+    long long j;
+    int k;
+    if (n < 1.0 || fabs(h - n * p->T) > 1e-9 * h || n > 1e12) {
+        model_log(m, MS_ERROR,
+                  "communication step %.12g s: expected an integer multiple of the controller "
+                  "period T = %.12g s (servo.rate = %g Hz)", h, p->T, R(VR_servo_rate));
+        return MS_ERROR;
+    }
+    if (check_inputs(m)) return MS_ERROR;
+    for (j = 0; j < (long long)n; j++)
+        for (k = 0; k < p->n_axes; k++) servo_tick(m, k, j);
+    p->tick += (long long)n;
+    axis_outputs(m);
+    plate_outputs(m);
+    return MS_OK;
+}
+
+ModelStatus model_inputs_changed(ModelInstance *m) {
+    (void)m;
+    return MS_OK;
+}
