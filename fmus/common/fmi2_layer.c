@@ -107,6 +107,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         return (fmi2Status)st;
     }
     SELF->m.initialized = 1;
+    SELF->failed = 0; /* a corrected retry after a refused parameter is a fresh start */
     return (fmi2Status)st;
 }
 
