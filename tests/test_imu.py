@@ -4,6 +4,7 @@ scipy. Never against numbers captured from the FMU."""
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -305,7 +306,7 @@ def test_allan_rate_random_walk(imu_fmu):
     # each axis is noisy (few independent long clusters); the mean over the six axes is the check
     print(f"RRW estimate / K per axis {np.round(est, 3)}, mean {est.mean():.4f}")
     assert abs(est.mean() - 1) < 0.10
-    assert np.all(np.abs(est - 1) < 0.35)
+    assert np.all(np.abs(est - 1) < 0.20)
 
 
 NOISY = {"gyro.noise.arw": 1e-4, "gyro.noise.bi": 1e-5, "gyro.noise.rrw": 1e-6,
@@ -468,3 +469,135 @@ def test_nonfinite_input_named(imu_fmu):
         assert any("input omega.y" in msg for _, msg in s.log)
     finally:
         s.fmu.freeInstance()
+
+
+# ------------------------------------------------------------------------------ portable generator
+
+M64 = (1 << 64) - 1
+
+
+class PyXoshiro:
+    """The documented generator restated in Python (Python floats are IEEE doubles with
+    correctly rounded + - * / sqrt, so the same algorithm gives the same bits as the C)."""
+
+    def __init__(self, state):
+        self.s = list(state)
+
+    @classmethod
+    def seeded(cls, seed):
+        x, st = seed & M64, []
+        for _ in range(4):
+            x = (x + 0x9E3779B97F4A7C15) & M64
+            z = x
+            z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & M64
+            z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & M64
+            st.append(z ^ (z >> 31))
+        return cls(st)
+
+    @staticmethod
+    def _rotl(x, k):
+        return ((x << k) | (x >> (64 - k))) & M64
+
+    def next(self):
+        s = self.s
+        result = (self._rotl((s[1] * 5) & M64, 7) * 9) & M64
+        t = (s[1] << 17) & M64
+        s[2] ^= s[0]
+        s[3] ^= s[1]
+        s[1] ^= s[2]
+        s[0] ^= s[3]
+        s[2] ^= t
+        s[3] = self._rotl(s[3], 45)
+        return result
+
+    def jumped(self):
+        j = PyXoshiro(self.s)
+        acc = [0, 0, 0, 0]
+        for word in (0x180EC6D33CFD0ABA, 0xD5A61266F0C9392C, 0xA9582618E03FC9AA, 0x39ABDC4529B1661C):
+            for b in range(64):
+                if word >> b & 1:
+                    acc = [a ^ v for a, v in zip(acc, j.s)]
+                j.next()
+        return PyXoshiro(acc)
+
+    def gauss(self):
+        while True:
+            u = (self.next() >> 11) * 2.0**-52 - 1.0
+            v = (self.next() >> 11) * 2.0**-52 - 1.0
+            q = u * u + v * v
+            if 0.0 < q < 1.0:
+                return u * math.sqrt(-2.0 * py_log(q) / q)
+
+
+LN2_HI, LN2_LO = 6.93147180369123816490e-01, 1.90821492927058770002e-10
+
+
+def py_log(x):
+    m, e = math.frexp(x)
+    if m < 0.70710678118654752440:
+        m, e = m * 2.0, e - 1
+    z = (m - 1.0) / (m + 1.0)
+    z2, s = z * z, 0.0
+    for k in range(25, 2, -2):
+        s = (s + 1.0 / k) * z2
+    return e * LN2_HI + (e * LN2_LO + 2.0 * (z + z * s))
+
+
+def test_portable_log_accuracy():
+    x = np.random.default_rng(0).uniform(1e-300, 1.0, 20000) ** np.random.default_rng(1).uniform(0, 30, 20000)
+    x = x[(x > 0) & (x < 1)]
+    err = max(abs(py_log(v) - math.log(v)) / abs(math.log(v)) for v in x if v != 1.0)
+    assert err < 4e-16
+
+
+def test_white_noise_bits_match_documented_generator(imu_fmu):
+    """White noise alone: output = (N sqrt(h)) w1, w1 the first of the four normals per axis and
+    step after the three Gauss-Markov start draws of initialisation, from the documented streams."""
+    N_g, N_a, h, seed, n = 3e-4, 7e-4, 0.01, -12345, 5
+    _, y = run(imu_fmu, {"gyro.noise.arw": N_g, "acc.noise.vrw": N_a, "seed": seed}, None, h, n)
+    gy = PyXoshiro.seeded(seed)
+    streams = [gy, gy.jumped()]
+    expect = np.empty((n, 6))
+    for s, dens in zip(streams, (N_g, N_a)):
+        for _ in range(3):
+            s.gauss()
+    for k in range(n):
+        for si, (s, dens) in enumerate(zip(streams, (N_g, N_a))):
+            for i in range(3):
+                w = [s.gauss() for _ in range(4)]
+                expect[k, 3 * si + i] = dens * math.sqrt(h) * w[0]
+    assert np.array_equal(y, expect)
+
+
+@pytest.mark.parametrize("timing", [0, 1])
+def test_master_input_derivatives_used(imu_fmu, timing):
+    """fmi2SetRealInputDerivatives: omega = b t^2/2 (alpha = b t, omega'' = b from the master)
+    and f = c t^2 (f' = 2 c t from the master) are reproduced exactly, in both timings
+    (timing 1: Taylor to order 2; timing 0: the Hermite cubic through exact slopes)."""
+    b = np.array([0.3, -0.7, 0.2])
+    c = np.array([1.5, 0.4, -2.0])
+    h, n = 0.01, 8
+    s = Slave(imu_fmu, {"input_timing": timing})
+    vr_w = [s.vr(f"omega.{k}") for k in AX]
+    vr_f = [s.vr(f"f.{k}") for k in AX]
+    vr_a = [s.vr(f"alpha.{k}") for k in AX]
+    try:
+        y = []
+        for _ in range(n):
+            t = s.time + h if timing == 0 else s.time
+            s.fmu.setReal(vr_w + vr_f + vr_a, [*(b * t**2 / 2), *(c * t**2), *(b * t)])
+            s.fmu.setRealInputDerivatives(vr_f, [1, 1, 1], list(2 * c * t))
+            if timing == 1:
+                s.fmu.setRealInputDerivatives(vr_w, [2, 2, 2], list(b))
+                s.fmu.setRealInputDerivatives(vr_f, [2, 2, 2], list(2 * c))
+            s.step(h)
+            y.append(s.fmu.getReal([s.vr(v) for v in OUT]))
+    finally:
+        s.close()
+    ts = h * np.arange(1, n + 1)
+    ta = ts - h
+    exact_w = np.outer((ts**3 - ta**3) / 6, b)
+    exact_f = np.outer((ts**3 - ta**3) / 3, c)
+    y = np.array(y)
+    np.testing.assert_allclose(y[:, :3], exact_w, rtol=1e-11, atol=1e-18)
+    np.testing.assert_allclose(y[:, 3:], exact_f, rtol=1e-11, atol=1e-16)
