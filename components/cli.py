@@ -26,6 +26,50 @@ def _cmd_tumble(args: argparse.Namespace) -> int:
     return run_tumble(seed=args.seed, dwell=args.dwell, step=args.step)
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    from orchestrator.master import Simulation
+    from orchestrator.system import load_system
+
+    system = load_system(args.system)
+    if args.stop is not None:
+        system.stop = args.stop
+    sim = Simulation(system)
+    sim.load()
+    for chk in sim.role_checks:
+        print(chk.report())
+    out = args.out or f"{system.name}.parquet"
+    rec = sim.run(out)
+    print(f"{system.name}: {rec.rows} rows x {len(rec.signals)} signals, "
+          f"{rec.provenance['wall_time_s']:.2f} s wall -> {out}")
+    return 0
+
+
+def _parse_mapping(items: list[str]) -> dict:
+    out = {}
+    for it in items or []:
+        if "=" not in it:
+            raise UserError(f"--map {it!r}: expected ROLE_NAME=FMU_NAME")
+        k, v = it.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def _cmd_check_fmu(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from orchestrator.check import check_fmu
+
+    if not Path(args.fmu).exists():
+        raise UserError(f"FMU file {args.fmu} does not exist")
+    options = {}
+    for it in args.option or []:
+        k, _, v = it.partition("=")
+        options[k] = v
+    verdict = check_fmu(args.fmu, args.role, _parse_mapping(args.map), options, args.step)
+    print(verdict.report())
+    return 0 if verdict.ok else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="calbench", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -33,6 +77,22 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("build-fmus", help="rebuild the turntable and IMU FMUs from source now")
     b.add_argument("--fmi", type=int, choices=(2, 3), help="only this FMI version")
     b.set_defaults(func=_cmd_build_fmus)
+
+    r = sub.add_parser("run", help="run a system file (TOML or SSP) and save its recording (Parquet)")
+    r.add_argument("system", help="system file (.toml or .ssp)")
+    r.add_argument("--out", help="recording file (default: <system name>.parquet)")
+    r.add_argument("--stop", type=float, help="override the stop time [s]")
+    r.set_defaults(func=_cmd_run)
+
+    c = sub.add_parser("check-fmu", help="validate an FMU, check it against a role, smoke-test it")
+    c.add_argument("fmu", help="the .fmu file")
+    c.add_argument("--role", choices=("imu", "turntable"), help="role the FMU should fill")
+    c.add_argument("--map", action="append", metavar="ROLE_NAME=FMU_NAME",
+                   help="map a role variable onto the FMU's own name (repeatable)")
+    c.add_argument("--option", action="append", metavar="KEY=VALUE",
+                   help="role option, e.g. gyro_output=rate (imu) (repeatable)")
+    c.add_argument("--step", type=float, default=0.005, help="step of the smoke test [s]")
+    c.set_defaults(func=_cmd_check_fmu)
 
     t = sub.add_parser("tumble", help="co-simulate the table tumbling a navigation-grade IMU "
                                       "through the six axis-up attitudes and check its outputs")
@@ -45,11 +105,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from fmus.build import BuildError
+    from orchestrator.master import RoleError, SimulationFault
+    from orchestrator.system import SystemError_
+    from orchestrator.wiring import AlgebraicLoopError
+
+    import components.roles  # noqa: F401  (registers the roles and builtin: FMUs)
 
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (UserError, BuildError) as e:
+    except (UserError, BuildError, SystemError_, RoleError, SimulationFault, AlgebraicLoopError) as e:
         print(f"calbench: error: {e}", file=sys.stderr)
         return 2
 

@@ -116,6 +116,7 @@ def run_tumble(seed: int = 1, dwell: float = 10.0, step: float = 0.005,
             if t - t_start > settle_timeout:
                 print(f"{label}: table did not settle within {settle_timeout:g} s")
                 return 1
+        settle = t - t_start - 0.5
         sums = np.zeros(6)
         truth = np.zeros(6)
         for _ in range(n_dwell):
@@ -132,7 +133,7 @@ def run_tumble(seed: int = 1, dwell: float = 10.0, step: float = 0.005,
         ra, rg = (acc - acc_model) / UG, (gyro - gyro_model) / DEG_PER_H
         worst = max(worst, np.max(np.abs(acc - acc_model)) / sigma_f,
                     np.max(np.abs(gyro - gyro_model)) / sigma_w)
-        print(f"{label:8s} {t - t_start - 0.5:6.2f}s  "
+        print(f"{label:8s} {settle:6.2f}s  "
               f"{acc[0]:+10.6f} {acc[1]:+10.6f} {acc[2]:+10.6f}  "
               f"{ra[0]:+8.2f} {ra[1]:+8.2f} {ra[2]:+8.2f}  {rg[0]:+9.5f} {rg[1]:+9.5f} {rg[2]:+9.5f}")
     table.close()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.util
 import os
 import platform
 import shutil
@@ -62,16 +63,32 @@ def _compiler_identity(cc: str) -> str:
     return out.stdout.splitlines()[0] if out.stdout else cc
 
 
-def load_table(model: str) -> modeldef.ModelTable:
+def _model_dir(model: str | Path) -> Path:
+    """A built-in model by name, or any folder holding a ``variables.py`` (defining ``TABLE``)
+    and the C sources it lists: the tests build their own small FMUs this way."""
+    if isinstance(model, Path):
+        if not (model / "variables.py").exists():
+            raise ValueError(f"{model}: a model folder needs a variables.py defining TABLE")
+        return model
     if model not in MODELS:
-        raise ValueError(f"unknown model {model!r}: expected one of {MODELS}")
-    return importlib.import_module(f"fmus.{model}.variables").TABLE
+        raise ValueError(f"unknown model {model!r}: expected one of {MODELS} or a model folder")
+    return HERE / model
 
 
-def _model_sources(model: str) -> list[Path]:
+def load_table(model: str | Path) -> modeldef.ModelTable:
+    folder = _model_dir(model)
+    if not isinstance(model, Path):
+        return importlib.import_module(f"fmus.{model}.variables").TABLE
+    spec = importlib.util.spec_from_file_location(f"_calbench_model_{folder.name}", folder / "variables.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.TABLE
+
+
+def _model_sources(model: str | Path) -> list[Path]:
     """Every file of the model's folder that can change the FMU (without importing its table,
     which runs the servo design)."""
-    folder = HERE / model
+    folder = _model_dir(model)
     return sorted(p for p in folder.iterdir() if p.suffix in (".c", ".h", ".py"))
 
 
@@ -91,7 +108,7 @@ def _shared_suffix() -> str:
     return ".dylib" if platform.system() == "Darwin" else ".so"
 
 
-def source_key(model: str, fmi_version: int) -> str:
+def source_key(model: str | Path, fmi_version: int) -> str:
     """SHA-256 over everything that goes into the FMU."""
     cc = _compiler()
     h = hashlib.sha256()
@@ -107,22 +124,21 @@ def source_key(model: str, fmi_version: int) -> str:
     return h.hexdigest()
 
 
-def fmu_path(model: str, fmi_version: int = 2) -> Path:
+def fmu_path(model: str | Path, fmi_version: int = 2) -> Path:
     """Path of the up-to-date ``.fmu`` for *model*, built now if the cache lacks it."""
     return build_fmu(model, fmi_version, force=False)
 
 
-def build_fmu(model: str, fmi_version: int = 2, force: bool = False) -> Path:
+def build_fmu(model: str | Path, fmi_version: int = 2, force: bool = False) -> Path:
     if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"fmi_version {fmi_version}: expected one of {FMI_VERSIONS}")
-    if model not in MODELS:
-        raise ValueError(f"unknown model {model!r}: expected one of {MODELS}")
+    folder = _model_dir(model)
     key = source_key(model, fmi_version)
-    target = cache_dir() / f"calbench_{model}-fmi{fmi_version}-{key[:16]}.fmu"
+    stem = f"calbench_{model}" if not isinstance(model, Path) else folder.name
+    target = cache_dir() / f"{stem}-fmi{fmi_version}-{key[:16]}.fmu"
     if target.exists() and not force:
         return target
     table = load_table(model)
-    assert table.identifier == f"calbench_{model}", table.identifier
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent, prefix=".build-") as tmp:
         fmu = _build_into(Path(tmp), model, table, fmi_version, key)
@@ -130,7 +146,7 @@ def build_fmu(model: str, fmi_version: int = 2, force: bool = False) -> Path:
     return target
 
 
-def _build_into(work: Path, model: str, table: modeldef.ModelTable, fmi_version: int,
+def _build_into(work: Path, model: str | Path, table: modeldef.ModelTable, fmi_version: int,
                 key: str) -> Path:
     cc = _compiler()
     src = work / "sources"
@@ -138,8 +154,9 @@ def _build_into(work: Path, model: str, table: modeldef.ModelTable, fmi_version:
     token = table.token(key)
     (src / "config.h").write_text(modeldef.c_header(table, token))
     layer = COMMON / f"fmi{fmi_version}_layer.c"
-    c_files = [layer, COMMON / "model_support.c"] + [HERE / model / s for s in table.sources]
-    headers = sorted(COMMON.glob("*.h")) + sorted((HERE / model).glob("*.h"))
+    folder = _model_dir(model)
+    c_files = [layer, COMMON / "model_support.c"] + [folder / s for s in table.sources]
+    headers = sorted(COMMON.glob("*.h")) + sorted(folder.glob("*.h"))
     fmi_headers = sorted(_fmi_headers().glob(f"fmi{fmi_version}*.h"))
     for f in c_files + headers + fmi_headers:
         shutil.copy(f, src / f.name)

@@ -1,0 +1,66 @@
+"""The two plant roles of architecture.md §3 (``turntable`` and ``imu``), registered with the
+orchestrator, and the ``builtin:`` scheme that names the project's own FMUs in system files."""
+from __future__ import annotations
+
+from orchestrator.master import register_fmu_resolver
+from orchestrator.roles import Role, RoleVariable, register_role
+
+DEFAULT_AXES = ("outer", "middle", "inner")
+
+
+def turntable_role(axes=DEFAULT_AXES) -> Role:
+    v = []
+    for a in axes:
+        v += [
+            RoleVariable(f"{a}.mode", "input", "Integer", None, True, "0 position, 1 rate"),
+            RoleVariable(f"{a}.angle_cmd", "input", "Real", "rad"),
+            RoleVariable(f"{a}.rate_cmd", "input", "Real", "rad/s"),
+            RoleVariable(f"{a}.angle", "output", "Real", "rad", True, "encoder angle"),
+            RoleVariable(f"{a}.rate", "output", "Real", "rad/s"),
+        ]
+    for c in "xyz":
+        v.append(RoleVariable(f"plate.omega.{c}", "output", "Real", "rad/s"))
+    for c in "xyz":
+        v.append(RoleVariable(f"plate.alpha.{c}", "output", "Real", "rad/s2"))
+    for c in "xyz":
+        v.append(RoleVariable(f"plate.f.{c}", "output", "Real", "m/s2"))
+    for c in "wxyz":
+        v.append(RoleVariable(f"plate.q.{c}", "output", "Real", "1"))
+    return Role("turntable", v, "servo, gimbal chain, base and Earth; plate motion in plate axes")
+
+
+GYRO_KINDS = {"increment": "rad", "rate": "rad/s", "counts": "1"}
+ACC_KINDS = {"increment": "m/s", "specific_force": "m/s2", "rate": "m/s2", "counts": "1"}
+
+
+def imu_role(gyro_output: str = "increment", acc_output: str = "increment") -> Role:
+    """``gyro_output`` / ``acc_output``: the kind of output the unit gives (its binding), which
+    fixes the SI unit its outputs are converted to (as in measurement-log.md)."""
+    if gyro_output not in GYRO_KINDS:
+        raise ValueError(f"gyro_output {gyro_output!r}: expected one of {sorted(GYRO_KINDS)}")
+    if acc_output not in ACC_KINDS:
+        raise ValueError(f"acc_output {acc_output!r}: expected one of {sorted(ACC_KINDS)}")
+    v = [RoleVariable(f"omega.{c}", "input", "Real", "rad/s") for c in "xyz"]
+    v += [RoleVariable(f"f.{c}", "input", "Real", "m/s2") for c in "xyz"]
+    v += [RoleVariable(f"alpha.{c}", "input", "Real", "rad/s2", False) for c in "xyz"]
+    v.append(RoleVariable("temperature_env", "input", "Real", "degC", False))
+    v += [RoleVariable(f"gyro.{c}", "output", "Real", GYRO_KINDS[gyro_output]) for c in "xyz"]
+    v += [RoleVariable(f"acc.{c}", "output", "Real", ACC_KINDS[acc_output]) for c in "xyz"]
+    v.append(RoleVariable("temperature", "output", "Real", "degC", False))
+    return Role("imu", v, "sensor physics, error effects, noise; outputs per interval")
+
+
+def _builtin(name: str):
+    from fmus.build import MODELS, fmu_path
+
+    fmi = 2
+    if name.endswith("@3"):
+        name, fmi = name[:-2], 3
+    if name not in MODELS:
+        raise KeyError(f"builtin:{name}: expected one of {', '.join(MODELS)}")
+    return fmu_path(name, fmi)
+
+
+register_role("turntable", lambda axes=DEFAULT_AXES: turntable_role(tuple(axes)))
+register_role("imu", imu_role)
+register_fmu_resolver("builtin", _builtin)
