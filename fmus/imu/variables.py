@@ -93,11 +93,15 @@ VARIABLES += [real(f"f.{c}", "input", 0.0, "m/s2", f"specific force at the mount
 VARIABLES += [real(f"alpha.{c}", "input", 0.0, "rad/s2", f"angular acceleration (d omega/dt), {c} axis")
               for c in AX]
 VARIABLES.append(real("temperature_env", "input", 25.0, "degC", "environment temperature (mode 2)"))
-VARIABLES += [real(f"gyro.{c}", "output", None, "rad",
-                   f"gyro output over the interval just ended, {c} axis (kind per gyro.output)")
+# No unit is declared on the sensor outputs: it follows the output kind chosen by gyro.output /
+# acc.output (rad, rad/s or counts; m/s, m/s2 or counts), which the role binding states.
+VARIABLES += [real(f"gyro.{c}", "output", None, None,
+                   f"gyro output over the interval just ended, {c} axis: increment [rad], "
+                   "mean rate [rad/s] or counts, per gyro.output")
               for c in AX]
-VARIABLES += [real(f"acc.{c}", "output", None, "m/s",
-                   f"accelerometer output over the interval just ended, {c} axis (kind per acc.output)")
+VARIABLES += [real(f"acc.{c}", "output", None, None,
+                   f"accelerometer output over the interval just ended, {c} axis: increment [m/s], "
+                   "mean specific force [m/s2] or counts, per acc.output")
               for c in AX]
 VARIABLES.append(real("temperature", "output", None, "degC", "IMU temperature"))
 
