@@ -55,11 +55,11 @@ class SimulationFault(Exception):
         super().__init__(message + (f"\n(partial results saved to {saved})" if saved else ""))
 
 
-def _import_component(spec, name: str) -> Component:
+def _import_component(spec, name: str, config: dict) -> Component:
     if isinstance(spec, Component):
         return spec
     if isinstance(spec, type) and issubclass(spec, Component):
-        return spec(name)
+        return _construct(spec, name, config)
     if isinstance(spec, str) and ":" in spec:
         mod, cls = spec.split(":", 1)
         try:
@@ -68,8 +68,15 @@ def _import_component(spec, name: str) -> Component:
             raise SystemError_(f"units.{name}.component = {spec!r}: cannot import ({e})") from None
         if not (isinstance(obj, type) and issubclass(obj, Component)):
             raise SystemError_(f"units.{name}.component = {spec!r}: not a Component subclass")
-        return obj(name)
+        return _construct(obj, name, config)
     raise SystemError_(f"units.{name}.component = {spec!r}: expected 'module:Class'")
+
+
+def _construct(cls: type, name: str, config: dict) -> Component:
+    try:
+        return cls(name, **config)
+    except TypeError as e:
+        raise SystemError_(f"units.{name}.config: {cls.__name__} does not accept {sorted(config)} ({e})") from None
 
 
 def _fmu_file(system: System, spec_fmu: str, name: str) -> Path:
@@ -110,7 +117,8 @@ class Simulation:
             if spec.fmu is not None:
                 self.units[spec.name] = load_fmu_unit(spec.name, _fmu_file(self.system, spec.fmu, spec.name))
             else:
-                self.units[spec.name] = ComponentUnit(spec.name, _import_component(spec.component, spec.name))
+                self.units[spec.name] = ComponentUnit(
+                    spec.name, _import_component(spec.component, spec.name, spec.config))
         checks = []
         for spec in self.system.units:
             if spec.role:

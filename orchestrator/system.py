@@ -25,8 +25,10 @@ The same object comes from a TOML file (:func:`load_system`), from an SSP archiv
     "omega.x" = "AngularRate_X"
 
     [units.ctrl]
-    component = "components.controller:CalibrationController"   # Python component class
+    component = "components.sequencer:AttitudeSequence"   # Python component class
     step_multiple = 20
+    [units.ctrl.config]      # keyword arguments of the component's constructor
+    sequence = [[0.0, 0.0, 0.0, 0.0], [5.0, 0.0, 1.5707963267948966, 0.0]]
 
     [[connections]]
     from = "table.plate.omega"   # a vector prefix connects .x .y .z (or .w .x .y .z)
@@ -62,6 +64,7 @@ class UnitSpec:
     parameters: dict = field(default_factory=dict)
     mapping: dict = field(default_factory=dict)
     step_multiple: int = 1
+    config: dict = field(default_factory=dict)  # Python components: constructor keyword arguments
 
 
 @dataclass
@@ -162,7 +165,8 @@ def system_from_dict(data: dict, source: str = "system", base_dir: Path | None =
         where = f"{source}: units.{name}"
         if not isinstance(u, dict):
             raise SystemError_(f"{where}: expected a table")
-        allowed = {"fmu", "component", "role", "role_options", "parameters", "mapping", "step_multiple"}
+        allowed = {"fmu", "component", "role", "role_options", "parameters", "mapping", "step_multiple",
+                   "config"}
         extra = set(u) - allowed
         if extra:
             raise SystemError_(f"{where}: unknown key(s) {sorted(extra)}; expected some of {sorted(allowed)}")
@@ -175,6 +179,7 @@ def system_from_dict(data: dict, source: str = "system", base_dir: Path | None =
             parameters=_expect(u, "parameters", dict, where, {}),
             mapping=_expect(u, "mapping", dict, where, {}),
             step_multiple=_expect(u, "step_multiple", int, where, 1),
+            config=_expect(u, "config", dict, where, {}),
         ))
     for i, c in enumerate(_expect(data, "connections", list, source, [])):
         where = f"{source}: connections[{i}]"
