@@ -1,0 +1,159 @@
+"""The plate's motion over every sample interval of a log, reconstructed from the measured gimbal
+angles through the table geometry: angular rate, angular acceleration and specific force at
+Gauss–Legendre nodes inside each interval, from which the forward model integrates the ideal
+increments and every effect's regressor.
+
+Angles are interpolated per moving run (a maximal run of intervals in which some angle changes)
+by a cubic spline through the logged angles, clamped to zero rate at rest ends. Encoder
+quantisation makes per-sample rates of this interpolant noisy (domain.md §3); what stays exact
+is the integral of the gimbal rate between two rest samples, so estimators compare gyro output
+with the table over whole rest-to-rest moves (see components.blocks).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from components.geometry import TableGeometry
+
+_GL = {
+    2: (np.array([-1, 1]) / np.sqrt(3), np.array([1.0, 1.0])),
+    3: (np.array([-np.sqrt(3 / 5), 0.0, np.sqrt(3 / 5)]), np.array([5, 8, 5]) / 9),
+    4: (np.array([-0.8611363115940526, -0.3399810435848563, 0.3399810435848563, 0.8611363115940526]),
+        np.array([0.3478548451374538, 0.6521451548625461, 0.6521451548625461, 0.3478548451374538])),
+}
+
+
+def gauss_legendre(q: int) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes on [0, 1] and weights summing to 1."""
+    x, w = _GL[q]
+    return (x + 1) / 2, w / 2
+
+
+@dataclass
+class Motion:
+    time: np.ndarray       # (N,) end of each sample interval
+    dt: np.ndarray         # (N,) interval lengths
+    static: np.ndarray     # (N,) bool: no gimbal angle changed over the interval
+    nodes: np.ndarray      # (Q,) node positions in [0, 1]
+    weights: np.ndarray    # (Q,) weights, sum 1
+    omega_q: np.ndarray    # (N, Q, 3) inertial rate of the plate, plate axes
+    alpha_q: np.ndarray    # (N, Q, 3)
+    f_q: np.ndarray        # (N, Q, 3) specific force at the plate reference point
+    omega_start: np.ndarray  # (N, 3) at the start / end of each interval
+    omega_end: np.ndarray
+    f_start: np.ndarray
+    f_end: np.ndarray
+    dtemp_q: np.ndarray    # (N, Q) temperature - T0
+    elapsed_q: np.ndarray  # (N, Q) time since the start of the log
+    t0_temperature: float
+    lever: np.ndarray      # (3, 3) row i: offset of accelerometer i used by f_at
+
+    def f_at(self, i: str) -> np.ndarray:
+        """Specific force (N, Q, 3) at accelerometer i's location (size effect)."""
+        r = self.lever["xyz".index(i)]
+        if not r.any():
+            return self.f_q
+        w = self.omega_q
+        return self.f_q + np.cross(self.alpha_q, r) + np.cross(w, np.cross(w, r))
+
+    def integral(self, values_q: np.ndarray) -> np.ndarray:
+        """∫ over each interval of node values (N, Q, ...) -> (N, ...)."""
+        return self.dt.reshape((-1,) + (1,) * (values_q.ndim - 2)) * np.tensordot(
+            values_q, self.weights, axes=([1], [0]))
+
+    @property
+    def ideal_gyro(self) -> np.ndarray:
+        return self.integral(self.omega_q)
+
+    @property
+    def ideal_acc(self) -> np.ndarray:
+        """Ideal accelerometer increments, each axis at its own location (lever arms)."""
+        out = np.empty((len(self.dt), 3))
+        for k, i in enumerate("xyz"):
+            out[:, k] = self.integral(self.f_at(i)[:, :, k])
+        return out
+
+
+def moving_runs(static: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of consecutive non-static intervals."""
+    moving = ~static
+    edges = np.diff(np.concatenate([[0], moving.astype(np.int8), [0]]))
+    return list(zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]))
+
+
+def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
+                temperature: np.ndarray | None = None, t0_temperature: float | None = None,
+                quadrature: int = 3, lever: np.ndarray | None = None, dt0: float | None = None) -> Motion:
+    """Motion over each interval (t_{k-1}, t_k] from measured angles (N, n_axes) at t_k.
+
+    The interval before the first sample is taken as static at the first angles; its length is
+    ``dt0`` (default: the first sample spacing)."""
+    time = np.asarray(time, float)
+    n = len(time)
+    measured = np.atleast_2d(np.asarray(angles, float))
+    theta = geometry.true_angles(measured)
+    if dt0 is None:
+        dt0 = time[1] - time[0] if n > 1 else 0.0
+    t_prev = np.concatenate([[time[0] - dt0], time[:-1]])
+    dt = time - t_prev
+    prev = np.vstack([measured[:1], measured[:-1]])
+    static = np.all(prev == measured, axis=1)
+    x, w = gauss_legendre(quadrature)
+    q = len(x)
+    n_ax = theta.shape[1]
+
+    th_q = np.repeat(theta[:, None, :], q, axis=1)  # static default: angle held
+    rate_q = np.zeros_like(th_q)
+    acc_q = np.zeros_like(th_q)
+    rate_end = np.zeros((n, n_ax))
+    acc_end = np.zeros((n, n_ax))
+    for a, b in moving_runs(static):
+        # knots: the rest sample before the run (index a-1, or the virtual one) to sample b-1,
+        # plus the rest sample after it when there is one
+        lo = a - 1
+        hi = b if b < n else b - 1
+        kt = np.concatenate([[t_prev[a]], time[a:hi + 1]])
+        kth = np.vstack([theta[lo] if lo >= 0 else theta[0], theta[a:hi + 1]])
+        rest_lo = lo < 0 or static[lo]
+        rest_hi = b < n and static[b]
+        zero = (1, np.zeros(n_ax))
+        bc = (zero if rest_lo else "not-a-knot", zero if rest_hi else "not-a-knot")
+        if len(kt) < 4 and not (rest_lo and rest_hi):
+            bc = (zero, zero)
+        spl = CubicSpline(kt, kth, axis=0, bc_type=bc)
+        tq = t_prev[a:b, None] + dt[a:b, None] * x[None, :]
+        th_q[a:b] = spl(tq)
+        rate_q[a:b] = spl(tq, 1)
+        acc_q[a:b] = spl(tq, 2)
+        rate_end[a:b] = spl(time[a:b], 1)
+        acc_end[a:b] = spl(time[a:b], 2)
+
+    # kinematics: once per distinct static attitude is enough, but one vectorised call over all
+    # nodes is simpler and fast enough (a few 1e6 nodes per second)
+    _, om, al, f = geometry.kinematics(th_q.reshape(-1, n_ax), rate_q.reshape(-1, n_ax),
+                                       acc_q.reshape(-1, n_ax))
+    _, om_e, _, f_e = geometry.kinematics(theta, rate_end, acc_end)
+    om0, f0 = (om_e[:1], f_e[:1])
+    omega_start = np.vstack([om0, om_e[:-1]])
+    f_start = np.vstack([f0, f_e[:-1]])
+
+    tq_all = t_prev[:, None] + dt[:, None] * x[None, :]
+    if temperature is not None:
+        T = np.asarray(temperature, float)
+        T_prev = np.concatenate([[T[0]], T[:-1]])
+        T_q = T_prev[:, None] + (T - T_prev)[:, None] * x[None, :]
+        T0 = float(T[0]) if t0_temperature is None else float(t0_temperature)
+        dtemp_q = T_q - T0
+    else:
+        T0 = float(t0_temperature or 0.0)
+        dtemp_q = np.zeros((n, q))
+    return Motion(
+        time=time, dt=dt, static=static, nodes=x, weights=w,
+        omega_q=om.reshape(n, q, 3), alpha_q=al.reshape(n, q, 3), f_q=f.reshape(n, q, 3),
+        omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e,
+        dtemp_q=dtemp_q, elapsed_q=tq_all - t_prev[0], t0_temperature=T0,
+        lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
+    )
