@@ -1,0 +1,242 @@
+"""General least-squares calibration on any log: predict the IMU output from the measured gimbal
+angles through the table geometry and a chosen effect set, fit all their parameters jointly.
+
+Model per observation block (components.blocks): measured sum − ideal sum = H θ + v, with the
+columns of H the effects' regressors (components.effects) summed over the block, and for table
+effects the derivative of the ideal prediction with respect to the geometry parameter (central
+differences; Gauss–Newton iterations re-linearise). Weighted least squares with the per-sample
+white-noise σ estimated from the log's static data (block variance n σ², plus the encoder's
+count variance at the ends of a moving gyro block). With white noise this is the efficient
+estimator and its covariance (Hᵀ R⁻¹ H)⁻¹ the Cramér–Rao bound (domain.md §7).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from components.blocks import Blocks, make_blocks, white_noise_sigma
+from components.effects import EFFECTS, effect_of, parameters_of
+from components.geometry import TableGeometry
+from components.motion import Motion, reconstruct
+
+TABLE_STEP = 1e-6  # rad, central-difference step of the geometry parameters
+
+
+@dataclass
+class LogData:
+    """What the estimators need from a measurement log, in SI (increments per interval)."""
+
+    time: np.ndarray
+    angles: np.ndarray  # (N, n_axes) measured
+    gyro: np.ndarray    # (N, 3) increments [rad]
+    acc: np.ndarray     # (N, 3) increments [m/s]
+    geometry: TableGeometry
+    temperature: np.ndarray | None = None
+    segment: np.ndarray | None = None
+    dt0: float | None = None
+    source: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_log(cls, log) -> "LogData":
+        """From a components.logfile.MeasurementLog."""
+        from components.geometry import geometry_from_metadata
+
+        return cls(time=log.time, angles=log.angles, gyro=log.gyro_increments(),
+                   acc=log.acc_increments(), geometry=geometry_from_metadata(log.meta),
+                   temperature=log.temperature, segment=log.segment,
+                   dt0=1.0 / log.meta.sample_rate_hz, source=log.provenance())
+
+
+def apply_table_parameter(geo: TableGeometry, name: str, value: float) -> TableGeometry:
+    """Geometry with one table-effect parameter set (names of components.effects)."""
+    parts = name.split(".")
+    if name.startswith("table.base_tilt."):
+        return replace(geo, **{f"tilt_{parts[2]}": value})
+    axis, comp = parts[2], parts[3]
+    if axis not in geo.names:
+        return geo  # a stage this table does not have: the parameter has no effect
+    field_name = {"table.nonorth": f"nonorth_{comp}", "table.wobble": f"wobble_{comp}",
+                  "table.encoder": f"enc_{comp}"}[".".join(parts[:2])]
+    return geo.with_stage(axis, **{field_name: value})
+
+
+def table_parameter_value(geo: TableGeometry, name: str) -> float:
+    parts = name.split(".")
+    if name.startswith("table.base_tilt."):
+        return getattr(geo, f"tilt_{parts[2]}")
+    axis, comp = parts[2], parts[3]
+    if axis not in geo.names:
+        return 0.0
+    stage = next(s for s in geo.stages if s.name == axis)
+    attr = {"table.nonorth": f"nonorth_{comp}", "table.wobble": f"wobble_{comp}",
+            "table.encoder": f"enc_{comp}"}[".".join(parts[:2])]
+    return getattr(stage, attr)
+
+
+@dataclass
+class Fit:
+    parameters: list[str]
+    value: np.ndarray
+    covariance: np.ndarray
+    chi2: float
+    dof: int
+    sigma_gyro: np.ndarray  # per-sample white-noise σ used [rad]
+    sigma_acc: np.ndarray   # [m/s]
+    geometry: TableGeometry
+    motion: Motion
+    iterations: int
+    rows: dict = field(default_factory=dict)  # design of the last iteration, for diagnostics
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance))
+
+    def correlation(self) -> np.ndarray:
+        s = self.sigma
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.covariance / np.outer(s, s)
+
+    def values(self) -> dict[str, float]:
+        return dict(zip(self.parameters, self.value))
+
+
+def sensor_columns(motion: Motion, params: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample regressors: gyro (N, 3, P) and acc (N, 3, P) increments per unit parameter."""
+    n = len(motion.dt)
+    G = np.zeros((n, 3, len(params)))
+    A = np.zeros((n, 3, len(params)))
+    for k, p in enumerate(params):
+        e = effect_of(p)
+        if e.target == "table":
+            continue
+        idx = p[len(e.name) + 1:] if len(p) > len(e.name) else ""
+        g, a = e.regressor(motion, idx)
+        if g is not None:
+            G[:, :, k] = g
+        if a is not None:
+            A[:, :, k] = a
+    return G, A
+
+
+def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Model output increments (N, 3) gyro and acc for sensor-effect values on this motion."""
+    G, A = sensor_columns(motion, params)
+    return motion.ideal_gyro + G @ values, motion.ideal_acc + A @ values
+
+
+def _noise_floor(sig: np.ndarray, scale: float) -> np.ndarray:
+    # a noise-free log (a conformance vector) still needs finite weights
+    return np.where(np.isfinite(sig) & (sig > 0), sig, 0.0) + 1e-13 * scale
+
+
+def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
+              iterations: int = 3, sigma_gyro=None, sigma_acc=None,
+              temperature_ref: float | None = None, fixed: dict | None = None) -> Fit:
+    """Fit the parameters of *effects* jointly to *data*.
+
+    ``fixed``: parameter values held (not fitted), e.g. a geometry known from elsewhere."""
+    params = parameters_of(effects)
+    if not params:
+        raise ValueError("no effect to fit")
+    table_params = [p for p in params if effect_of(p).target == "table"]
+    geo = data.geometry
+    for name, v in (fixed or {}).items():
+        if effect_of(name).target == "table":
+            geo = apply_table_parameter(geo, name, v)
+    dt_mean = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 1.0
+    n_chunk = max(1, int(round(chunk_s / dt_mean)))
+
+    def motion_for(g: TableGeometry) -> Motion:
+        return reconstruct(data.time, data.angles, g, data.temperature, temperature_ref,
+                           quadrature, dt0=data.dt0)
+
+    motion = motion_for(geo)
+    gb = make_blocks(motion.static, n_chunk, whole_moves=True)
+    ab = make_blocks(motion.static, n_chunk, whole_moves=False)
+    sg = _noise_floor(np.asarray(sigma_gyro if sigma_gyro is not None
+                                 else white_noise_sigma(data.gyro, motion.static), float),
+                      7.3e-5 * dt_mean)
+    sa = _noise_floor(np.asarray(sigma_acc if sigma_acc is not None
+                                 else white_noise_sigma(data.acc, motion.static), float),
+                      9.8 * dt_mean)
+    q = _encoder_quantum(data.angles)
+    value = np.array([(fixed or {}).get(p, 0.0) if effect_of(p).target == "table"
+                      else 0.0 for p in params])
+    for p in table_params:
+        value[params.index(p)] = table_parameter_value(geo, p)
+    it = 0
+    for it in range(1, iterations + 1):
+        y, H, w, rows = _design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+        # residual relative to the current table values (Gauss–Newton on the geometry)
+        Hw = H * w[:, None]
+        scale = np.linalg.norm(Hw, axis=0)
+        scale[scale == 0] = 1.0
+        sol, *_ = np.linalg.lstsq(Hw / scale, y * w, rcond=None)
+        step = sol / scale
+        sensor_idx = [k for k, p in enumerate(params) if p not in table_params]
+        value[sensor_idx] = step[sensor_idx]
+        if not table_params:
+            break
+        delta = np.array([step[params.index(p)] for p in table_params])
+        for p, d in zip(table_params, delta):
+            value[params.index(p)] += d
+            geo = apply_table_parameter(geo, p, value[params.index(p)])
+        motion = motion_for(geo)
+        if np.max(np.abs(delta)) < 1e-12:
+            break
+    # final linearisation at the solution: sensor values and the last (tiny) table correction
+    y, H, w, rows = _design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+    Hw = H * w[:, None]
+    scale = np.linalg.norm(Hw, axis=0)
+    scale[scale == 0] = 1.0
+    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=None)[0] / scale
+    for k, p in enumerate(params):
+        value[k] = value[k] + sol[k] if p in table_params else sol[k]
+    resid_vec = y - H @ sol
+    chi2 = float(np.sum((resid_vec * w) ** 2))
+    info = (Hw / scale).T @ (Hw / scale)
+    cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
+    rows["residual"] = resid_vec
+    return Fit(params, value, cov, chi2, max(len(y) - len(params), 1), sg, sa, geo, motion, it, rows)
+
+
+def _encoder_quantum(angles: np.ndarray) -> np.ndarray:
+    """Per axis, the smallest step between distinct logged angles (the count), or 0."""
+    out = []
+    for k in range(angles.shape[1]):
+        u = np.unique(angles[:, k])
+        d = np.diff(u)
+        d = d[d > 0]
+        out.append(float(d.min()) if len(d) else 0.0)
+    return np.array(out)
+
+
+def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, q, geo, table_params, motion_for):
+    """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info."""
+    G, A = sensor_columns(motion, params)
+    yg = gb.sum(data.gyro - motion.ideal_gyro)
+    ya = ab.sum(data.acc - motion.ideal_acc)
+    Hg = gb.sum(G)
+    Ha = ab.sum(A)
+    for p in table_params:
+        k = params.index(p)
+        v = table_parameter_value(geo, p)
+        mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
+        mm = motion_for(apply_table_parameter(geo, p, v - TABLE_STEP))
+        Hg[:, :, k] = gb.sum(mp.ideal_gyro - mm.ideal_gyro) / (2 * TABLE_STEP)
+        Ha[:, :, k] = ab.sum(mp.ideal_acc - mm.ideal_acc) / (2 * TABLE_STEP)
+    # encoder count variance at the two ends of a moving gyro block, along each gyro axis
+    var_g = gb.count[:, None] * sg[None, :] ** 2 + np.where(
+        gb.moving[:, None], 2 * np.sum(q**2) / 12.0, 0.0)
+    var_a = ab.count[:, None] * sa[None, :] ** 2
+    y = np.concatenate([yg.reshape(-1), ya.reshape(-1)])
+    H = np.concatenate([Hg.reshape(-1, len(params)), Ha.reshape(-1, len(params))])
+    w = 1.0 / np.sqrt(np.concatenate([var_g.reshape(-1), var_a.reshape(-1)]))
+    rows = {"sensor": np.array(["gyro"] * yg.size + ["acc"] * ya.size),
+            "axis": np.concatenate([np.tile([0, 1, 2], len(gb)), np.tile([0, 1, 2], len(ab))]),
+            "start": np.concatenate([np.repeat(gb.start, 3), np.repeat(ab.start, 3)]),
+            "stop": np.concatenate([np.repeat(gb.stop, 3), np.repeat(ab.stop, 3)]),
+            "moving": np.concatenate([np.repeat(gb.moving, 3), np.repeat(ab.moving, 3)]),
+            "y": y, "H": H, "weight": w}
+    return y, H, w, rows
