@@ -44,6 +44,25 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_verify(args: argparse.Namespace) -> int:
+    from orchestrator.system import load_system
+    from orchestrator.verify import verify
+
+    system = load_system(args.system)
+    if args.stop is not None:
+        system.stop = args.stop
+    agg = {}
+    for it in args.aggregate or []:
+        k, sep, v = it.partition("=")
+        if not sep:
+            raise UserError(f"--aggregate {it!r}: expected SIGNAL=sample|sum")
+        agg[k.strip()] = v.strip()
+    report = verify(system, rel_tol=args.rel_tol, engine_abs=args.engine_tol, engine_rel=args.engine_tol,
+                    aggregate=agg, engine=not args.no_engine)
+    print(report.table())
+    return 0 if report.ok else 1
+
+
 def _parse_mapping(items: list[str]) -> dict:
     out = {}
     for it in items or []:
@@ -93,6 +112,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="role option, e.g. gyro_output=rate (imu) (repeatable)")
     c.add_argument("--step", type=float, default=0.005, help="step of the smoke test [s]")
     c.set_defaults(func=_cmd_check_fmu)
+
+    v = sub.add_parser("verify", help="estimate the coupling error of the step (runs at h, h/2, h/4) "
+                                      "and compare with libcosim; exit 1 if out of tolerance")
+    v.add_argument("system", help="system file (.toml or .ssp)")
+    v.add_argument("--rel-tol", type=float, default=1e-6, help="coupling error / signal RMS (1e-6)")
+    v.add_argument("--engine-tol", type=float, default=1e-12, help="engine difference, abs and rel (1e-12)")
+    v.add_argument("--aggregate", action="append", metavar="SIGNAL=sample|sum",
+                   help="how a finer run maps onto the coarse grid (repeatable; adds to record.aggregate)")
+    v.add_argument("--stop", type=float, help="override the stop time [s]")
+    v.add_argument("--no-engine", action="store_true", help="skip the libcosim comparison")
+    v.set_defaults(func=_cmd_verify)
 
     t = sub.add_parser("tumble", help="co-simulate the table tumbling a navigation-grade IMU "
                                       "through the six axis-up attitudes and check its outputs")

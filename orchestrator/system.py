@@ -37,6 +37,9 @@ The same object comes from a TOML file (:func:`load_system`), from an SSP archiv
     [record]
     signals = ["imu.gyro", "table.outer.angle"]
     every = 1                # record every n-th communication step
+    aggregate = {"imu.gyro" = "sum"}   # optional, per signal (prefix): how `calbench verify`
+                             # brings a finer run onto this grid: "sample" (default) or "sum"
+                             # (per-interval quantities such as increments)
 
 Variable names on connections and in ``record`` are role names when the unit has a role (the
 mapping translates them), the unit's own names otherwise.
@@ -48,6 +51,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
+AGGREGATIONS = ("sample", "sum")
 
 
 class SystemError_(Exception):
@@ -88,6 +92,7 @@ class System:
     connections: list[Connection] = field(default_factory=list)
     record: list[str] = field(default_factory=list)
     record_every: int = 1
+    record_aggregate: dict = field(default_factory=dict)  # signal (or prefix) -> "sample" | "sum"
     source: str | None = None  # file it came from
     base_dir: Path = field(default_factory=Path.cwd)
 
@@ -129,6 +134,9 @@ class System:
             raise SystemError_(f"{where}: system.order {self.order} must list every unit once: {names}")
         if not (isinstance(self.record_every, int) and self.record_every >= 1):
             raise SystemError_(f"{where}: record.every = {self.record_every!r}: expected an integer >= 1")
+        for sig, how in self.record_aggregate.items():
+            if how not in AGGREGATIONS:
+                raise SystemError_(f"{where}: record.aggregate.{sig} = {how!r}: expected one of {AGGREGATIONS}")
 
 
 def _expect(d: dict, key: str, types, where: str, default=...):
@@ -190,6 +198,7 @@ def system_from_dict(data: dict, source: str = "system", base_dir: Path | None =
     rec = _expect(data, "record", dict, source, {})
     sysobj.record = list(_expect(rec, "signals", list, f"{source}: record", []))
     sysobj.record_every = _expect(rec, "every", int, f"{source}: record", 1)
+    sysobj.record_aggregate = dict(_expect(rec, "aggregate", dict, f"{source}: record", {}))
     sysobj.validate()
     return sysobj
 
