@@ -31,5 +31,6 @@ class AttitudeSequence(Component):
         self._apply(t0)
 
     def do_step(self, t: float, h: float) -> None:
-        # outputs after the step hold for the interval that follows
-        self._apply(t + h)
+        # a sampled commander: the command decided at t holds over [t, t + h), so a unit stepped
+        # after this one (Gauss-Seidel) meets each attitude change at its scheduled time
+        self._apply(t)

@@ -152,6 +152,12 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
                        fmi2Real value[]) {
     size_t k;
     if (!c || (nvr && (!vr || !value))) return fmi2Error;
+    if (!SELF->m.initialized && nvr) {
+        /* Initialization Mode: outputs are "calculated" from the parameters and inputs set so
+         * far, so a master that propagates initial values (libcosim) sees real ones */
+        ModelStatus st = model_initialize(&SELF->m);
+        if (st >= MS_ERROR) return (fmi2Status)st;
+    }
     for (k = 0; k < nvr; k++) {
         int j = real_index(c, vr[k]);
         if (j < 0) return fmi2Error;

@@ -251,6 +251,11 @@ fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t 
     size_t k;
     if (!c || (nvr && (!vr || !value))) return fmi3Error;
     if (!counts_match(c, nvr, nValues, "fmi3GetFloat64")) return fmi3Error;
+    if (SELF->mode == MODE_INITIALIZATION && nvr) {
+        /* outputs are "calculated" from the parameters and inputs set so far */
+        ModelStatus st = model_initialize(&SELF->m);
+        if (st >= MS_ERROR) return (fmi3Status)st;
+    }
     for (k = 0; k < nvr; k++) {
         int j;
         if (vr[k] == TIME_VR) {
