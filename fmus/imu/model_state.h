@@ -31,6 +31,8 @@ typedef struct {
     double gm[2][3];    /* Gauss-Markov bias-instability state at the current time */
     double rw[2][3];    /* rate / acceleration random-walk bias at the current time */
     double resid[2][3]; /* count residual carried to the next sample (output kind 2) */
+    int nsub;           /* Gauss-Legendre sub-intervals per piece (1 when the model is exact
+                           with one: see integrate_piece) */
 } ModelPrivate;
 
 #endif
