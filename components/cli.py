@@ -124,6 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--no-engine", action="store_true", help="skip the libcosim comparison")
     v.set_defaults(func=_cmd_verify)
 
+    from components.cli_calibration import add_commands as _calibration_commands
+
+    _calibration_commands(sub)
+
     t = sub.add_parser("tumble", help="co-simulate the table tumbling a navigation-grade IMU "
                                       "through the six axis-up attitudes and check its outputs")
     t.add_argument("--seed", type=int, default=1, help="IMU noise seed")
@@ -138,13 +142,16 @@ def main(argv: list[str] | None = None) -> int:
     from orchestrator.master import RoleError, SimulationFault
     from orchestrator.system import SystemError_
     from orchestrator.wiring import AlgebraicLoopError
+    from components.logfile import LogFormatError
+    from components.result import ResultFormatError
 
     import components.roles  # noqa: F401  (registers the roles and builtin: FMUs)
 
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (UserError, BuildError, SystemError_, RoleError, SimulationFault, AlgebraicLoopError) as e:
+    except (UserError, BuildError, SystemError_, RoleError, SimulationFault, AlgebraicLoopError,
+            LogFormatError, ResultFormatError) as e:
         print(f"calbench: error: {e}", file=sys.stderr)
         return 2
 

@@ -202,9 +202,3 @@ class TableGeometry:
             C = C @ T
         f = np.einsum("nji,j->ni", C, np.array([0.0, 0.0, self.g]))  # C_n^p f^n
         return C, omega, alpha, f
-
-
-def geometry_from_metadata(meta) -> TableGeometry:
-    """Nominal geometry of a measurement log (see components.logfile)."""
-    stages = tuple(Stage(name, tuple(float(x) for x in axis)) for name, axis in meta.axes)
-    return TableGeometry(stages, latitude=meta.latitude, height=meta.height, gravity=meta.gravity)

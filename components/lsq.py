@@ -40,12 +40,14 @@ class LogData:
     @classmethod
     def from_log(cls, log) -> "LogData":
         """From a components.logfile.MeasurementLog."""
-        from components.geometry import geometry_from_metadata
+        from components.geometry import Stage, TableGeometry
 
-        return cls(time=log.time, angles=log.angles, gyro=log.gyro_increments(),
-                   acc=log.acc_increments(), geometry=geometry_from_metadata(log.meta),
-                   temperature=log.temperature, segment=log.segment,
-                   dt0=1.0 / log.meta.sample_rate_hz, source=log.provenance())
+        geo = TableGeometry(tuple(Stage(n, tuple(float(x) for x in v))
+                                  for n, v in zip(log.axis_names, log.axis_vectors)),
+                            latitude=log.latitude, height=log.height_m, gravity=log.gravity)
+        return cls(time=log.time, angles=log.angles, gyro=log.gyro_increment(),
+                   acc=log.acc_increment(), geometry=geo, temperature=log.temperature,
+                   segment=log.segment, dt0=log.dt, source={"log": log.source})
 
 
 def apply_table_parameter(geo: TableGeometry, name: str, value: float) -> TableGeometry:

@@ -1,0 +1,84 @@
+"""General least-squares calibration against the independent simulator's conformance vectors
+(../shared/spec/examples): truth recovery within the reported σ, a noise-free run giving zero
+errors below the numerical floors, and apply/recalibrate consistency."""
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.effects import ARCSEC, DEFAULT_EFFECTS, DEG_H, UG
+from components.logfile import read_log
+from components.lsq import LogData, calibrate
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
+pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
+
+
+def truth_values(name: str) -> dict:
+    t = json.loads((EXAMPLES / f"{name}.truth.json").read_text())["baseline"]
+    Ag, Aa = np.array(t["gyro_matrix_minus_identity"]), np.array(t["acc_matrix_minus_identity"])
+    out = {}
+    for i, c in enumerate("xyz"):
+        out[f"gyro.bias.{c}"] = t["gyro_bias_rad_s"][i]
+        out[f"acc.bias.{c}"] = t["acc_bias_mps2"][i]
+        out[f"gyro.sf.{c}"] = Ag[i, i]
+        out[f"acc.sf.{c}"] = Aa[i, i]
+        for j, d in enumerate("xyz"):
+            if i != j:
+                out[f"gyro.mis.{c}{d}"] = Ag[i, j]
+                out[f"acc.mis.{c}{d}"] = Aa[i, j]
+    return out
+
+
+@pytest.fixture(scope="module")
+def example_fit():
+    data = LogData.from_log(read_log(EXAMPLES / "example"))
+    return calibrate(data, list(DEFAULT_EFFECTS))
+
+
+def test_example_truth_within_reported_sigma(example_fit):
+    truth = truth_values("example")
+    z = np.array([(v - truth[p]) / s for p, v, s in zip(example_fit.parameters, example_fit.value,
+                                                        example_fit.sigma)])
+    assert len(z) == 24
+    # every parameter within 4 σ, and the normalised errors look like unit Gaussians
+    assert np.max(np.abs(z)) < 4.0, dict(zip(example_fit.parameters, z.round(2)))
+    assert 0.5 < np.sqrt(np.mean(z**2)) < 1.6
+
+
+def test_example_sigma_matches_the_noise_of_the_truth(example_fit):
+    t = json.loads((EXAMPLES / "example.truth.json").read_text())["noise"]
+    # per-sample white noise estimated from static data vs the simulator's stated values
+    np.testing.assert_allclose(example_fit.sigma_gyro, t["sigma_dtheta_rad"], rtol=0.05)
+    np.testing.assert_allclose(example_fit.sigma_acc, t["sigma_dv_mps"], rtol=0.05)
+    dof = example_fit.dof
+    assert abs(example_fit.chi2 / dof - 1) < 5 * math.sqrt(2 / dof)
+
+
+def test_ideal_log_gives_zero_errors_below_numerical_floors():
+    data = LogData.from_log(read_log(EXAMPLES / "ideal"))
+    fit = calibrate(data, list(DEFAULT_EFFECTS) + ["acc.k2"])
+    floors = {"gyro.bias": 1e-4 * DEG_H, "gyro.sf": 1e-8, "gyro.mis": 0.01 * ARCSEC,
+              "acc.bias": 0.1 * UG, "acc.sf": 1e-8, "acc.mis": 0.01 * ARCSEC,
+              "acc.k2": 0.1 * UG / 9.80665**2}
+    for p, v in zip(fit.parameters, fit.value):
+        floor = floors[p.rsplit(".", 1)[0]]
+        assert abs(v) < floor, (p, v, floor)
+
+
+def test_apply_then_recalibrate_gives_zero(tmp_path, example_fit):
+    from components.correct import correct_log
+    from components.logfile import write_log
+    from components.result import CalibrationResult, result_from_fit
+
+    log = read_log(EXAMPLES / "example")
+    data = LogData.from_log(log)
+    res = result_from_fit(example_fit, list(DEFAULT_EFFECTS), data, log)
+    res.save(tmp_path / "r.json")
+    res = CalibrationResult.load(tmp_path / "r.json")
+    write_log(tmp_path / "corr", correct_log(log, res))
+    refit = calibrate(LogData.from_log(read_log(tmp_path / "corr")), list(DEFAULT_EFFECTS))
+    # the corrected data hold no error left: every re-estimate is far inside its σ
+    assert np.max(np.abs(refit.value / refit.sigma)) < 1e-3
