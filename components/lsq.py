@@ -134,10 +134,14 @@ def _noise_floor(sig: np.ndarray, scale: float) -> np.ndarray:
 
 def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
               iterations: int = 3, sigma_gyro=None, sigma_acc=None,
-              temperature_ref: float | None = None, fixed: dict | None = None) -> Fit:
+              temperature_ref: float | None = None, fixed: dict | None = None,
+              rest_angle_sigma=None) -> Fit:
     """Fit the parameters of *effects* jointly to *data*.
 
-    ``fixed``: parameter values held (not fitted), e.g. a geometry known from elsewhere."""
+    ``fixed``: parameter values held (not fitted), e.g. a geometry known from elsewhere.
+    ``rest_angle_sigma`` [rad, per axis]: uncertainty of the true angle at rest around the
+    encoder reading, which bounds a rest-to-rest gyro block; default: one count uniform
+    (q/√12, q = the smallest logged angle step), 0 for logs whose rest angles are exact."""
     params = parameters_of(effects)
     if not params:
         raise ValueError("no effect to fit")
@@ -162,7 +166,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     sa = _noise_floor(np.asarray(sigma_acc if sigma_acc is not None
                                  else white_noise_sigma(data.acc, motion.static), float),
                       9.8 * dt_mean)
-    q = _encoder_quantum(data.angles)
+    q = rest_sigma(data.angles, rest_angle_sigma)
     value = np.array([(fixed or {}).get(p, 0.0) if effect_of(p).target == "table"
                       else 0.0 for p in params])
     for p in table_params:
@@ -203,6 +207,13 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     return Fit(params, value, cov, chi2, max(len(y) - len(params), 1), sg, sa, geo, motion, it, rows)
 
 
+def rest_sigma(angles: np.ndarray, given=None) -> np.ndarray:
+    """Per-axis σ of the true angle at rest: *given*, or a uniform count q/√12."""
+    if given is not None:
+        return np.broadcast_to(np.asarray(given, float), (angles.shape[1],)).copy()
+    return _encoder_quantum(angles) / np.sqrt(12.0)
+
+
 def _encoder_quantum(angles: np.ndarray) -> np.ndarray:
     """Per axis, the smallest step between distinct logged angles (the count), or 0."""
     out = []
@@ -214,7 +225,7 @@ def _encoder_quantum(angles: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, q, geo, table_params, motion_for):
+def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, motion_for):
     """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info."""
     G, A = sensor_columns(motion, params)
     yg = gb.sum(data.gyro - motion.ideal_gyro)
@@ -228,9 +239,9 @@ def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, q, geo, table_
         mm = motion_for(apply_table_parameter(geo, p, v - TABLE_STEP))
         Hg[:, :, k] = gb.sum(mp.ideal_gyro - mm.ideal_gyro) / (2 * TABLE_STEP)
         Ha[:, :, k] = ab.sum(mp.ideal_acc - mm.ideal_acc) / (2 * TABLE_STEP)
-    # encoder count variance at the two ends of a moving gyro block, along each gyro axis
+    # uncertainty of the rest angles at the two ends of a moving gyro block (taken isotropic)
     var_g = gb.count[:, None] * sg[None, :] ** 2 + np.where(
-        gb.moving[:, None], 2 * np.sum(q**2) / 12.0, 0.0)
+        gb.moving[:, None], 2 * np.sum(rest**2), 0.0)
     var_a = ab.count[:, None] * sa[None, :] ** 2
     y = np.concatenate([yg.reshape(-1), ya.reshape(-1)])
     H = np.concatenate([Hg.reshape(-1, len(params)), Ha.reshape(-1, len(params))])
