@@ -61,13 +61,6 @@ def _e(i: str, col: np.ndarray) -> np.ndarray:
     return out
 
 
-def _sensor(sensor: str, fn: Callable) -> Callable:
-    def reg(m, idx):
-        col = fn(m, idx, m.omega_q if sensor == "gyro" else None)
-        return (col, None) if sensor == "gyro" else (None, col)
-    return reg
-
-
 def _integral(m, values_q: np.ndarray) -> np.ndarray:
     """∫ over each sample interval from quadrature-node values (N, Q) -> (N,)."""
     return m.dt * (values_q @ m.weights)
@@ -240,6 +233,15 @@ def parse_effects(spec: str | list[str] | tuple) -> list[str]:
     if unknown:
         raise ValueError(f"unknown effect(s) {unknown}; the vocabulary has: {', '.join(EFFECTS)}")
     return list(dict.fromkeys(names))
+
+
+def regressor_of(motion, parameter: str):
+    """(gyro, acc) increments (N, 3) per unit of a sensor-effect parameter (None where it does
+    not act); table effects have none (they change the motion)."""
+    e = effect_of(parameter)
+    if e.regressor is None:
+        return None, None
+    return e.regressor(motion, parameter[len(e.name) + 1:] if len(parameter) > len(e.name) else "")
 
 
 def parameters_of(effects: list[str]) -> list[str]:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from components.blocks import Blocks, make_blocks, white_noise_sigma
-from components.effects import EFFECTS, effect_of, parameters_of
+from components.effects import effect_of, parameters_of, regressor_of
 from components.geometry import TableGeometry
 from components.motion import Motion, reconstruct
 
@@ -109,11 +109,7 @@ def sensor_columns(motion: Motion, params: list[str]) -> tuple[np.ndarray, np.nd
     G = np.zeros((n, 3, len(params)))
     A = np.zeros((n, 3, len(params)))
     for k, p in enumerate(params):
-        e = effect_of(p)
-        if e.target == "table":
-            continue
-        idx = p[len(e.name) + 1:] if len(p) > len(e.name) else ""
-        g, a = e.regressor(motion, idx)
+        g, a = regressor_of(motion, p)
         if g is not None:
             G[:, :, k] = g
         if a is not None:
@@ -227,11 +223,17 @@ def _encoder_quantum(angles: np.ndarray) -> np.ndarray:
 
 def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, motion_for):
     """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info."""
-    G, A = sensor_columns(motion, params)
     yg = gb.sum(data.gyro - motion.ideal_gyro)
     ya = ab.sum(data.acc - motion.ideal_acc)
-    Hg = gb.sum(G)
-    Ha = ab.sum(A)
+    # block sums column by column: never hold (N, 3, P) regressors for long logs
+    Hg = np.zeros((len(gb), 3, len(params)))
+    Ha = np.zeros((len(ab), 3, len(params)))
+    for k, p in enumerate(params):
+        g, a = regressor_of(motion, p)
+        if g is not None:
+            Hg[:, :, k] = gb.sum(g)
+        if a is not None:
+            Ha[:, :, k] = ab.sum(a)
     for p in table_params:
         k = params.index(p)
         v = table_parameter_value(geo, p)
