@@ -56,8 +56,15 @@ _BASE_UNITS = {
     "m/s/sqrt(s)": {"m": 1, "s": -1},
     "rad/s/s/sqrt(s)": {"rad": 1, "s": -2},
     "m/s2/s/sqrt(s)": {"m": 1, "s": -3},
+    # non-SI units a supplier's FMU may declare (SI value = factor * value + offset)
+    "deg": {"rad": 1},
+    "deg/s": {"rad": 1, "s": -1},
+    "deg/s2": {"rad": 1, "s": -2},
+    "g": {"m": 1, "s": -2},
 }
 _BASE_UNIT_OFFSET = {"degC": 273.15}
+_BASE_UNIT_FACTOR = {"deg": 0.017453292519943295, "deg/s": 0.017453292519943295,
+                     "deg/s2": 0.017453292519943295, "g": 9.80665}
 
 
 @dataclass(frozen=True)
@@ -73,6 +80,9 @@ class Variable:
     max: float | None = None
     # FMI 2 co-simulation: may the master pass time derivatives of this input?
     derivative_of: str | None = None
+    # outputs: names of the inputs this output depends on directly (feed-through within a step);
+    # None or empty: no direct dependency (dependencies="" in the ModelStructure)
+    depends_on: tuple | list | None = None
 
     def __post_init__(self) -> None:
         if self.causality not in CAUSALITIES:
@@ -86,6 +96,8 @@ class Variable:
         if self.causality == "output" and self.start is not None and self.variability == "continuous":
             # FMI 2: outputs with initial="calculated" must not declare start; keep it simple.
             object.__setattr__(self, "start", None)
+        if self.depends_on and self.causality != "output":
+            raise ValueError(f"{self.name}: depends_on is for outputs only")
 
     @property
     def c_name(self) -> str:
@@ -126,6 +138,10 @@ class ModelTable:
         if dup:
             raise ValueError(f"{self.identifier}: duplicate variable names {sorted(dup)}")
         self._by_name = {v.name: v for v in self.variables}
+        for v in self.variables:
+            for d in v.depends_on or ():
+                if d not in self._by_name or self._by_name[d].causality != "input":
+                    raise ValueError(f"{self.identifier}: {v.name} depends_on {d!r}, which is not an input")
 
     @property
     def reals(self) -> list[Variable]:
@@ -210,6 +226,8 @@ def _units_used(table: ModelTable) -> list[str]:
 def _base_unit_xml(unit: str) -> str:
     exps = _BASE_UNITS[unit]
     attrs = "".join(f' {k}="{e}"' for k, e in exps.items())
+    if unit in _BASE_UNIT_FACTOR:
+        attrs += f' factor="{_fmt(_BASE_UNIT_FACTOR[unit])}"'
     if unit in _BASE_UNIT_OFFSET:
         attrs += f' offset="{_BASE_UNIT_OFFSET[unit]}"'
     return f"<BaseUnit{attrs}/>"
@@ -248,11 +266,14 @@ def model_description_fmi2(table: ModelTable, token: str, source_files: list[str
             f'  <DefaultExperiment startTime="0" stopTime="1" stepSize="{_fmt(table.default_step)}"/>',
             "  <ModelVariables>"]
     outputs: list[int] = []
+    index = {v.name: idx for idx, (_, v) in enumerate(table.ordered(), start=1)}
+    deps: dict[int, str] = {}
     for idx, (vr, v) in enumerate(table.ordered(), start=1):
         initial = ""
         if v.causality == "output":
             initial = ' initial="exact"' if v.start is not None else ""
             outputs.append(idx)
+            deps[idx] = " ".join(str(index[d]) for d in v.depends_on or ())
         attrs = (f'    <ScalarVariable name={quoteattr(v.name)} valueReference="{vr}" '
                  f'causality="{v.causality}" variability="{v.variability}"{initial} '
                  f'description={quoteattr(v.description)}>')
@@ -268,8 +289,8 @@ def model_description_fmi2(table: ModelTable, token: str, source_files: list[str
         out += [attrs, f"      <{v.type}{type_attrs}/>", "    </ScalarVariable>"]
     out += ["  </ModelVariables>", "  <ModelStructure>", "    <Outputs>"]
     # Outputs of a co-simulation slave after doStep depend on the inputs only through the step,
-    # never instantaneously: declare no direct feed-through.
-    out += [f'      <Unknown index="{i}" dependencies=""/>' for i in outputs]
+    # never instantaneously, unless the table declares a direct feed-through (depends_on).
+    out += [f'      <Unknown index="{i}" dependencies="{deps[i]}"/>' for i in outputs]
     out += ["    </Outputs>", "    <InitialUnknowns>"]
     out += [f'      <Unknown index="{i}" dependencies=""/>' for i in outputs]
     out += ["    </InitialUnknowns>", "  </ModelStructure>", "</fmiModelDescription>", ""]
@@ -300,6 +321,7 @@ def model_description_fmi3(table: ModelTable, token: str) -> str:
     out.append('    <Float64 name="time" valueReference="999999" causality="independent" '
                'variability="continuous" description="Simulation time"/>')
     outputs: list[int] = []
+    deps3: dict[int, str] = {}
     for vr, v in table.ordered():
         tag = "Float64" if v.type == "Real" else "Int32"
         attrs = (f'    <{tag} name={quoteattr(v.name)} valueReference="{vr}" '
@@ -307,6 +329,7 @@ def model_description_fmi3(table: ModelTable, token: str) -> str:
                  f'description={quoteattr(v.description)}')
         if v.causality == "output":
             outputs.append(vr)
+            deps3[vr] = " ".join(str(table.value_reference(d)) for d in v.depends_on or ())
             if v.start is not None:
                 attrs += ' initial="exact"'
         if v.unit:
@@ -319,7 +342,7 @@ def model_description_fmi3(table: ModelTable, token: str) -> str:
             attrs += f' start="{_fmt(v.start)}"'
         out.append(attrs + "/>")
     out += ["  </ModelVariables>", "  <ModelStructure>"]
-    out += [f'    <Output valueReference="{vr}" dependencies=""/>' for vr in outputs]
+    out += [f'    <Output valueReference="{vr}" dependencies="{deps3[vr]}"/>' for vr in outputs]
     out += [f'    <InitialUnknown valueReference="{vr}" dependencies=""/>' for vr in outputs]
     out += ["  </ModelStructure>", "</fmiModelDescription>", ""]
     return "\n".join(out)

@@ -298,6 +298,8 @@ class Simulation:
                                        1 if jacobi else 0, rec_p if record else None, len(rslots),
                                        rslots_p, every, 0, rec_arr.shape[0], ctypes.byref(err))
             if st:
+                # the rows of the steps completed inside this span are in rec_arr already
+                rec.rows = err.step // every + 1
                 raise _NativeFault(self._native_message(err, fmi2, plan, keep, t0, h))
 
         step = 0
@@ -470,7 +472,9 @@ class Simulation:
         if err.call == 7:
             var = meta["rout"][err.index]
             value = plan[err.unit].rout_buf[err.index]
-            head = f"unit {u.name}: output {var} = {value} at t = {t:.9g} s (step {err.step})"
+            # the output belongs to the end of the unit's step (as on the Python path)
+            t_out = t0 + (err.step + plan[err.unit].multiple) * h
+            head = f"unit {u.name}: output {var} = {value} at t = {t_out:.9g} s (step {err.step})"
         else:
             st = STATUS[err.status] if 0 <= err.status < len(STATUS) else err.status
             head = f"unit {u.name}: {call} returned {st} at t = {t:.9g} s (step {err.step})"

@@ -151,12 +151,19 @@ def _expect(d: dict, key: str, types, where: str, default=...):
     return v
 
 
+def _no_unknown(d: dict, allowed: set, where: str) -> None:
+    extra = set(d) - allowed
+    if extra:
+        raise SystemError_(f"{where}: unknown key(s) {sorted(extra)}; expected some of {sorted(allowed)}")
+
+
 def system_from_dict(data: dict, source: str = "system", base_dir: Path | None = None) -> System:
     known_top = {"system", "units", "connections", "record"}
     extra = set(data) - known_top
     if extra:
         raise SystemError_(f"{source}: unknown section(s) {sorted(extra)}; expected {sorted(known_top)}")
-    s = data.get("system", {})
+    s = _expect(data, "system", dict, source, {})
+    _no_unknown(s, {"name", "step", "start", "stop", "algorithm", "order"}, f"{source}: system")
     num = (int, float)
     sysobj = System(
         name=_expect(s, "name", str, f"{source}: system", "system"),
@@ -193,9 +200,11 @@ def system_from_dict(data: dict, source: str = "system", base_dir: Path | None =
         where = f"{source}: connections[{i}]"
         if not isinstance(c, dict):
             raise SystemError_(f"{where}: expected a table with 'from' and 'to'")
+        _no_unknown(c, {"from", "to", "derivative_order"}, where)
         sysobj.connections.append(Connection(_expect(c, "from", str, where), _expect(c, "to", str, where),
                                              _expect(c, "derivative_order", int, where, 0)))
     rec = _expect(data, "record", dict, source, {})
+    _no_unknown(rec, {"signals", "every", "aggregate"}, f"{source}: record")
     sysobj.record = list(_expect(rec, "signals", list, f"{source}: record", []))
     sysobj.record_every = _expect(rec, "every", int, f"{source}: record", 1)
     sysobj.record_aggregate = dict(_expect(rec, "aggregate", dict, f"{source}: record", {}))
