@@ -43,6 +43,26 @@
  *   classical RK4.  A pure step in position mode appears in th_ref one tick later (th_ref(t_k)
  *   was committed at the previous tick), like any discrete reference.
  * Position mode target: p(t) = angle_cmd + rate_cmd (t - t_comm), t_comm = start of the doStep.
+ *
+ * Integrals over the communication step (plate.omega_int, plate.f_int): the integrals of
+ *   plate.omega and plate.f over the step just ended, for a consumer (the IMU) that must get the
+ *   increments right although the motion inside a step is not a polynomial (the torque is
+ *   piecewise constant at the controller rate, so the acceleration jumps at every tick). Per tick
+ *   and axis the motion is smooth (torque held), and the RK4 states at both ends of the tick
+ *   with the accelerations there (th'' = axis_acc(th', u) with the tick's torque u: the right
+ *   limit at the start, the left limit at the end) define the quintic Hermite interpolant of th;
+ *   its error is O(T^6) in th and O(T^5) in th', i.e. below the RK4 local error itself. The
+ *   kinematics (omega, f of the angles and rates of every used stage) are integrated over the
+ *   tick with 2-point Gauss-Legendre (error T^5/4320 times the 4th derivative of the integrand,
+ *   ~1e-14 rad per tick for the servo's 20-35 Hz transients), the ticks' integrals are summed
+ *   over the step. Measured (tests/test_coupling.py): during a 90 deg index of all three axes the
+ *   per-tick integral of omega agrees with an independent 64-substep RK4 + Simpson integral of
+ *   the same ODE from the same tick-start state to < 1e-13 rad (median 1e-16) wherever the
+ *   FMU's own RK4 step is accurate; the worst ticks (5.6e-11 rad) are friction zero crossings
+ *   where the plant's RK4 step itself is off by that much in angle: the integral follows the
+ *   simulated trajectory. A navigation-grade gyro's per-sample noise at 5 ms is 4e-8 rad.
+ *   Cost: ~2 us per 5 ms step (20 kinematics evaluations).
+ *   In Initialization Mode both are 0 (an empty interval).
  */
 #include <math.h>
 #include <string.h>
@@ -85,6 +105,10 @@ typedef struct {
      VR_##n##_angle, VR_##n##_rate, VR_##n##_angle_true, VR_##n##_angle_ref, VR_##n##_torque}
 
 static const AxisVR AXVR[TT_MAX_AXES] = {AXIS_VR(outer), AXIS_VR(middle), AXIS_VR(inner)};
+
+/* The code indexes the integrals' components from .x. */
+_Static_assert(VR_plate_omega_int_z == VR_plate_omega_int_x + 2 &&
+                   VR_plate_f_int_z == VR_plate_f_int_x + 2, "integral outputs consecutive");
 
 #define R(vr) (m->s.r[(vr)])
 #define I(vr) (m->s.i[(vr) - INTEGER_VR_BASE])
@@ -150,6 +174,15 @@ static void rodrigues(const double a[3], double t, double M[3][3]) {
     mat_mul(K, K, K2);
     for (i = 0; i < 3; i++)
         for (j = 0; j < 3; j++) M[i][j] = (i == j ? 1.0 : 0.0) + s * K[i][j] + c1 * K2[i][j];
+}
+
+/* v <- R(a, t)^T v = cos t v - sin t (a x v) + (1 - cos t)(a . v) a, given c = cos t, s = sin t
+ * (the cost of one matrix-vector product, without forming the matrix). */
+static void rodrigues_tvec(const double a[3], double c, double s, double v[3]) {
+    double axv[3], ad = (1.0 - c) * dot3(a, v);
+    int i;
+    cross3(a, v, axv);
+    for (i = 0; i < 3; i++) v[i] = c * v[i] - s * axv[i] + ad * a[i];
 }
 
 /* Rotation by a rotation vector (axis * angle); the identity for the zero vector. */
@@ -309,6 +342,77 @@ static void plate_outputs(ModelInstance *m) {
     R(VR_plate_q_z) = q[3];
 }
 
+/* Inertial rate and specific force of the plate (plate axes) for the angles th[] and rates
+ * thd[] of the used stages: the rate recursion of plate_outputs without the acceleration and the
+ * attitude, and f carried through the same stage transforms (f_k = T_k^T f_{k-1}). */
+static void plate_rate_force(const ModelPrivate *p, const double th[], const double thd[],
+                             double w[3], double f[3]) {
+    double T[3][3], fn[3] = {0.0, 0.0, p->g};
+    int k, i;
+    memcpy(w, p->w_ie_b0, 3 * sizeof(double));
+    mat_tvec(p->C_b0n, fn, f);
+    for (k = 0; k < p->n_axes; k++) {
+        const TTAxis *x = &p->ax[k];
+        if (x->wob_amp == 0.0) { /* T = R(a, th): rotate the two vectors without the matrix */
+            double c = cos(th[k]), s = sin(th[k]);
+            rodrigues_tvec(x->a, c, s, w);
+            rodrigues_tvec(x->a, c, s, f);
+        } else {
+            stage_matrix(x, th[k], T);
+            mat_tvec(T, w, w);
+            mat_tvec(T, f, f);
+        }
+        for (i = 0; i < 3; i++) w[i] += thd[k] * x->b[i];
+    }
+}
+
+/* Weights of the quintic Hermite interpolant over a tick of length T at s in [0, 1], for the
+ * data (y0, y0', y0'', y1, y1', y1'') (time derivatives) at s = 0 and s = 1: value = hv . data,
+ * time derivative = hd . data. Computed once per node and shared by the axes. */
+static void hermite5_weights(double s, double T, double hv[6], double hd[6]) {
+    double s2 = s * s, s3 = s2 * s, s4 = s3 * s, s5 = s4 * s;
+    hv[0] = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
+    hv[1] = T * (s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5);
+    hv[2] = T * T * 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
+    hv[3] = 1.0 - hv[0];
+    hv[4] = T * (-4.0 * s3 + 7.0 * s4 - 3.0 * s5);
+    hv[5] = T * T * 0.5 * (s3 - 2.0 * s4 + s5);
+    hd[0] = (-30.0 * s2 + 60.0 * s3 - 30.0 * s4) / T;
+    hd[1] = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
+    hd[2] = T * 0.5 * (2.0 * s - 9.0 * s2 + 12.0 * s3 - 5.0 * s4);
+    hd[3] = -hd[0];
+    hd[4] = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
+    hd[5] = T * 0.5 * (3.0 * s2 - 8.0 * s3 + 5.0 * s4);
+}
+
+/* 2-point Gauss-Legendre on [0, 1]: nodes (3 -+ sqrt 3) / 6, weights 1/2 */
+static const double GL2_S[2] = {0.21132486540518711775, 0.78867513459481288225};
+
+/* Add the integrals of plate.omega and plate.f over the tick just taken; start[k] holds the
+ * (angle, rate, acceleration) of stage k at the start of the tick, under the tick's torque. */
+static void tick_integrals(const ModelPrivate *p, const double start[][3], double wi[3],
+                           double fi[3]) {
+    int q, k, i;
+    for (q = 0; q < 2; q++) {
+        double hv[6], hd[6], th[TT_MAX_AXES], thd[TT_MAX_AXES], w[3], f[3];
+        hermite5_weights(GL2_S[q], p->T, hv, hd);
+        for (k = 0; k < p->n_axes; k++) {
+            const TTAxis *x = &p->ax[k];
+            const double y[6] = {start[k][0], start[k][1], start[k][2], x->th, x->thd, x->thdd};
+            th[k] = thd[k] = 0.0;
+            for (i = 0; i < 6; i++) {
+                th[k] += hv[i] * y[i];
+                thd[k] += hd[i] * y[i];
+            }
+        }
+        plate_rate_force(p, th, thd, w, f);
+        for (i = 0; i < 3; i++) {
+            wi[i] += 0.5 * p->T * w[i];
+            fi[i] += 0.5 * p->T * f[i];
+        }
+    }
+}
+
 /* ------------------------------------------------------------------ servo */
 
 /* Encoder reading of a true (multi-turn) angle: harmonic errors, then quantisation to
@@ -336,6 +440,7 @@ static void plant_tick(ModelInstance *m, const AxisVR *vr, TTAxis *x) {
     for (i = 0; i < n; i++) {
         double th = x->th, w = x->thd;
         double k1p = w, k1v = axis_acc(m, vr, w, u);
+        if (i == 0) x->thdd0 = k1v;
         double k2p = w + 0.5 * h * k1v, k2v = axis_acc(m, vr, k2p, u);
         double k3p = w + 0.5 * h * k2v, k3v = axis_acc(m, vr, k3p, u);
         double k4p = w + h * k3v, k4v = axis_acc(m, vr, k4p, u);
@@ -538,6 +643,7 @@ ModelStatus model_initialize(ModelInstance *m) {
     }
     axis_outputs(m);
     plate_outputs(m);
+    for (k = 0; k < 3; k++) R(VR_plate_omega_int_x + k) = R(VR_plate_f_int_x + k) = 0.0;
     return MS_OK;
 }
 
@@ -568,12 +674,26 @@ ModelStatus model_do_step(ModelInstance *m, double h) {
                   "period T = %.12g s (servo.rate = %g Hz)", h, p->T, R(VR_servo_rate));
         return MS_ERROR;
     }
+    double wi[3] = {0.0, 0.0, 0.0}, fi[3] = {0.0, 0.0, 0.0};
     if (check_inputs(m)) return MS_ERROR;
-    for (j = 0; j < (long long)n; j++)
-        for (k = 0; k < p->n_axes; k++) servo_tick(m, k, j);
+    for (j = 0; j < (long long)n; j++) {
+        double start[TT_MAX_AXES][3]; /* (angle, rate, acceleration) at the start of the tick */
+        for (k = 0; k < p->n_axes; k++) {
+            TTAxis *x = &p->ax[k];
+            start[k][0] = x->th;
+            start[k][1] = x->thd;
+            servo_tick(m, k, j);
+            start[k][2] = x->thdd0; /* under the tick's torque: the right limit */
+        }
+        tick_integrals(p, start, wi, fi);
+    }
     p->tick += (long long)n;
     axis_outputs(m);
     plate_outputs(m);
+    for (k = 0; k < 3; k++) {
+        R(VR_plate_omega_int_x + k) = wi[k];
+        R(VR_plate_f_int_x + k) = fi[k];
+    }
     return MS_OK;
 }
 

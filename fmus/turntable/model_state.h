@@ -14,6 +14,7 @@ typedef struct {
     double wob_amp, wob_phase;
     /* plant (true motion) */
     double th, thd, thdd; /* angle, rate, acceleration (left limit at the last tick) */
+    double thdd0;         /* acceleration at the start of the last tick (right limit) */
     double torque;        /* motor torque held over the current controller tick */
     /* reference generator */
     double th_ref, w_ref, a_ref;

@@ -101,6 +101,13 @@ VARIABLES += [real(f"plate.alpha.{c}", "output", None, "rad/s2",
 VARIABLES += [real(f"plate.f.{c}", "output", None, "m/s2",
                    f"specific force at the plate reference point, plate {c} axis")
               for c in "xyz"]
+VARIABLES += [real(f"plate.omega_int.{c}", "output", None, "rad",
+                   f"integral of plate.omega.{c} over the communication step just ended "
+                   "(exact to the servo's integrator: quintic Hermite + 3-point Gauss per tick)")
+              for c in "xyz"]
+VARIABLES += [real(f"plate.f_int.{c}", "output", None, "m/s",
+                   f"integral of plate.f.{c} over the communication step just ended")
+              for c in "xyz"]
 VARIABLES += [real(f"plate.q.{c}", "output", None, "1",
                    f"attitude quaternion of the plate w.r.t. ENU (C_p^n), {c} component")
               for c in "wxyz"]
