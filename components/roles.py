@@ -26,6 +26,12 @@ def turntable_role(axes=DEFAULT_AXES) -> Role:
         v.append(RoleVariable(f"plate.f.{c}", "output", "Real", "m/s2"))
     for c in "wxyz":
         v.append(RoleVariable(f"plate.q.{c}", "output", "Real", "1"))
+    # integrals over the communication step just ended (for exact IMU increments when the
+    # motion inside a step is not a polynomial); a table without them still plugs in
+    for c in "xyz":
+        v.append(RoleVariable(f"plate.omega_int.{c}", "output", "Real", "rad", False))
+    for c in "xyz":
+        v.append(RoleVariable(f"plate.f_int.{c}", "output", "Real", "m/s", False))
     return Role("turntable", v, "servo, gimbal chain, base and Earth; plate motion in plate axes")
 
 
@@ -43,6 +49,8 @@ def imu_role(gyro_output: str = "increment", acc_output: str = "increment") -> R
     v = [RoleVariable(f"omega.{c}", "input", "Real", "rad/s") for c in "xyz"]
     v += [RoleVariable(f"f.{c}", "input", "Real", "m/s2") for c in "xyz"]
     v += [RoleVariable(f"alpha.{c}", "input", "Real", "rad/s2", False) for c in "xyz"]
+    v += [RoleVariable(f"omega_int.{c}", "input", "Real", "rad", False) for c in "xyz"]
+    v += [RoleVariable(f"f_int.{c}", "input", "Real", "m/s", False) for c in "xyz"]
     v.append(RoleVariable("temperature_env", "input", "Real", "degC", False))
     v += [RoleVariable(f"gyro.{c}", "output", "Real", GYRO_KINDS[gyro_output]) for c in "xyz"]
     v += [RoleVariable(f"acc.{c}", "output", "Real", ACC_KINDS[acc_output]) for c in "xyz"]

@@ -15,6 +15,22 @@
  *       inputs present at exitInitializationMode are the knot at the start time. Between two
  *       knots the signal is the cubic Hermite interpolant; beyond the newest knot the last cubic
  *       is extrapolated, before the oldest the first one.
+ *     input_integrals 1 (either timing): omega_int and f_int set with a knot are the integrals
+ *       of omega and f over the interval [previous knot, this knot] (the communication step just
+ *       ended, computed by the motion source: the turntable's plate.omega_int / plate.f_int).
+ *       Between the two knots the signal is then the quartic
+ *         p(u) = H(u) + c u^2 (1 - u)^2,  u = (tau - t_a) / (t_b - t_a) in [0, 1],
+ *       H the cubic Hermite above: the bump has zero value and slope at both knots, so the
+ *       quartic keeps both end values and derivatives (C1 across knots) and, since the integral
+ *       of u^2 (1 - u)^2 over [0, 1] is 1/30, c = 30 (I / dt - (y_a + y_b) / 2 - dt (y'_a - y'_b)
+ *       / 12) makes its integral exactly I. Every effect linear in the motion therefore gets the
+ *       exact increment however the motion moved inside the step (servo transients: the torque
+ *       is piecewise constant at 2 kHz, not a cubic over 5 ms), the others a better interpolant.
+ *       alpha inside the interval is the quartic's derivative (its integral is still exactly
+ *       omega_b - omega_a). Outside [t_a, t_b] (extrapolation with imu.time_offset) the bump is
+ *       left out: the cubic extension continues C1 and does not amplify u^4. The first knot has
+ *       no interval, so no bump. The integrals must cover exactly the IMU's own step: a source
+ *       stepping with a different h (multi-rate) must not be connected to them.
  *     input_timing 1: the inputs set before doStep(t, h) are the values at t; beyond the newest
  *       knot the signal is its Taylor polynomial (orders 1..3).
  *   Knot derivatives: omega' = alpha input, unless the master set an FMI input derivative of
@@ -38,6 +54,10 @@
  *   piece into NSUB sub-intervals of 4 points): exact for polynomials of degree 7 per piece, so
  *   every linear and quadratic term of the cubic interpolant is exact; k3 f^3 and the |x| kink
  *   at a zero crossing are approximate (error O(h^8) resp. second order in the crossing).
+ *   With input_integrals 1 the pieces are quartics: linear terms have degree 4 (5 with the
+ *   temperature ramp), quadratic ones (k2, cross, g2sens, omega x (omega x r)) degree 8, so the
+ *   rule is 5 points (exact to degree 9) and the same statements hold. Not exact in either case:
+ *   k2 / cross products with the lever-arm's centripetal term (degree 12 resp. 16).
  * - Noise, per sensor and axis, added to the increment over [t, t+h]:
  *     white: N sqrt(h) w1                           (N = gyro.noise.arw / acc.noise.vrw)
  *     bias instability: first-order Gauss-Markov x, correlation time T = bi_tau, standard
@@ -84,6 +104,8 @@ _Static_assert(VR_acc_lever_z_z == VR_acc_lever_x_x + 8, "lever: accelerometer-m
 _Static_assert(VR_omega_z == VR_omega_x + 2 && VR_f_z == VR_f_x + 2 && VR_alpha_z == VR_alpha_x + 2,
                "inputs consecutive");
 _Static_assert(VR_gyro_z == VR_gyro_x + 2 && VR_acc_z == VR_acc_x + 2, "outputs consecutive");
+_Static_assert(VR_omega_int_z == VR_omega_int_x + 2 && VR_f_int_z == VR_f_int_x + 2,
+               "integral inputs consecutive");
 
 /* Parameters shared in form by both sensors, by first value reference. */
 typedef struct {
@@ -100,11 +122,17 @@ static const SensorVr SENSOR_VR[2] = {
      VR_acc_noise_rrw, VR_acc_output, VR_acc_count_weight, VR_acc_x},
 };
 
-/* 4-point Gauss-Legendre on [-1, 1] */
+/* 4-point Gauss-Legendre on [-1, 1] (cubic pieces) */
 static const double GL_X[4] = {-0.86113631159405257522, -0.33998104358485626480,
                                0.33998104358485626480, 0.86113631159405257522};
 static const double GL_W[4] = {0.34785484513745385737, 0.65214515486254614263,
                                0.65214515486254614263, 0.34785484513745385737};
+/* 5-point Gauss-Legendre on [-1, 1] (quartic pieces, input_integrals 1) */
+static const double GL5_X[5] = {-0.90617984593866399280, -0.53846931010568309104, 0.0,
+                                0.53846931010568309104, 0.90617984593866399280};
+static const double GL5_W[5] = {0.23692688505618908751, 0.47862867049936646804,
+                                0.56888888888888888889, 0.47862867049936646804,
+                                0.23692688505618908751};
 
 /* Allan-deviation peak of a Gauss-Markov process per sigma, and the flicker floor per B. */
 #define GM_PEAK 0.617364
@@ -266,11 +294,29 @@ static void push_knot(ModelPrivate *p, const ImuKnot *k, double tol) {
     p->knot[p->nknots++] = *k;
 }
 
+/* input_integrals 1: the bump coefficients of the interval ending at the newest knot, from the
+ * integral inputs (see the top comment). */
+static void set_bump(const ModelInstance *m, ModelPrivate *p) {
+    ImuKnot *kb = &p->knot[p->nknots - 1];
+    kb->bump = 0;
+    if (I(VR_input_integrals) != 1 || p->nknots < 2) return;
+    const ImuKnot *ka = &p->knot[p->nknots - 2];
+    double dt = kb->t - ka->t;
+    for (int i = 0; i < 3; i++) {
+        kb->cw[i] = 30.0 * (R(VR_omega_int_x + i) / dt - 0.5 * (ka->w[i] + kb->w[i]) -
+                            dt * (ka->wd[0][i] - kb->wd[0][i]) / 12.0);
+        kb->cf[i] = 30.0 * (R(VR_f_int_x + i) / dt - 0.5 * (ka->f[i] + kb->f[i]) -
+                            dt * (ka->fd[0][i] - kb->fd[0][i]) / 12.0);
+    }
+    kb->bump = 1;
+}
+
 typedef struct {
     double w[3], a[3], f[3];
 } Motion;
 
-/* Cubic Hermite through knots a, b, evaluated at tau (also outside [a.t, b.t]). */
+/* Cubic Hermite through knots a, b, evaluated at tau (also outside [a.t, b.t]), plus the
+ * integral-matching bump of knot b inside [a.t, b.t] (input_integrals 1). */
 static void hermite(const ImuKnot *ka, const ImuKnot *kb, double tau, Motion *mo) {
     double dt = kb->t - ka->t;
     double u = (tau - ka->t) / dt, u2 = u * u, u3 = u2 * u;
@@ -280,6 +326,14 @@ static void hermite(const ImuKnot *ka, const ImuKnot *kb, double tau, Motion *mo
         mo->w[i] = h00 * ka->w[i] + h10 * dt * ka->wd[0][i] + h01 * kb->w[i] + h11 * dt * kb->wd[0][i];
         mo->a[i] = (d00 * ka->w[i] + d01 * kb->w[i]) / dt + d10 * ka->wd[0][i] + d11 * kb->wd[0][i];
         mo->f[i] = h00 * ka->f[i] + h10 * dt * ka->fd[0][i] + h01 * kb->f[i] + h11 * dt * kb->fd[0][i];
+    }
+    if (kb->bump && u >= 0.0 && u <= 1.0) {
+        double b = u2 * (1.0 - u) * (1.0 - u), db = (2.0 * u - 6.0 * u2 + 4.0 * u3) / dt;
+        for (int i = 0; i < 3; i++) {
+            mo->w[i] += kb->cw[i] * b;
+            mo->a[i] += kb->cw[i] * db;
+            mo->f[i] += kb->cf[i] * b;
+        }
     }
 }
 
@@ -371,18 +425,20 @@ static void sensor_outputs(const ModelInstance *m, double s, double gyro[3], dou
     }
 }
 
-/* Add the integral over sensor time [a, b] (composite 4-point Gauss-Legendre). Within a piece
- * the signals are cubics and every term of the model is a polynomial of degree <= 6 in them
- * except k3 (degree 9) and the asymmetry's |x|: without those one 4-point rule (exact to degree
- * 7) is already exact, so the sub-division is only paid when they are present. */
+/* Add the integral over sensor time [a, b] (composite 4- or 5-point Gauss-Legendre). Within a
+ * piece the signals are cubics (quartics with input_integrals 1) and every term of the model is
+ * a polynomial of degree <= 6 (<= 8) in them except k3 (degree 9, 12) and the asymmetry's |x|:
+ * without those one 4-point (5-point) rule, exact to degree 7 (9), is already exact, so the
+ * sub-division is only paid when they are present. */
 static void integrate_piece(const ModelInstance *m, double a, double b, double g[3], double f[3]) {
-    const int nsub = m->s.p.nsub;
+    const int nsub = m->s.p.nsub, npts = m->s.p.npts;
+    const double *gx = npts == 5 ? GL5_X : GL_X, *gw = npts == 5 ? GL5_W : GL_W;
     double hs = (b - a) / nsub;
     for (int k = 0; k < nsub; k++) {
         double c = a + (k + 0.5) * hs;
-        for (int q = 0; q < 4; q++) {
-            double yg[3], ya[3], w = GL_W[q] * hs / 2;
-            sensor_outputs(m, c + GL_X[q] * hs / 2, yg, ya);
+        for (int q = 0; q < npts; q++) {
+            double yg[3], ya[3], w = gw[q] * hs / 2;
+            sensor_outputs(m, c + gx[q] * hs / 2, yg, ya);
             for (int i = 0; i < 3; i++) {
                 g[i] += w * yg[i];
                 f[i] += w * ya[i];
@@ -475,6 +531,8 @@ static ModelStatus check_parameters(ModelInstance *m) {
     }
     st = worst(st, check_integer(m, VR_input_timing, 0, 1,
                                  "0 (inputs at the end of the step) or 1 (at its start)"));
+    st = worst(st, check_integer(m, VR_input_integrals, 0, 1,
+                                 "0 (ignore omega_int, f_int) or 1 (match the integrals)"));
     st = worst(st, check_integer(m, VR_temperature_mode, 0, 2,
                                  "0 (constant), 1 (ramp) or 2 (input temperature_env)"));
     return st;
@@ -507,6 +565,7 @@ ModelStatus model_initialize(ModelInstance *m) {
     memset(p, 0, sizeof *p);
     seed_streams(m);
     p->nsub = 1;
+    p->npts = I(VR_input_integrals) == 1 ? 5 : 4;
     for (int i = 0; i < 3; i++)
         if (R(VR_gyro_sf_asym_x + i) != 0.0 || R(VR_acc_sf_asym_x + i) != 0.0 ||
             R(VR_acc_k3_x + i) != 0.0)
@@ -535,6 +594,7 @@ ModelStatus model_do_step(ModelInstance *m, double h) {
     int timing1 = I(VR_input_timing) == 1;
     knot_from_inputs(m, timing1 ? t : t + h, &k);
     push_knot(&m->s.p, &k, 1e-9 * h);
+    set_bump(m, &m->s.p);
 
     double inc[2][3];
     integrate_step(m, t, h, inc[GYRO], inc[ACC]);

@@ -17,6 +17,10 @@ typedef struct {
     double f[3];     /* specific force at the plate point, m/s2 */
     double fd[3][3]; /* fd[k][i]: (k+1)-th derivative of f_i */
     double tenv;     /* temperature_env, degC */
+    /* input_integrals 1: the interpolant of the interval ending here is the cubic Hermite plus
+     * cw u^2 (1 - u)^2 (omega) and cf u^2 (1 - u)^2 (f), u in [0, 1] over the interval */
+    int bump;        /* 1 when cw, cf are set (a previous knot and the integrals exist) */
+    double cw[3], cf[3];
 } ImuKnot;
 
 /* xoshiro256** state */
@@ -33,6 +37,7 @@ typedef struct {
     double resid[2][3]; /* count residual carried to the next sample (output kind 2) */
     int nsub;           /* Gauss-Legendre sub-intervals per piece (1 when the model is exact
                            with one: see integrate_piece) */
+    int npts;           /* Gauss-Legendre points: 4 (cubic pieces) or 5 (quartic pieces) */
 } ModelPrivate;
 
 #endif

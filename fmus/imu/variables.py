@@ -81,6 +81,11 @@ VARIABLES = _effect_parameters() + _noise_parameters() + [
             "motion source, Gauss-Seidel) and are interpolated (cubic Hermite, alpha as the "
             "derivative of omega) against the previous ones; 1: they are the values at t (FMI "
             "default) and are extrapolated with alpha and any input derivatives"),
+    integer("input_integrals", "parameter", 0,
+            "0: ignore omega_int / f_int; 1: they are the integrals of omega and f over the "
+            "interval that ends at the knot being set (the communication step just ended), and "
+            "the interpolant between two knots is the quartic that also matches that integral "
+            "(exact increments for every effect linear in the motion)"),
     integer("temperature.mode", "parameter", 0, "0 constant, 1 ramp, 2 from input temperature_env"),
     real("temperature.start", "parameter", 25.0, "degC", "IMU temperature at start (modes 0, 1)"),
     real("temperature.rate", "parameter", 0.0, "K/s", "temperature ramp rate (mode 1)"),
@@ -91,6 +96,12 @@ VARIABLES += [real(f"omega.{c}", "input", 0.0, "rad/s", f"inertial angular rate 
 VARIABLES += [real(f"f.{c}", "input", 0.0, "m/s2", f"specific force at the mounting point, {c} axis")
               for c in AX]
 VARIABLES += [real(f"alpha.{c}", "input", 0.0, "rad/s2", f"angular acceleration (d omega/dt), {c} axis")
+              for c in AX]
+VARIABLES += [real(f"omega_int.{c}", "input", 0.0, "rad",
+                   f"integral of omega.{c} over the interval ending at this knot (input_integrals 1)")
+              for c in AX]
+VARIABLES += [real(f"f_int.{c}", "input", 0.0, "m/s",
+                   f"integral of f.{c} over the interval ending at this knot (input_integrals 1)")
               for c in AX]
 VARIABLES.append(real("temperature_env", "input", 25.0, "degC", "environment temperature (mode 2)"))
 # No unit is declared on the sensor outputs: it follows the output kind chosen by gyro.output /
