@@ -43,9 +43,12 @@ def _system(hours: float, controller: bool):
 
     units = [UnitSpec("table", fmu="builtin:turntable", role="turntable",
                       parameters={} if controller else {"middle.angle_cmd": 90 * D}),
-             UnitSpec("imu", fmu="builtin:imu", role="imu", parameters={**IMU_ERRORS, **IMU_NOISE, "seed": 1})]
+             UnitSpec("imu", fmu="builtin:imu", role="imu",
+                      parameters={**IMU_ERRORS, **IMU_NOISE, "seed": 1, "input_integrals": 1})]
     conns = [Connection("table.plate.omega", "imu.omega"), Connection("table.plate.f", "imu.f"),
-             Connection("table.plate.alpha", "imu.alpha")]
+             Connection("table.plate.alpha", "imu.alpha"),
+             Connection("table.plate.omega_int", "imu.omega_int"),
+             Connection("table.plate.f_int", "imu.f_int")]
     if controller:
         units.insert(0, UnitSpec("ctrl", component="components.sequencer:AttitudeSequence",
                                  step_multiple=20, config={"sequence": sequence(hours)}))
@@ -99,11 +102,12 @@ def run_fmpy(hours: float) -> float:
     for k, v in {**IMU_ERRORS, **IMU_NOISE}.items():
         imu.setReal([ivr[k]], [v])
     imu.setInteger([ivr["seed"]], [1])
+    imu.setInteger([ivr["input_integrals"]], [1])
     ctrl = AttitudeSequence("ctrl", sequence(hours))
     axes = ("outer", "middle", "inner")
     cmd_vr = [tvr[f"{a}.angle_cmd"] for a in axes]
-    src = [tvr[f"plate.{v}.{c}"] for v in ("omega", "f", "alpha") for c in "xyz"]
-    dst = [ivr[f"{v}.{c}"] for v in ("omega", "f", "alpha") for c in "xyz"]
+    src = [tvr[f"plate.{v}.{c}"] for v in ("omega", "f", "alpha", "omega_int", "f_int") for c in "xyz"]
+    dst = [ivr[f"{v}.{c}"] for v in ("omega", "f", "alpha", "omega_int", "f_int") for c in "xyz"]
     rec_imu = [ivr[f"{s}.{c}"] for s in ("gyro", "acc") for c in "xyz"]
     rec_tab = [tvr[f"{a}.angle"] for a in axes]
     n = int(round(hours * 3600 / H))
