@@ -34,7 +34,6 @@ from scipy import stats
 from components.blocks import make_blocks, white_noise_sigma
 from components.effects import effect_of
 from components.lsq import LogData, apply_table_parameter, rest_sigma, sensor_columns
-from components.motion import reconstruct
 from components.result import CalibrationResult
 
 CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
@@ -116,7 +115,7 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     this same log (subtracted from the degrees of freedom)."""
     geo = model_geometry(data, model)
     T0 = model.temperature_ref
-    motion = reconstruct(data.time, data.angles, geo, data.temperature, T0, 3, dt0=data.dt0)
+    motion = data.motion(geo, T0)
     sensor_params = [p for p in model.values if effect_of(p).target != "table"]
     values = np.array([model.values[p] for p in sensor_params])
     G, A = sensor_columns(motion, sensor_params)

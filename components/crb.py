@@ -20,7 +20,6 @@ import numpy as np
 from components.effects import effect_of, parameters_of
 from components.blocks import make_blocks
 from components.lsq import LogData, _design, rest_sigma
-from components.motion import reconstruct
 
 # sigma of the Gauss–Markov process whose Allan-deviation peak equals the IEEE bias-instability
 # floor 0.664 B (the same constants as the IMU FMU, fmus/imu/model.c)
@@ -67,7 +66,7 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     table_params = [p for p in params if effect_of(p).target == "table"]
     geo = data.geometry
     dt = float(np.median(np.diff(data.time)))
-    motion = reconstruct(data.time, data.angles, geo, data.temperature, None, 3, dt0=data.dt0)
+    motion = data.motion(geo)
     n_chunk = max(1, int(round(chunk_s / dt)))
     gb = make_blocks(motion.static, n_chunk, whole_moves=True)
     ab = make_blocks(motion.static, n_chunk, whole_moves=False)
@@ -77,9 +76,10 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     # the design needs a measurement only for its residual: use the ideal one
     ideal = LogData(data.time, data.angles, motion.ideal_gyro, motion.ideal_acc, geo,
                     data.temperature, data.segment, data.dt0)
+    ideal._profiles = data._profiles
 
     def motion_for(g):
-        return reconstruct(data.time, data.angles, g, data.temperature, None, 3, dt0=data.dt0)
+        return data.motion(g)
 
     _, H, w, rows = _design(ideal, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
     Hw = H * w[:, None]

@@ -25,7 +25,6 @@ from scipy import stats
 from components.blocks import make_blocks, white_noise_sigma
 from components.effects import EFFECTS, Effect, effect_of, parameters_of
 from components.lsq import LogData, _design, apply_table_parameter, rest_sigma
-from components.motion import reconstruct
 from components.result import CalibrationResult
 
 # Which schedule change separates two effects (order-free pairs), else a generic hint per effect.
@@ -112,7 +111,7 @@ class _Design:
         T0 = model.temperature_ref
 
         def motion_for(g):
-            return reconstruct(data.time, data.angles, g, data.temperature, T0, 3, dt0=data.dt0)
+            return data.motion(g, T0)
 
         motion = motion_for(geo)
         dt = float(np.median(np.diff(data.time)))

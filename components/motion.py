@@ -84,17 +84,34 @@ def moving_runs(static: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]))
 
 
-def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
-                temperature: np.ndarray | None = None, t0_temperature: float | None = None,
-                quadrature: int = 3, lever: np.ndarray | None = None, dt0: float | None = None) -> Motion:
-    """Motion over each interval (t_{k-1}, t_k] from measured angles (N, n_axes) at t_k.
+@dataclass
+class AngleProfile:
+    """The measured gimbal angles interpolated inside every sample interval; independent of the
+    geometry, so one profile serves every geometry a fit tries."""
+
+    time: np.ndarray
+    t_prev: np.ndarray
+    dt: np.ndarray
+    static: np.ndarray
+    nodes: np.ndarray
+    weights: np.ndarray
+    th_q: np.ndarray    # (N, Q, n_axes) measured angle at the nodes
+    rate_q: np.ndarray
+    acc_q: np.ndarray
+    th_end: np.ndarray  # (N, n_axes) at the sample times
+    rate_end: np.ndarray
+    acc_end: np.ndarray
+
+
+def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
+                       dt0: float | None = None) -> AngleProfile:
+    """Interpolate measured angles (N, n_axes) at t_k over each interval (t_{k-1}, t_k].
 
     The interval before the first sample is taken as static at the first angles; its length is
     ``dt0`` (default: the first sample spacing)."""
     time = np.asarray(time, float)
     n = len(time)
     measured = np.atleast_2d(np.asarray(angles, float))
-    theta = geometry.true_angles(measured)
     if dt0 is None:
         dt0 = time[1] - time[0] if n > 1 else 0.0
     t_prev = np.concatenate([[time[0] - dt0], time[:-1]])
@@ -103,9 +120,8 @@ def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
     static = np.all(prev == measured, axis=1)
     x, w = gauss_legendre(quadrature)
     q = len(x)
-    n_ax = theta.shape[1]
-
-    th_q = np.repeat(theta[:, None, :], q, axis=1)  # static default: angle held
+    n_ax = measured.shape[1]
+    th_q = np.repeat(measured[:, None, :], q, axis=1)  # static: angle held
     rate_q = np.zeros_like(th_q)
     acc_q = np.zeros_like(th_q)
     rate_end = np.zeros((n, n_ax))
@@ -116,7 +132,7 @@ def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
         lo = a - 1
         hi = b if b < n else b - 1
         kt = np.concatenate([[t_prev[a]], time[a:hi + 1]])
-        kth = np.vstack([theta[lo] if lo >= 0 else theta[0], theta[a:hi + 1]])
+        kth = np.vstack([measured[lo] if lo >= 0 else measured[0], measured[a:hi + 1]])
         rest_lo = lo < 0 or static[lo]
         rest_hi = b < n and static[b]
         zero = (1, np.zeros(n_ax))
@@ -130,30 +146,82 @@ def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
         acc_q[a:b] = spl(tq, 2)
         rate_end[a:b] = spl(time[a:b], 1)
         acc_end[a:b] = spl(time[a:b], 2)
+    return AngleProfile(time, t_prev, dt, static, x, w, th_q, rate_q, acc_q, measured,
+                        rate_end, acc_end)
 
-    # kinematics: once per distinct static attitude is enough, but one vectorised call over all
-    # nodes is simpler and fast enough (a few 1e6 nodes per second)
-    _, om, al, f = geometry.kinematics(th_q.reshape(-1, n_ax), rate_q.reshape(-1, n_ax),
-                                       acc_q.reshape(-1, n_ax))
-    _, om_e, _, f_e = geometry.kinematics(theta, rate_end, acc_end)
-    om0, f0 = (om_e[:1], f_e[:1])
-    omega_start = np.vstack([om0, om_e[:-1]])
-    f_start = np.vstack([f0, f_e[:-1]])
 
-    tq_all = t_prev[:, None] + dt[:, None] * x[None, :]
+def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
+    """Measured angle derivatives -> true ones through the encoder error e(θ):
+    θ_m = θ + e(θ) gives θ̇ = θ̇_m / (1 + e'), θ̈ = (θ̈_m - e'' θ̇²) / (1 + e')."""
+    t = geometry.true_angles(th)
+    if np.array_equal(t, th):
+        return th, rate, acc
+    r, a = rate.copy(), acc.copy()
+    for k, s in enumerate(geometry.stages):
+        if not (s.enc_s1 or s.enc_c1 or s.enc_s2 or s.enc_c2):
+            continue
+        u = t[:, k]
+        e1 = s.enc_s1 * np.cos(u) - s.enc_c1 * np.sin(u) + 2 * (s.enc_s2 * np.cos(2 * u) - s.enc_c2 * np.sin(2 * u))
+        e2 = -s.enc_s1 * np.sin(u) - s.enc_c1 * np.cos(u) - 4 * (s.enc_s2 * np.sin(2 * u) + s.enc_c2 * np.cos(2 * u))
+        r[:, k] = rate[:, k] / (1 + e1)
+        a[:, k] = (acc[:, k] - e2 * r[:, k] ** 2) / (1 + e1)
+    return t, r, a
+
+
+def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
+                        temperature: np.ndarray | None = None, t0_temperature: float | None = None,
+                        lever: np.ndarray | None = None) -> Motion:
+    """Plate motion at the profile's nodes for one geometry."""
+    p = profile
+    n, q, n_ax = p.th_q.shape
+    om = np.empty((n, q, 3))
+    al = np.zeros((n, q, 3))
+    f = np.empty((n, q, 3))
+    # static intervals: one kinematics evaluation per distinct attitude (a schedule has few)
+    st = p.static
+    if st.any():
+        att, inv = np.unique(p.th_end[st], axis=0, return_inverse=True)
+        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
+        _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
+        om[st] = om_u[inv.ravel()][:, None, :]
+        f[st] = f_u[inv.ravel()][:, None, :]
+    mv = ~st
+    if mv.any():
+        th, rate, acc = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax),
+                                     p.rate_q[mv].reshape(-1, n_ax), p.acc_q[mv].reshape(-1, n_ax))
+        _, om_m, al_m, f_m = geometry.kinematics(th, rate, acc)
+        om[mv], al[mv], f[mv] = (x.reshape(-1, q, 3) for x in (om_m, al_m, f_m))
+    # values at the sample times: static ends share the attitudes above; moving ends computed
+    om_e = np.empty((n, 3))
+    f_e = np.empty((n, 3))
+    om_e[st], f_e[st] = om[st, 0], f[st, 0]
+    if mv.any():
+        the, re, ae = _true_motion(geometry, p.th_end[mv], p.rate_end[mv], p.acc_end[mv])
+        _, om_e[mv], _, f_e[mv] = geometry.kinematics(the, re, ae)
+    omega_start = np.vstack([om_e[:1], om_e[:-1]])
+    f_start = np.vstack([f_e[:1], f_e[:-1]])
+    tq_all = p.t_prev[:, None] + p.dt[:, None] * p.nodes[None, :]
     if temperature is not None:
         T = np.asarray(temperature, float)
         T_prev = np.concatenate([[T[0]], T[:-1]])
-        T_q = T_prev[:, None] + (T - T_prev)[:, None] * x[None, :]
+        T_q = T_prev[:, None] + (T - T_prev)[:, None] * p.nodes[None, :]
         T0 = float(T[0]) if t0_temperature is None else float(t0_temperature)
         dtemp_q = T_q - T0
     else:
         T0 = float(t0_temperature or 0.0)
         dtemp_q = np.zeros((n, q))
     return Motion(
-        time=time, dt=dt, static=static, nodes=x, weights=w,
-        omega_q=om.reshape(n, q, 3), alpha_q=al.reshape(n, q, 3), f_q=f.reshape(n, q, 3),
+        time=p.time, dt=p.dt, static=p.static, nodes=p.nodes, weights=p.weights,
+        omega_q=om, alpha_q=al, f_q=f,
         omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e,
-        dtemp_q=dtemp_q, elapsed_q=tq_all - t_prev[0], t0_temperature=T0,
+        dtemp_q=dtemp_q, elapsed_q=tq_all - p.t_prev[0], t0_temperature=T0,
         lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
     )
+
+
+def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
+                temperature: np.ndarray | None = None, t0_temperature: float | None = None,
+                quadrature: int = 3, lever: np.ndarray | None = None, dt0: float | None = None) -> Motion:
+    """Motion over each interval (t_{k-1}, t_k] from measured angles (N, n_axes) at t_k."""
+    return motion_from_profile(interpolate_angles(time, angles, quadrature, dt0), geometry,
+                               temperature, t0_temperature, lever)
