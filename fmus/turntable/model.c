@@ -398,12 +398,16 @@ static void tick_integrals(const ModelPrivate *p, const double start[][3], doubl
         hermite5_weights(GL2_S[q], p->T, hv, hd);
         for (k = 0; k < p->n_axes; k++) {
             const TTAxis *x = &p->ax[k];
-            const double y[6] = {start[k][0], start[k][1], start[k][2], x->th, x->thd, x->thdd};
+            /* relative to the start angle (hv[0] + hv[3] = 1, hd[0] = -hd[3]): the large
+             * absolute angles do not cancel in the rate */
+            const double y[6] = {0.0, start[k][1], start[k][2], x->th - start[k][0], x->thd,
+                                 x->thdd};
             th[k] = thd[k] = 0.0;
-            for (i = 0; i < 6; i++) {
+            for (i = 1; i < 6; i++) {
                 th[k] += hv[i] * y[i];
                 thd[k] += hd[i] * y[i];
             }
+            th[k] += start[k][0];
         }
         plate_rate_force(p, th, thd, w, f);
         for (i = 0; i < 3; i++) {
