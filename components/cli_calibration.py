@@ -64,6 +64,7 @@ def add_commands(sub) -> None:
                                      "misalignment of gyro and accelerometer)")
     c.add_argument("--chunk", type=float, default=1.0, help="static block length [s]")
     c.set_defaults(func=_cmd_calibrate)
+    add_model_commands(sub)
 
     a = sub.add_parser("apply", help="correct a raw log with a calibration result")
     a.add_argument("log", help="the raw log (either file or the stem)")
@@ -73,3 +74,188 @@ def add_commands(sub) -> None:
 
 
 
+
+
+# ------------------------------------------------------------------ model against measurement
+
+def _load_model(path: str):
+    from components.result import CalibrationResult
+
+    return CalibrationResult.load(path)
+
+
+def fitted_on(model, log) -> bool:
+    """Was *model* fitted to this very log (same file contents)? Then its parameters count
+    against the degrees of freedom."""
+    from pathlib import Path
+
+    from components.result import file_sha256
+
+    if not log.source:
+        return False
+    stem = Path(log.source).with_suffix("")
+    for suffix in ("csv", "parquet"):
+        f = stem.with_suffix("." + suffix)
+        if f.exists() and model.data.get(f"{suffix}_sha256") == file_sha256(f):
+            return True
+    return False
+
+
+def ladder_entry(comparison, effects: list[str], label: str | None = None) -> dict:
+    ch = comparison.channels
+    return {"model": label or "+".join(effects), "effects": list(effects),
+            "chi2_per_dof": comparison.chi2_per_dof,
+            "rms": {k: v["rms"] for k, v in ch.items()},
+            "noise_floor": {k: v["noise_floor"] for k, v in ch.items()}}
+
+
+def print_ladder(ladder: list[dict]) -> None:
+    print(f"{'model':48s} {'chi2/dof':>9s}  rms/noise: gyro x y z, acc x y z")
+    for e in ladder:
+        ratios = " ".join(f"{e['rms'][k] / e['noise_floor'][k]:5.2f}" for k in e["rms"])
+        print(f"{e['model'][:48]:48s} {e['chi2_per_dof']:9.3f}  {ratios}")
+
+
+def _print_comparison(c) -> None:
+    print(f"chi2/dof (block sums against the white-noise level) = {c.chi2_per_dof:.3f} "
+          f"({c.dof} dof, 1 ± {(2 / max(c.dof, 1)) ** 0.5:.3f} for a correct model)")
+    print(f"{'channel':8s} {'rms':>11s} {'noise':>11s} {'rms/noise':>9s} {'chi2/dof':>9s} "
+          f"{'fit %':>9s} {'white p':>8s}")
+    for k, v in c.channels.items():
+        print(f"{k:8s} {v['rms']:11.4g} {v['noise_floor']:11.4g} {v['rms'] / v['noise_floor']:9.3f} "
+              f"{v['chi2_per_dof']:9.3f} {v['fit_percent']:9.4f} {v['whiteness_p']:8.3f}")
+    worst = sorted(((max((x for x in vals if x is not None), default=0), s)
+                    for s, vals in c.per_segment.items()), reverse=True)[:5]
+    if worst:
+        print("segments with the largest normalised residual (block RMS, 1 = noise): "
+              + ", ".join(f"{s} {v:.2f}" for v, s in worst))
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    import json
+
+    from components.compare import compare
+    from components.logfile import read_log
+    from components.lsq import LogData
+
+    log = read_log(args.log)
+    data = LogData.from_log(log)
+    model = _load_model(args.model)
+    c = compare(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0)
+    _print_comparison(c)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(c.summary(), f, indent=1)
+    if args.residuals:
+        write_residuals(args.residuals, log, c)
+    return 0
+
+
+def write_residuals(path: str, log, c) -> None:
+    """Per-sample residuals in the log's output units (CSV)."""
+    import numpy as np
+
+    r = c.residual.copy()
+    for s, (kind, w) in ((slice(0, 3), (log.gyro_output, log.gyro_count_rad)),
+                         (slice(3, 6), (log.acc_output, log.acc_count_mps))):
+        if kind in ("rate", "specific_force"):
+            r[:, s] /= log.dt
+        elif kind == "counts":
+            r[:, s] /= w
+    seg = np.asarray(log.segment).astype(str) if log.segment is not None else np.full(log.n, "")
+    with open(path, "w") as f:
+        f.write("time,segment,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z\n")
+        for k in range(log.n):
+            f.write(f"{log.time[k]!r},{seg[k]}," + ",".join(repr(float(x)) for x in r[k]) + "\n")
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    import json
+
+    from components.diagnose import diagnose
+    from components.effects import EFFECTS, parse_effects
+    from components.logfile import read_log
+    from components.lsq import LogData
+
+    log = read_log(args.log)
+    data = LogData.from_log(log)
+    model = _load_model(args.model)
+    cands = parse_effects(args.candidates) if args.candidates else None
+    d = diagnose(data, model, candidates=cands, alpha=args.alpha)
+    print(f"model: {', '.join(model.effects)}; chi2/dof = {d.base_chi2_per_dof:.3f} over {d.rows} block rows")
+    print(f"{'rank':4s} {'effect':16s} {'F':>10s} {'p (Holm)':>10s} {'dBIC':>10s} {'explains':>8s}  magnitude")
+    for i, c in enumerate(d.ranking[: args.top], 1):
+        e = EFFECTS[c.effect]
+        unit, scale = e.display
+        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))
+        mag = f"{best[0]} = {best[1][0] / scale:+.4g} ± {best[1][1] / scale:.2g} {unit}"
+        mark = "*" if c.passes else " "
+        print(f"{i:3d}{mark} {c.effect:16s} {c.statistic:10.3g} {c.p_adjusted:10.2g} {c.bic_delta:10.4g} "
+              f"{100 * c.explained_fraction:7.1f}%  {mag}")
+        for other, rho, advice in c.indistinguishable:
+            print(f"       cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+    if d.verdict is None:
+        print("verdict: no significant effect is missing")
+    else:
+        print(f"verdict: {d.verdict} is missing" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(d.to_json(), f, indent=1)
+    return 0
+
+
+def _cmd_add(args: argparse.Namespace) -> int:
+    from components.compare import compare
+    from components.effects import parse_effects
+    from components.logfile import read_log
+    from components.lsq import LogData, calibrate
+    from components.result import result_from_fit
+
+    from components.cli import UserError
+
+    log = read_log(args.log)
+    data = LogData.from_log(log)
+    model = _load_model(args.model)
+    try:
+        new = parse_effects(args.effect)
+    except ValueError as e:
+        raise UserError(f"--effect: {e}") from None
+    effects = list(dict.fromkeys(list(model.effects) + new))
+    ladder = list(model.extra.get("ladder", []))
+    if not ladder:
+        ladder.append(ladder_entry(compare(data, model, fitted_parameters=len(model.values)), model.effects))
+    fit = calibrate(data, effects, temperature_ref=model.temperature_ref)
+    res = result_from_fit(fit, effects, data, log)
+    ladder.append(ladder_entry(compare(data, res, fitted_parameters=len(res.values)), effects,
+                               f"+ {', '.join(new)}"))
+    res.extra["ladder"] = ladder
+    res.save(args.out)
+    print_ladder(ladder)
+    print(f"-> {args.out}")
+    return 0
+
+
+def add_model_commands(sub) -> None:
+    c = sub.add_parser("compare", help="replay a log's motion through a model: residuals, "
+                                       "chi2/dof, fit, whiteness, where it fails")
+    c.add_argument("log")
+    c.add_argument("--model", required=True, help="calibration result (JSON)")
+    c.add_argument("--json", help="write the per-channel figures as JSON")
+    c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units)")
+    c.set_defaults(func=_cmd_compare)
+
+    d = sub.add_parser("diagnose", help="which effect of the vocabulary is missing from the model")
+    d.add_argument("log")
+    d.add_argument("--model", required=True)
+    d.add_argument("--json", help="write verdict and ranking as JSON")
+    d.add_argument("--alpha", type=float, default=0.01, help="family-wise error rate (Holm)")
+    d.add_argument("--candidates", help="comma list of effects to test (default: all not in the model)")
+    d.add_argument("--top", type=int, default=10, help="ranking lines to print")
+    d.set_defaults(func=_cmd_diagnose)
+
+    a = sub.add_parser("add", help="add an effect to a model and refit all parameters")
+    a.add_argument("log")
+    a.add_argument("--model", required=True)
+    a.add_argument("--effect", required=True, help="effect name (or comma list)")
+    a.add_argument("--out", required=True, help="the new model (JSON), with the ladder")
+    a.set_defaults(func=_cmd_add)
