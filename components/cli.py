@@ -63,6 +63,23 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     return 0 if report.ok else 1
 
 
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from components.scenario import load_scenario, run_scenario, write_outputs
+
+    overrides = {}
+    if args.dwell is not None:
+        overrides["dwell"] = args.dwell
+    sc = load_scenario(args.scenario, overrides)
+    if args.seed is not None:
+        sc.seed = args.seed
+    result = run_scenario(sc)
+    paths = write_outputs(result, args.out, args.format)
+    log = result.log
+    print(f"{sc.name}: schedule {sc.schedule.name}, {log.n} samples over {log.time[-1]:.1f} s, "
+          f"{len(result.controller.labels)} segment labels -> " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 def _parse_mapping(items: list[str]) -> dict:
     out = {}
     for it in items or []:
@@ -124,6 +141,15 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--no-engine", action="store_true", help="skip the libcosim comparison")
     v.set_defaults(func=_cmd_verify)
 
+    sm = sub.add_parser("simulate", help="run a calibration scenario (schedule on turntable + IMU FMUs) and "
+                                          "write a calbench-log/1 log plus <STEM>.truth.json")
+    sm.add_argument("scenario", help="scenario file (.toml)")
+    sm.add_argument("--out", required=True, metavar="STEM", help="output stem: STEM.csv, STEM.json, STEM.truth.json")
+    sm.add_argument("--dwell", type=float, help="override the schedule's dwell parameter [s]")
+    sm.add_argument("--seed", type=int, help="override the IMU noise seed")
+    sm.add_argument("--format", choices=("csv", "parquet", "both"), default="csv", help="sample file format")
+    sm.set_defaults(func=_cmd_simulate)
+
     from components.cli_calibration import add_commands as _calibration_commands
 
     _calibration_commands(sub)
@@ -144,6 +170,8 @@ def main(argv: list[str] | None = None) -> int:
     from orchestrator.wiring import AlgebraicLoopError
     from components.logfile import LogFormatError
     from components.result import ResultFormatError
+    from components.scenario import ScenarioError
+    from components.schedule import ScheduleError
 
     import components.roles  # noqa: F401  (registers the roles and builtin: FMUs)
 
@@ -151,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except (UserError, BuildError, SystemError_, RoleError, SimulationFault, AlgebraicLoopError,
-            LogFormatError, ResultFormatError) as e:
+            LogFormatError, ResultFormatError, ScenarioError, ScheduleError) as e:
         print(f"calbench: error: {e}", file=sys.stderr)
         return 2
 

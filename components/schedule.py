@@ -6,7 +6,7 @@ A schedule is what the calibration controller (:mod:`components.controller`) wal
     name = "six-position"
     description = "free text"
 
-    [parameters]            # named values a step may use as "$name" (the CLI / a scenario
+    [parameters]            # named values a step may use as "$name" or "-$name" (the CLI / a scenario
     dwell = 30.0            # overrides them: `--dwell 5`)
 
     [settings]              # all optional
@@ -224,12 +224,13 @@ class _Parser:
             return default
         v = d[key]
         shown = repr(v)
-        if isinstance(v, str) and v.startswith("$"):
-            name = v[1:]
+        if isinstance(v, str) and (v.startswith("$") or v.startswith("-$")):
+            neg = v.startswith("-")
+            name = v[2:] if neg else v[1:]
             if name not in self.parameters:
                 known = ", ".join(sorted(self.parameters)) or "none"
                 raise self.err(where, f"key {key!r} = {v!r}: no parameter {name!r} (parameters: {known})")
-            v = self.parameters[name]
+            v = -self.parameters[name] if neg else self.parameters[name]
             shown = f"{d[key]!r} = {v!r}"
         ok, out = check(v)
         if not ok:
