@@ -20,6 +20,12 @@ def _cmd_build_fmus(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from components.demo import run_demo
+
+    return run_demo(args.out, seed=args.seed, dwell=args.dwell)
+
+
 def _cmd_tumble(args: argparse.Namespace) -> int:
     from components.tumble import run_tumble
 
@@ -153,6 +159,13 @@ def build_parser() -> argparse.ArgumentParser:
     from components.cli_calibration import add_commands as _calibration_commands
 
     _calibration_commands(sub)
+
+    dm = sub.add_parser("demo", help="simulate a run with a hidden effect, calibrate, compare, "
+                                     "diagnose, add the winner, compare again, write the report")
+    dm.add_argument("--out", default="calbench-demo", help="output folder")
+    dm.add_argument("--seed", type=int, help="IMU noise seed (default: the scenario's)")
+    dm.add_argument("--dwell", type=float, help="dwell per attitude [s] (default 8)")
+    dm.set_defaults(func=_cmd_demo)
 
     t = sub.add_parser("tumble", help="co-simulate the table tumbling a navigation-grade IMU "
                                       "through the six axis-up attitudes and check its outputs")

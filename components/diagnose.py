@@ -67,6 +67,7 @@ class Candidate:
     parameters: dict  # name -> (value, sigma) SI
     passes: bool = False
     indistinguishable: list = field(default_factory=list)  # [(effect, correlation, advice)]
+    implausible: list = field(default_factory=list)  # parameters fitted far outside the physical range
     correlated: list = field(default_factory=list)  # [(param, other param, rho)] within the fit
     signature: dict | None = None
 
@@ -80,7 +81,8 @@ class Candidate:
                 "display_unit": unit,
                 "parameters_display": {p: [v / scale, s / scale] for p, (v, s) in self.parameters.items()},
                 "indistinguishable": [{"effect": o, "correlation": r, "advice": a}
-                                      for o, r, a in self.indistinguishable]}
+                                      for o, r, a in self.indistinguishable],
+                "implausible": list(self.implausible)}
 
 
 @dataclass
@@ -235,11 +237,18 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         logp = float(stats.f.logsf(F, k, dof_c))
         sig = np.sqrt(np.clip(np.diag(cov), 0, None))
         values = dict(zip(base + ps, zip(sol.tolist(), sig.tolist())))
+        # a fitted magnitude far outside anything physical means the linearised model is being
+        # used to absorb something else (table angles beyond the small-angle range, or a
+        # near-degenerate column): such a candidate is reported but cannot be the verdict
+        typical = EFFECTS[effect].typical
+        implausible = [p for p in ps if abs(values[p][0]) > max(1000 * typical,
+                                                                  0.01 if EFFECTS[effect].unit == "rad" else 0)]
         cand = Candidate(effect, float(F), math.exp(logp), 1.0,
                          float(chi2_c - chi2_b + k * math.log(design.n)),
                          float(dchi2 / chi2_b) if chi2_b > 0 else 0.0, k,
                          {p: values[p] for p in ps})
         cand._logp = logp  # type: ignore[attr-defined]
+        cand.implausible = implausible
         cand._basis = basis  # type: ignore[attr-defined]
         # correlations of the new parameters with the model's own ones in this fit
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -262,7 +271,7 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         adj = min(1.0, (m - i) * math.exp(c._logp))  # type: ignore[attr-defined]
         running = max(running, adj)
         c.p_adjusted = running
-        c.passes = c.p_adjusted < alpha and c.bic_delta < 0
+        c.passes = c.p_adjusted < alpha and c.bic_delta < 0 and not c.implausible
     # candidates that cannot be told apart from a passing one
     for c in out[:6]:
         if not c.passes:
