@@ -54,7 +54,9 @@ class CalibrationController(Component):
     feedthrough: dict = {}
 
     def __init__(self, name: str, schedule, axes=("outer", "middle", "inner"),
-                 counts_per_rev: int = COUNTS_PER_REV, acc_max=200 * DEG, overrides: dict | None = None) -> None:
+                 counts_per_rev: int = COUNTS_PER_REV, acc_max=200 * DEG, overrides: dict | None = None,
+                 stop_when_done: bool = False) -> None:
+        self.stop_when_done = stop_when_done  # end the co-simulation when the schedule is done
         if isinstance(schedule, Schedule):
             if overrides:
                 raise ScheduleError("overrides apply to a schedule loaded by name, path or dict")
@@ -300,6 +302,7 @@ class CalibrationController(Component):
         self._reset()
         self.events = []
         self.finished = False
+        self.stop_requested = False
         self["done"] = 0
         self["segment"] = 0
 
@@ -320,5 +323,6 @@ class CalibrationController(Component):
             if self._i >= len(self.schedule.steps):
                 self.finished = True
                 self["done"] = 1
+                self.stop_requested = self.stop_when_done
                 return
             self._enter(tick, t)

@@ -310,13 +310,9 @@ def load_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
 # ----------------------------------------------------------------------------- building
 def _fmu_path(spec: str, base_dir: Path) -> Path:
     import components.roles  # noqa: F401  (registers builtin:)
-    from orchestrator.master import _FMU_RESOLVERS
+    from orchestrator.master import resolve_fmu
 
-    scheme, _, rest = spec.partition(":")
-    if rest and scheme in _FMU_RESOLVERS:
-        return Path(_FMU_RESOLVERS[scheme](rest))
-    p = Path(spec)
-    return p if p.is_absolute() else base_dir / p
+    return resolve_fmu(spec, base_dir)
 
 
 def _starts(path: Path) -> dict:
@@ -451,34 +447,6 @@ def _names(path: Path) -> set:
     return {v.name for v in read_model_description(str(path)).modelVariables}
 
 
-def _until_done_simulation():
-    """A Simulation that ends the run at the controller step that reports the schedule done
-    (the orchestrator runs start to stop; the controller's step is where we cut it)."""
-    from orchestrator.master import Simulation
-
-    class _Done(Exception):
-        pass
-
-    class UntilDone(Simulation):
-        controller = None
-        stopped_at = None
-
-        def _port_outputs(self, p, values, time):
-            super()._port_outputs(p, values, time)
-            c = self.controller
-            if c is not None and getattr(p.unit, "component", None) is c and c.finished:
-                self.stopped_at = time - p.multiple * self.system.step
-                raise _Done
-
-        def _loop(self, *args, **kwargs):
-            try:
-                super()._loop(*args, **kwargs)
-            except _Done:
-                pass
-
-    return UntilDone
-
-
 @dataclass
 class RunResult:
     scenario: Scenario
@@ -495,8 +463,10 @@ def run_scenario(sc: Scenario, record: list[str] | None = None, progress: bool |
     from components.logfile import log_from_recording
 
     system, ctrl, info = build_system(sc, record)
-    sim = _until_done_simulation()(system, progress=progress)
-    sim.controller = ctrl
+    from orchestrator.master import Simulation
+
+    ctrl.stop_when_done = True
+    sim = Simulation(system, progress=progress)
     sim.load()
     rec = sim.run()
     if not ctrl.finished:

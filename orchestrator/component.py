@@ -43,6 +43,9 @@ class Component:
     """Base class of Python units. Subclasses set ``variables`` and override ``do_step``."""
 
     variables: ClassVar[list[Var]] = []
+    #: set to True in do_step to end the run at this step (the master stops before the units
+    #: after this one in the order step; the recording ends there)
+    stop_requested: bool = False
 
     def __init__(self, name: str) -> None:
         self.name = name

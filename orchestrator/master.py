@@ -79,12 +79,18 @@ def _construct(cls: type, name: str, config: dict) -> Component:
         raise SystemError_(f"units.{name}.config: {cls.__name__} does not accept {sorted(config)} ({e})") from None
 
 
-def _fmu_file(system: System, spec_fmu: str, name: str) -> Path:
-    scheme, _, rest = spec_fmu.partition(":")
+def resolve_fmu(spec: str, base_dir: Path) -> Path:
+    """The FMU file a system names: ``<scheme>:<name>`` through a registered resolver, else a
+    path (relative to *base_dir*)."""
+    scheme, _, rest = spec.partition(":")
     if rest and scheme in _FMU_RESOLVERS:
-        return _FMU_RESOLVERS[scheme](rest)
-    p = Path(spec_fmu)
-    return p if p.is_absolute() else system.base_dir / p
+        return Path(_FMU_RESOLVERS[scheme](rest))
+    p = Path(spec)
+    return p if p.is_absolute() else base_dir / p
+
+
+def _fmu_file(system: System, spec_fmu: str, name: str) -> Path:
+    return resolve_fmu(spec_fmu, system.base_dir)
 
 
 @dataclass
@@ -110,6 +116,7 @@ class Simulation:
         self.role_checks: list[RoleCheck] = []
         self.order: list[str] = []
         self.connections: list[ScalarConnection] = []
+        self.stopped_at: float | None = None  # set when a unit ended the run before stop
 
     # ------------------------------------------------------------------ setup
     def load(self) -> None:
@@ -326,7 +333,13 @@ class Simulation:
                     outs.append(p)
                 for p in outs:
                     self._port_outputs(p, values, t + p.multiple * h)
+                if any(ports[n].unit.stop_requested() for n in acting):
+                    self.stopped_at = t + h
+                    step += 1
+                    rec.rows = step // every + 1
+                    break
             else:
+                stop = False
                 for seg in segments:
                     if isinstance(seg, tuple):
                         span(seg[0], seg[1], step, 1, False)
@@ -335,6 +348,13 @@ class Simulation:
                         p.unit.set_values(self._port_inputs(p, values))
                         p.unit.do_step(t, p.multiple * h)
                         self._port_outputs(p, values, t + p.multiple * h)
+                        if p.unit.stop_requested():
+                            stop = True
+                            break
+                if stop:
+                    # the unit ends the run at t: units after it in the order do not step
+                    self.stopped_at = t
+                    break
             step += 1
             if step % every == 0 and len(rslots):
                 rec_arr[step // every] = values[rslots]

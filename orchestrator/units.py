@@ -91,6 +91,10 @@ class Unit:
     def get_values(self, names: list[str]) -> list: ...
     def provenance(self) -> dict: return {}
 
+    def stop_requested(self) -> bool:
+        """Has the unit asked to end the run (a Python component's ``stop_requested``)?"""
+        return False
+
 
 class FMU2Unit(Unit):
     """An FMI 2.0 co-simulation FMU, loaded with fmpy; the hot loop uses its raw entry points."""
@@ -325,6 +329,9 @@ class ComponentUnit(Unit):
             self.component.terminate()
         except Exception:
             pass
+
+    def stop_requested(self) -> bool:
+        return bool(getattr(self.component, "stop_requested", False))
 
     def provenance(self) -> dict:
         return {"kind": "python", **self.component.provenance()}
