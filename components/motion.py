@@ -101,6 +101,8 @@ class AngleProfile:
     th_end: np.ndarray  # (N, n_axes) at the sample times
     rate_end: np.ndarray
     acc_end: np.ndarray
+    attitudes: np.ndarray | None = None  # distinct angles of the static intervals
+    attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
 
 
 def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
@@ -146,8 +148,10 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         acc_q[a:b] = spl(tq, 2)
         rate_end[a:b] = spl(time[a:b], 1)
         acc_end[a:b] = spl(time[a:b], 2)
+    att, inv = (np.unique(measured[static], axis=0, return_inverse=True) if static.any()
+                else (np.zeros((0, n_ax)), np.zeros(0, int)))
     return AngleProfile(time, t_prev, dt, static, x, w, th_q, rate_q, acc_q, measured,
-                        rate_end, acc_end)
+                        rate_end, acc_end, att, inv.ravel())
 
 
 def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
@@ -180,11 +184,11 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     # static intervals: one kinematics evaluation per distinct attitude (a schedule has few)
     st = p.static
     if st.any():
-        att, inv = np.unique(p.th_end[st], axis=0, return_inverse=True)
+        att, inv = p.attitudes, p.attitude_of
         th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
         _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
-        om[st] = om_u[inv.ravel()][:, None, :]
-        f[st] = f_u[inv.ravel()][:, None, :]
+        om[st] = om_u[inv][:, None, :]
+        f[st] = f_u[inv][:, None, :]
     mv = ~st
     if mv.any():
         th, rate, acc = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax),

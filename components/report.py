@@ -33,7 +33,10 @@ def _svg(fig) -> str:
 
     plt.close(fig)
     s = buf.getvalue()
-    return s[s.index("<svg"):]
+    s = s[s.index("<svg"):]
+    # the RDF metadata block only names the generator; drop it so the page holds no URLs
+    a, b = s.find("<metadata>"), s.find("</metadata>")
+    return s[:a] + s[b + len("</metadata>"):] if a >= 0 and b > a else s
 
 
 def _plt():

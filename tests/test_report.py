@@ -1,0 +1,80 @@
+"""The HTML report in a real headless browser (Chromium): the page loads from a file with no
+server, its plots are in the rendered DOM, and the browser logs no console message. A page with
+a script error is the control that shows the console check can fail."""
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from components.effects import DEFAULT_EFFECTS
+from components.logfile import read_log
+from components.lsq import LogData, calibrate
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--enable-logging=stderr", "--v=0", "--dump-dom"]
+
+
+def render(page: Path, tmp: Path) -> tuple[str, list[str]]:
+    """DOM after load and the console lines Chromium logged."""
+    proc = subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={tmp / 'profile'}", page.as_uri()],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    console = [ln for ln in proc.stderr.splitlines() if ":CONSOLE" in ln]
+    return proc.stdout, console
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    from components.compare import compare
+    from components.diagnose import diagnose
+    from components.report import build_report
+    from components.result import result_from_fit
+
+    out = tmp_path_factory.mktemp("report")
+    log = read_log(EXAMPLES / "example")
+    data = LogData.from_log(log)
+    fit = calibrate(data, list(DEFAULT_EFFECTS))
+    model = result_from_fit(fit, list(DEFAULT_EFFECTS), data, log)
+    comp = compare(data, model, fitted_parameters=len(model.values))
+    diag = diagnose(data, model, forward=False)
+    ladder = [{"model": "baseline", "effects": list(DEFAULT_EFFECTS), "chi2_per_dof": comp.chi2_per_dof,
+               "rms": {k: v["rms"] for k, v in comp.channels.items()},
+               "noise_floor": {k: v["noise_floor"] for k, v in comp.channels.items()}}]
+    return build_report(out / "report", title="example", comparison=comp, diagnosis=diag,
+                        ladder=ladder, provenance={"log": str(EXAMPLES / "example")})
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (.ci/run installs it)")
+def test_report_renders_in_headless_chromium(report, tmp_path):
+    html_path, json_path = report
+    dom, console = render(html_path, tmp_path)
+    assert console == [], console
+    # the ladder, segment map, residual-vs-time, conditions and three signature plots
+    assert len(re.findall(r"<svg", dom)) >= 6
+    assert "Diagnosis" in dom and "Ladder" in dom and "Provenance" in dom
+    assert "no significant effect is missing" in dom  # the shared example's model is complete
+    twin = json.loads(json_path.read_text())
+    assert twin["diagnosis"]["verdict"] is None
+    assert set(twin["comparison"]["channels"]) == {"gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"}
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (.ci/run installs it)")
+def test_console_check_catches_a_script_error(tmp_path):
+    bad = tmp_path / "bad.html"
+    bad.write_text("<!DOCTYPE html><html><body><script>undefinedFunction();</script></body></html>")
+    _, console = render(bad, tmp_path)
+    assert any("undefinedFunction" in ln for ln in console)
+
+
+def test_report_is_self_contained(report):
+    html = report[0].read_text()
+    # nothing fetched at view time: no external script, stylesheet or image
+    assert not re.search(r"<(script|link|img)\b", html)
+    # nothing points outside the page (XML namespace names are identifiers, not fetched)
+    assert not re.search(r'(src|href)="(https?:)?//', html)
