@@ -12,15 +12,11 @@ from pathlib import Path
 
 from components.effects import DEFAULT_EFFECTS, EFFECTS, effect_of
 
-SCENARIO = Path(__file__).resolve().parent.parent / "examples" / "scenarios" / "demo_hidden_k2.toml"
+SCENARIO = Path(__file__).resolve().parent / "scenarios" / "demo_hidden_k2.toml"
 
 
 def _scenario_path() -> Path:
-    if SCENARIO.exists():
-        return SCENARIO
-    from importlib.resources import files
-
-    return Path(str(files("components") / "scenarios" / "demo_hidden_k2.toml"))
+    return SCENARIO
 
 
 def run_demo(out_dir: str | Path = "calbench-demo", seed: int | None = None, dwell: float | None = None,
