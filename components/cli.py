@@ -159,6 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     from components.cli_calibration import add_commands as _calibration_commands
 
     _calibration_commands(sub)
+    __import__("components.procedures.cli", fromlist=["add_commands"]).add_commands(sub)
 
     dm = sub.add_parser("demo", help="simulate a run with a hidden effect, calibrate, compare, "
                                      "diagnose, add the winner, compare again, write the report")
