@@ -565,7 +565,8 @@ def test_instances_are_independent(make):
     ({"n_axes": 4}, ["n_axes"]),
     ({"site.latitude": 2.0}, ["site.latitude"]),
     ({"middle.mode": 7}, ["middle.mode"]),
-    ({"servo.friction_smoothing": 1e-12}, ["servo.friction_smoothing"]),
+    ({"servo.stick_velocity": -1.0}, ["servo.stick_velocity"]),
+    ({"middle.static_friction": -0.1}, ["middle.static_friction"]),
 ])
 def test_bad_parameters(turntable_fmu, start, words):
     s = Slave(turntable_fmu, start, initialize=False)

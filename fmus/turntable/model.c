@@ -36,32 +36,43 @@
  *   constant acceleration a_ref over [t_k, t_k+T] (rate and acceleration limited, time-optimal
  *   braking curve, exact snap onto the target when within one tick's reach); (2) the encoder
  *   reads the true angle (harmonic errors, then quantisation to 2 pi / 2^bits, round to nearest);
- *   (3) e = th_ref - th_meas, u = D(z) e + ff (J a_ref + B w_mid), w_mid the reference rate at
+ *   (3) e = th_ref - th_meas (0 when the reading is the count nearest th_ref: the servo compares
+ *   counts), u = D(z) e + ff (J a_ref + B w_mid + Tc sign(w_mid)), w_mid the reference rate at
  *   the middle of the tick (the mean rate over the tick, which is what a constant torque has to
- *   overcome for viscous friction), saturated at +-torque_max; (4) the plant
- *   J th'' = u - B th' - Tc tanh(th' / w_s) is integrated over the tick with u held (ZOH), by
- *   classical RK4.  A pure step in position mode appears in th_ref one tick later (th_ref(t_k)
- *   was committed at the previous tick), like any discrete reference.
+ *   overcome for viscous friction; the Coulomb term is the usual model-based friction
+ *   compensation: without it the integrator carries +-Tc into every stop, where stiction turns
+ *   it into a one-count overshoot that takes ~5 s to work off), saturated at +-torque_max;
+ *   (4) the plant moves with the torque held (ZOH) under stick-slip (Karnopp) friction:
+ *   sliding, J th'' = u - B th' - Tc sign(th'), solved in closed form over the tick (linear with
+ *   constant coefficients while the direction is fixed); an axis at rest, or slower than
+ *   servo.stick_velocity, sticks (th' = th'' = 0 exactly, angle unchanged) while the applied
+ *   torque |u - B th'| <= Fs = max(static_friction, coulomb), else breaks away in the direction
+ *   of u; when the rate reaches zero inside a tick (located exactly) the axis sticks for the
+ *   rest of it if |u| <= Fs, else reverses. A pure step in position mode appears in th_ref one
+ *   tick later (th_ref(t_k) was committed at the previous tick), like any discrete reference.
+ *   Why stick-slip: the former smoothed law Tc tanh(th'/w_s) has no static state; a held axis
+ *   crept (3e-8 rad/s after a 90 deg index, a navigation-grade gyro bias, under a dwell that a
+ *   calibration takes as static). Default Fs = Tc: no friction drop at breakaway, so the integral
+ *   action cannot hunt (measured: Fs = 1.5 Tc on the middle axis hunts +-7 counts for > 15 s).
+ *   stick_velocity (default 1e-6 rad/s = 0.2 deg/h) only absorbs rates that would stop within
+ *   a fraction of a tick anyway (zero crossings are located exactly); stopping at once moves the
+ *   axis by < stick_velocity * T = 5e-10 rad, 1/700 of a 24-bit count.
  * Position mode target: p(t) = angle_cmd + rate_cmd (t - t_comm), t_comm = start of the doStep.
  *
  * Integrals over the communication step (plate.omega_int, plate.f_int): the integrals of
  *   plate.omega and plate.f over the step just ended, for a consumer (the IMU) that must get the
  *   increments right although the motion inside a step is not a polynomial (the torque is
  *   piecewise constant at the controller rate, so the acceleration jumps at every tick). Per tick
- *   and axis the motion is smooth (torque held), and the RK4 states at both ends of the tick
- *   with the accelerations there (th'' = axis_acc(th', u) with the tick's torque u: the right
- *   limit at the start, the left limit at the end) define the quintic Hermite interpolant of th;
- *   its error is O(T^6) in th and O(T^5) in th', i.e. below the RK4 local error itself. The
- *   kinematics (omega, f of the angles and rates of every used stage) are integrated over the
- *   tick with 2-point Gauss-Legendre (error T^5/4320 times the 4th derivative of the integrand,
- *   ~1e-14 rad per tick for the servo's 20-35 Hz transients), the ticks' integrals are summed
- *   over the step. Measured (tests/test_coupling.py): during a 90 deg index of all three axes the
- *   per-tick integral of omega agrees with an independent 64-substep RK4 + Simpson integral of
- *   the same ODE from the same tick-start state to < 1e-13 rad (median 1e-16) wherever the
- *   FMU's own RK4 step is accurate; the worst ticks (5.6e-11 rad) are friction zero crossings
- *   where the plant's RK4 step itself is off by that much in angle: the integral follows the
- *   simulated trajectory. A navigation-grade gyro's per-sample noise at 5 ms is 4e-8 rad.
- *   Cost: ~2 us per 5 ms step (20 kinematics evaluations).
+ *   each axis moves in closed form, smooth between the instants where a rate reaches zero; the
+ *   tick is split there (rare: ~2 ticks per index) and the kinematics (omega, f of the angles and
+ *   rates of every used stage, the axes evaluated exactly) are integrated over each piece with
+ *   2-point Gauss-Legendre (error piece^5/4320 times the 4th derivative of the integrand). Measured
+ *   (tests/test_coupling.py): during a 90 deg index of all three axes the per-tick integral of
+ *   omega agrees with an independent 64-substep RK4 + Simpson integral of the same ODE to 2e-17
+ *   rad, 2e-13 in the two ticks with a friction switch; a navigation-grade gyro's per-sample
+ *   noise at 5 ms is 4e-8 rad. Fast path: ticks in which every axis is stuck have constant omega
+ *   and f; a run of them is integrated as value * (ticks * T), the kinematics evaluated once per
+ *   run (normally once per step) instead of twice per tick.
  *   In Initialization Mode both are 0 (an empty interval).
  */
 #include <math.h>
@@ -72,18 +83,11 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-/* RK4 is run with |lambda| h <= RK4_LAMBDA_H, lambda the stiffest local eigenvalue of the axis
- * ODE, (B + Tc / w_s) / J. At 0.05 the local error of RK4 on that mode is ~(0.05)^5 / 120 ~ 3e-9
- * relative, far below anything the encoder can see; with the default parameters one RK4 step per
- * 0.5 ms tick suffices (|lambda| h ~ 0.03), so the default costs one RK4 step per tick. */
-#define RK4_LAMBDA_H 0.05
-#define MAX_SUBSTEPS 1000
-
 /* ------------------------------------------------------------------ value references */
 
 typedef struct {
     int axis[3], nonorth[3];
-    int inertia, viscous, coulomb, torque_max, rate_max, acc_max, angle0;
+    int inertia, viscous, coulomb, static_friction, torque_max, rate_max, acc_max, angle0;
     int b0, b1, b2, a1, a2;
     int bits; /* Integer */
     int h1_amp, h1_phase, h2_amp, h2_phase, wob_amp, wob_phase;
@@ -95,7 +99,8 @@ typedef struct {
 #define AXIS_VR(n)                                                                              \
     {{VR_##n##_axis_x, VR_##n##_axis_y, VR_##n##_axis_z},                                       \
      {VR_##n##_nonorth_x, VR_##n##_nonorth_y, VR_##n##_nonorth_z},                              \
-     VR_##n##_inertia, VR_##n##_viscous, VR_##n##_coulomb, VR_##n##_torque_max,                 \
+     VR_##n##_inertia, VR_##n##_viscous, VR_##n##_coulomb, VR_##n##_static_friction,            \
+     VR_##n##_torque_max,                                                                       \
      VR_##n##_rate_max, VR_##n##_acc_max, VR_##n##_angle0,                                      \
      VR_##n##_ctrl_b0, VR_##n##_ctrl_b1, VR_##n##_ctrl_b2, VR_##n##_ctrl_a1, VR_##n##_ctrl_a2,  \
      VR_##n##_encoder_bits,                                                                     \
@@ -366,92 +371,176 @@ static void plate_rate_force(const ModelPrivate *p, const double th[], const dou
     }
 }
 
-/* Weights of the quintic Hermite interpolant over a tick of length T at s in [0, 1], for the
- * data (y0, y0', y0'', y1, y1', y1'') (time derivatives) at s = 0 and s = 1: value = hv . data,
- * time derivative = hd . data. Computed once per node and shared by the axes. */
-static void hermite5_weights(double s, double T, double hv[6], double hd[6]) {
-    double s2 = s * s, s3 = s2 * s, s4 = s3 * s, s5 = s4 * s;
-    hv[0] = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
-    hv[1] = T * (s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5);
-    hv[2] = T * T * 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
-    hv[3] = 1.0 - hv[0];
-    hv[4] = T * (-4.0 * s3 + 7.0 * s4 - 3.0 * s5);
-    hv[5] = T * T * 0.5 * (s3 - 2.0 * s4 + s5);
-    hd[0] = (-30.0 * s2 + 60.0 * s3 - 30.0 * s4) / T;
-    hd[1] = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
-    hd[2] = T * 0.5 * (2.0 * s - 9.0 * s2 + 12.0 * s3 - 5.0 * s4);
-    hd[3] = -hd[0];
-    hd[4] = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
-    hd[5] = T * 0.5 * (3.0 * s2 - 8.0 * s3 + 5.0 * s4);
-}
-
 /* 2-point Gauss-Legendre on [0, 1]: nodes (3 -+ sqrt 3) / 6, weights 1/2 */
 static const double GL2_S[2] = {0.21132486540518711775, 0.78867513459481288225};
 
-/* Add the integrals of plate.omega and plate.f over the tick just taken; start[k] holds the
- * (angle, rate, acceleration) of stage k at the start of the tick, under the tick's torque. */
-static void tick_integrals(const ModelPrivate *p, const double start[][3], double wi[3],
+/* phi1(t) = (1 - exp(-beta t)) / beta and phi2(t) = (t - phi1(t)) / beta, the rate and angle
+ * gained per unit initial acceleration under a constant torque and viscous friction (t and
+ * t^2 / 2 for beta = 0). Below beta t = 1e-3 the Taylor series: t - phi1 would cancel. */
+static void phi12(double beta, double t, double *p1, double *p2) {
+    double z = beta * t;
+    if (z < 1e-3) {
+        *p1 = t * (1.0 - z / 2.0 * (1.0 - z / 3.0 * (1.0 - z / 4.0 * (1.0 - z / 5.0 * (1.0 - z / 6.0)))));
+        *p2 = t * t / 2.0 * (1.0 - z / 3.0 * (1.0 - z / 4.0 * (1.0 - z / 5.0 * (1.0 - z / 6.0 * (1.0 - z / 7.0)))));
+    } else {
+        *p1 = -expm1(-z) / beta;
+        *p2 = (t - *p1) / beta;
+    }
+}
+
+/* Motion of one axis over one controller tick (torque held): the sliding piece from the tick's
+ * start (angle th0, rate v0, constant-direction acceleration a0 at the start) up to te, then,
+ * when te < T (the rate reached zero inside the tick), a piece from rest at angle th_e with
+ * acceleration a1 at its start (0: stuck for the rest of the tick). */
+typedef struct {
+    double th0, v0, a0, te, th_e, a1;
+    int stuck; /* at rest over the whole tick */
+} TickMotion;
+
+/* Angle and rate of the axis at time t in [0, T] of the tick (closed form). */
+static void motion_at(const TTAxis *x, const TickMotion *mo, double t, double *th, double *thd) {
+    double p1, p2;
+    if (t <= mo->te) {
+        phi12(x->beta, t, &p1, &p2);
+        *th = mo->th0 + (mo->v0 * t + mo->a0 * p2);
+        *thd = mo->v0 + mo->a0 * p1;
+    } else {
+        phi12(x->beta, t - mo->te, &p1, &p2);
+        *th = mo->th_e + mo->a1 * p2;
+        *thd = mo->a1 * p1;
+    }
+}
+
+/* Add the integrals of plate.omega and plate.f over a tick in which some axis moves. The motion
+ * of each axis is smooth between the instants where a rate reaches zero (friction switches
+ * there), so the tick is split at them and each piece gets 2-point Gauss-Legendre with the axes
+ * evaluated in closed form (error: piece^5 / 4320 times the integrand's 4th derivative). Ticks
+ * without such an instant (nearly all) use the nodes' precomputed phi1, phi2. */
+static void tick_integrals(const ModelPrivate *p, const TickMotion mo[], double wi[3],
                            double fi[3]) {
-    int q, k, i;
-    for (q = 0; q < 2; q++) {
-        double hv[6], hd[6], th[TT_MAX_AXES], thd[TT_MAX_AXES], w[3], f[3];
-        hermite5_weights(GL2_S[q], p->T, hv, hd);
-        for (k = 0; k < p->n_axes; k++) {
-            const TTAxis *x = &p->ax[k];
-            /* relative to the start angle (hv[0] + hv[3] = 1, hd[0] = -hd[3]): the large
-             * absolute angles do not cancel in the rate */
-            const double y[6] = {0.0, start[k][1], start[k][2], x->th - start[k][0], x->thd,
-                                 x->thdd};
-            th[k] = thd[k] = 0.0;
-            for (i = 1; i < 6; i++) {
-                th[k] += hv[i] * y[i];
-                thd[k] += hd[i] * y[i];
+    double cut[TT_MAX_AXES + 2], th[TT_MAX_AXES], thd[TT_MAX_AXES], w[3], f[3];
+    int nc = 0, k, i, q, c;
+    cut[nc++] = 0.0;
+    for (k = 0; k < p->n_axes; k++) /* insertion sort of the switching instants */
+        if (mo[k].te > 0.0 && mo[k].te < p->T) {
+            for (i = nc; i > 1 && cut[i - 1] > mo[k].te; i--) cut[i] = cut[i - 1];
+            cut[i] = mo[k].te;
+            nc++;
+        }
+    cut[nc++] = p->T;
+    for (c = 0; c + 1 < nc; c++) {
+        double len = cut[c + 1] - cut[c];
+        if (!(len > 0.0)) continue;
+        for (q = 0; q < 2; q++) {
+            double t = cut[c] + GL2_S[q] * len;
+            for (k = 0; k < p->n_axes; k++) {
+                const TTAxis *x = &p->ax[k];
+                if (nc == 2) { /* one smooth piece: the precomputed node values */
+                    th[k] = mo[k].th0 + (mo[k].v0 * t + mo[k].a0 * x->phi2_g[q]);
+                    thd[k] = mo[k].v0 + mo[k].a0 * x->phi1_g[q];
+                } else {
+                    motion_at(x, &mo[k], t, &th[k], &thd[k]);
+                }
             }
-            th[k] += start[k][0];
+            plate_rate_force(p, th, thd, w, f);
+            for (i = 0; i < 3; i++) {
+                wi[i] += 0.5 * len * w[i];
+                fi[i] += 0.5 * len * f[i];
+            }
         }
-        plate_rate_force(p, th, thd, w, f);
-        for (i = 0; i < 3; i++) {
-            wi[i] += 0.5 * p->T * w[i];
-            fi[i] += 0.5 * p->T * f[i];
-        }
+    }
+}
+
+/* Integrals over a run of n ticks in which every axis stuck at the angles th[]: omega and f are
+ * constant, so the integral is value * n T, the kinematics evaluated once per run (normally once
+ * per step) instead of twice per tick. */
+static void rest_integrals(const ModelPrivate *p, const double th[], long long n, double wi[3],
+                           double fi[3]) {
+    static const double zero[TT_MAX_AXES] = {0.0, 0.0, 0.0};
+    double w[3], f[3], len = (double)n * p->T;
+    int i;
+    if (n == 0) return;
+    plate_rate_force(p, th, zero, w, f);
+    for (i = 0; i < 3; i++) {
+        wi[i] += len * w[i];
+        fi[i] += len * f[i];
     }
 }
 
 /* ------------------------------------------------------------------ servo */
 
 /* Encoder reading of a true (multi-turn) angle: harmonic errors, then quantisation to
- * 2 pi / 2^bits rounded to the nearest count (bits = 0: no quantisation). */
+ * 2 pi / 2^bits rounded to the nearest count (bits = 0: no quantisation). A zero amplitude
+ * skips its sine (the same value: y + 0 = y), which is most of the cost at rest. */
 static double encoder(ModelInstance *m, const AxisVR *vr, double th) {
     int bits = I(vr->bits);
-    double y = th + R(vr->h1_amp) * sin(th + R(vr->h1_phase)) +
-               R(vr->h2_amp) * sin(2.0 * th + R(vr->h2_phase));
-    double q;
+    double y = th, q;
+    if (R(vr->h1_amp) != 0.0) y += R(vr->h1_amp) * sin(th + R(vr->h1_phase));
+    if (R(vr->h2_amp) != 0.0) y += R(vr->h2_amp) * sin(2.0 * th + R(vr->h2_phase));
     if (bits == 0) return y;
     q = ldexp(2.0 * M_PI, -bits);
     return round(y / q) * q;
 }
 
-/* Angular acceleration of the axis under torque u (smoothed Coulomb friction). */
-static double axis_acc(ModelInstance *m, const AxisVR *vr, double thd, double u) {
-    return (u - R(vr->viscous) * thd -
-            R(vr->coulomb) * tanh(thd / R(VR_servo_friction_smoothing))) / R(vr->inertia);
+/* Breakaway torque: static_friction, not below the Coulomb torque (a static friction below it
+ * would make an axis that reaches zero rate with Fs < |u| < Tc chatter; the default 0 thus
+ * means Fs = Tc). */
+static double static_friction(ModelInstance *m, const AxisVR *vr) {
+    return fmax(R(vr->static_friction), R(vr->coulomb));
 }
 
-/* Integrate the axis over one controller tick with the torque held, classical RK4. */
-static void plant_tick(ModelInstance *m, const AxisVR *vr, TTAxis *x) {
-    int n = m->s.p.substeps, i;
-    double h = m->s.p.T / n, u = x->torque;
-    for (i = 0; i < n; i++) {
-        double th = x->th, w = x->thd;
-        double k1p = w, k1v = axis_acc(m, vr, w, u);
-        if (i == 0) x->thdd0 = k1v;
-        double k2p = w + 0.5 * h * k1v, k2v = axis_acc(m, vr, k2p, u);
-        double k3p = w + 0.5 * h * k2v, k3v = axis_acc(m, vr, k3p, u);
-        double k4p = w + h * k3v, k4v = axis_acc(m, vr, k4p, u);
-        x->th = th + h / 6.0 * (k1p + 2.0 * k2p + 2.0 * k3p + k4p);
-        x->thd = w + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+static double sgn(double x) { return x > 0.0 ? 1.0 : -1.0; }
+
+/* Move the axis over one controller tick under the held torque u with stick-slip (Karnopp)
+ * friction, in closed form, and describe the motion in *mo for the step integrals.
+ * Sliding (rate of sign s): J th'' = u - s Tc - B th', linear with constant coefficients, so
+ *   th'(t) = v0 + a0 phi1(t),  th(t) = th0 + v0 t + a0 phi2(t),  a0 = (u - s Tc - B v0) / J.
+ * When the rate reaches zero at te inside the tick the axis sticks for the rest of it if
+ * |u| <= Fs, else it slides on in the direction of u from rest. At rest (or within the Karnopp
+ * band |th'| < stick_velocity) it stays stuck, rate and acceleration exactly 0, while the applied
+ * torque |u - B th'| <= Fs. No integrator error: the friction's switching instants are located
+ * exactly instead of being smoothed (the former tanh law made the held axis creep). */
+static void axis_tick(ModelInstance *m, const AxisVR *vr, TTAxis *x, double u, TickMotion *mo) {
+    double T = m->s.p.T, J = R(vr->inertia), B = R(vr->viscous), Tc = R(vr->coulomb);
+    double Fs = static_friction(m, vr), v0 = x->thd, s, v1, p1, p2;
+    if (v0 != 0.0 && fabs(v0) < R(VR_servo_stick_velocity) && fabs(u - B * v0) <= Fs) v0 = 0.0;
+    mo->th0 = mo->th_e = x->th;
+    mo->v0 = v0;
+    mo->te = T;
+    mo->a1 = 0.0;
+    mo->stuck = v0 == 0.0 && fabs(u) <= Fs;
+    if (mo->stuck) {
+        mo->a0 = 0.0;
+        x->thd = x->thdd = 0.0;
+        return;
     }
-    x->thdd = axis_acc(m, vr, x->thd, u);
+    s = v0 != 0.0 ? sgn(v0) : sgn(u); /* from rest: breakaway in the direction of u */
+    mo->a0 = (u - s * Tc - B * v0) / J;
+    v1 = v0 + mo->a0 * x->phi1_T;
+    if (v0 == 0.0 || s * v1 > 0.0) { /* slides through the whole tick */
+        x->th = mo->th0 + (v0 * T + mo->a0 * x->phi2_T);
+        x->thd = v1;
+        x->thdd = (u - s * Tc - B * v1) / J;
+        return;
+    }
+    /* the rate reaches zero at te: phi1(te) = -v0 / a0 */
+    {
+        double r = -v0 / mo->a0, te = x->beta > 0.0 ? -log1p(-x->beta * r) / x->beta : r;
+        mo->te = te >= 0.0 && te <= T ? te : T; /* also catches NaN from rounding */
+    }
+    phi12(x->beta, mo->te, &p1, &p2);
+    mo->th_e = mo->th0 + (v0 * mo->te + mo->a0 * p2);
+    if (fabs(u) <= Fs) { /* sticks */
+        x->th = mo->th_e;
+        x->thd = x->thdd = 0.0;
+        return;
+    }
+    s = sgn(u); /* reverses */
+    mo->a1 = (u - s * Tc) / J;
+    phi12(x->beta, T - mo->te, &p1, &p2);
+    x->th = mo->th_e + mo->a1 * p2;
+    x->thd = mo->a1 * p1;
+    x->thdd = (u - s * Tc - B * x->thd) / J;
 }
 
 /* Reference generator: from (th_ref, w_ref) at t_k choose the acceleration a_ref held over the
@@ -472,8 +561,13 @@ static void ref_position(const TTAxis *x, double p1, double v, double amax, doub
         *acc = (v - x->w_ref) / T;
         return;
     }
-    e1 = p1 - (x->th_ref + x->w_ref * T);
-    vd = clamp(v + copysign(sqrt(2.0 * amax * fabs(e1)), e1), -wmax, wmax);
+    /* e1: the error left if the rate went to v over the tick; the end-of-tick rate vd solves
+     * (vd - v)^2 = 2 amax (error left at the end of the tick) consistently, so a reference on
+     * the braking curve stays on it exactly (a trapezoidal braking covers w^2 / 2 amax) and
+     * arrives without overshooting */
+    e1 = p1 - (x->th_ref + 0.5 * (x->w_ref + v) * T);
+    vd = clamp(v + copysign(0.5 * (sqrt(amax * amax * T * T + 8.0 * amax * fabs(e1)) - amax * T),
+                            e1), -wmax, wmax);
     *acc = clamp((vd - x->w_ref) / T, -amax, amax);
     *th1 = x->th_ref + x->w_ref * T + 0.5 * *acc * T * T;
     *w1 = x->w_ref + *acc * T;
@@ -490,13 +584,13 @@ static void ref_rate(const TTAxis *x, double v, double amax, double wmax, double
 }
 
 /* One controller tick of one axis; j = ticks since the start of the current doStep. */
-static void servo_tick(ModelInstance *m, int k, long long j) {
+static void servo_tick(ModelInstance *m, int k, long long j, TickMotion *mo) {
     ModelPrivate *p = &m->s.p;
     const AxisVR *vr = &AXVR[k];
     TTAxis *x = &p->ax[k];
     double T = p->T, amax = R(vr->acc_max), wmax = R(vr->rate_max);
     double J = R(vr->inertia), B = R(vr->viscous), umax = R(vr->torque_max);
-    double th1, w1, acc, e, ufb, uff, u;
+    double th1, w1, acc, e, ufb, uff, u, wm;
     /* (1) reference over [t_k, t_k + T] */
     if (I(vr->mode) == 0) {
         double p1 = R(vr->angle_cmd) + R(vr->rate_cmd) * ((double)(j + 1) * T);
@@ -506,9 +600,16 @@ static void servo_tick(ModelInstance *m, int k, long long j) {
     }
     /* (2) measurement, (3) control law */
     e = x->th_ref - encoder(m, vr, x->th);
+    /* A digital servo compares counts: when the reading is the count nearest the reference the
+     * error is zero, so a stuck axis holds with a constant integrator instead of winding it up
+     * against static friction until it breaks away and hunts between two counts (a reference
+     * that is not on a count would otherwise never be met). */
+    if (I(vr->bits) > 0 && fabs(e) < 0.5 * ldexp(2.0 * M_PI, -I(vr->bits))) e = 0.0;
     ufb = R(vr->b0) * e + R(vr->b1) * x->e1 + R(vr->b2) * x->e2 - R(vr->a1) * x->u1 -
           R(vr->a2) * x->u2;
-    uff = R(VR_servo_feedforward) * (J * acc + B * 0.5 * (x->w_ref + w1));
+    wm = 0.5 * (x->w_ref + w1);
+    uff = R(VR_servo_feedforward) *
+          (J * acc + B * wm + (wm != 0.0 ? R(vr->coulomb) * sgn(wm) : 0.0));
     u = clamp(ufb + uff, -umax, umax);
     /* the controller remembers the feedback torque actually applied: when the motor saturates
      * its integrator stops winding up (anti-windup of the direct-form filter) */
@@ -518,7 +619,7 @@ static void servo_tick(ModelInstance *m, int k, long long j) {
     x->u1 = u - uff;
     x->torque = u;
     /* (4) plant */
-    plant_tick(m, vr, x);
+    axis_tick(m, vr, x, u, mo);
     x->th_ref = th1;
     x->w_ref = w1;
     x->a_ref = acc;
@@ -563,7 +664,8 @@ static ModelStatus check_axis(ModelInstance *m, const AxisVR *vr) {
     if (check_positive(m, vr->inertia) || check_positive(m, vr->torque_max) ||
         check_positive(m, vr->rate_max) || check_positive(m, vr->acc_max) ||
         model_check_real(m, vr->viscous, 0.0, INFINITY, ">= 0") ||
-        model_check_real(m, vr->coulomb, 0.0, INFINITY, ">= 0"))
+        model_check_real(m, vr->coulomb, 0.0, INFINITY, ">= 0") ||
+        model_check_real(m, vr->static_friction, 0.0, INFINITY, ">= 0"))
         return MS_ERROR;
     if (bits < 0 || bits > 32) {
         model_log(m, MS_ERROR, "parameter %s = %d: expected 0 (no quantisation) to 32",
@@ -583,7 +685,7 @@ static ModelStatus check_parameters(ModelInstance *m) {
         model_log(m, MS_ERROR, "parameter n_axes = %d: expected 1, 2 or 3", n);
         return MS_ERROR;
     }
-    if (check_positive(m, VR_servo_rate) || check_positive(m, VR_servo_friction_smoothing) ||
+    if (check_positive(m, VR_servo_rate) || model_check_real(m, VR_servo_stick_velocity, 0.0, INFINITY, ">= 0") ||
         model_check_real(m, VR_site_gravity, 0.0, INFINITY, ">= 0 (0: WGS-84 normal gravity)") ||
         model_check_real(m, VR_site_latitude, -M_PI / 2, M_PI / 2, "in [-pi/2, pi/2]"))
         return MS_ERROR;
@@ -592,25 +694,16 @@ static ModelStatus check_parameters(ModelInstance *m) {
     return MS_OK;
 }
 
-/* RK4 substeps per tick: enough that |lambda| h <= RK4_LAMBDA_H on every used axis. */
-static ModelStatus choose_substeps(ModelInstance *m) {
+/* Constants of the closed-form tick motion of each used axis (B, J and T are fixed). */
+static void init_motion(ModelInstance *m) {
     ModelPrivate *p = &m->s.p;
-    double ws = R(VR_servo_friction_smoothing), need = 1.0;
-    int k;
+    int k, q;
     for (k = 0; k < p->n_axes; k++) {
-        const AxisVR *vr = &AXVR[k];
-        double lam = (R(vr->viscous) + R(vr->coulomb) / ws) / R(vr->inertia);
-        need = fmax(need, ceil(lam * p->T / RK4_LAMBDA_H));
+        TTAxis *x = &p->ax[k];
+        x->beta = R(AXVR[k].viscous) / R(AXVR[k].inertia);
+        phi12(x->beta, p->T, &x->phi1_T, &x->phi2_T);
+        for (q = 0; q < 2; q++) phi12(x->beta, GL2_S[q] * p->T, &x->phi1_g[q], &x->phi2_g[q]);
     }
-    if (!(need <= MAX_SUBSTEPS)) {
-        model_log(m, MS_ERROR,
-                  "parameter servo.friction_smoothing = %g: expected larger, the friction law "
-                  "would need %g RK4 substeps per controller tick (limit %d)", ws, need,
-                  MAX_SUBSTEPS);
-        return MS_ERROR;
-    }
-    p->substeps = (int)need;
-    return MS_OK;
 }
 
 ModelStatus model_initialize(ModelInstance *m) {
@@ -623,7 +716,7 @@ ModelStatus model_initialize(ModelInstance *m) {
     if (check_parameters(m)) return MS_ERROR;
     p->n_axes = I(VR_n_axes);
     p->T = 1.0 / R(VR_servo_rate);
-    if (choose_substeps(m)) return MS_ERROR;
+    init_motion(m);
     rodrigues(ex, R(VR_base_tilt_x), Rx);
     rodrigues(ey, R(VR_base_tilt_y), Ry);
     rodrigues(ez, R(VR_base_azimuth), Rz);
@@ -679,17 +772,29 @@ ModelStatus model_do_step(ModelInstance *m, double h) {
         return MS_ERROR;
     }
     double wi[3] = {0.0, 0.0, 0.0}, fi[3] = {0.0, 0.0, 0.0};
+    long long nrest = 0; /* ticks of the current run with every axis stuck */
     if (check_inputs(m)) return MS_ERROR;
     for (j = 0; j < (long long)n; j++) {
-        double start[TT_MAX_AXES][3]; /* (angle, rate, acceleration) at the start of the tick */
+        TickMotion mo[TT_MAX_AXES];
+        double th0[TT_MAX_AXES];
+        int rest = 1;
         for (k = 0; k < p->n_axes; k++) {
-            TTAxis *x = &p->ax[k];
-            start[k][0] = x->th;
-            start[k][1] = x->thd;
-            servo_tick(m, k, j);
-            start[k][2] = x->thdd0; /* under the tick's torque: the right limit */
+            servo_tick(m, k, j, &mo[k]);
+            rest = rest && mo[k].stuck;
+            th0[k] = mo[k].th0;
         }
-        tick_integrals(p, start, wi, fi);
+        if (rest) { /* the whole table at rest: integrate the run of such ticks at its end */
+            nrest++;
+            continue;
+        }
+        rest_integrals(p, th0, nrest, wi, fi); /* th0: where the table rested */
+        nrest = 0;
+        tick_integrals(p, mo, wi, fi);
+    }
+    {
+        double th[TT_MAX_AXES];
+        for (k = 0; k < p->n_axes; k++) th[k] = p->ax[k].th;
+        rest_integrals(p, th, nrest, wi, fi);
     }
     p->tick += (long long)n;
     axis_outputs(m);

@@ -14,7 +14,9 @@ typedef struct {
     double wob_amp, wob_phase;
     /* plant (true motion) */
     double th, thd, thdd; /* angle, rate, acceleration (left limit at the last tick) */
-    double thdd0;         /* acceleration at the start of the last tick (right limit) */
+    /* closed-form motion over a tick: beta = B / J and phi1(t), phi2(t) (see model.c) at the
+     * tick length and at the two Gauss nodes, fixed at initialisation */
+    double beta, phi1_T, phi2_T, phi1_g[2], phi2_g[2];
     double torque;        /* motor torque held over the current controller tick */
     /* reference generator */
     double th_ref, w_ref, a_ref;
@@ -26,7 +28,6 @@ typedef struct {
     int n_axes;
     double T;             /* controller period [s] */
     long long tick;       /* controller ticks since the start time: time without drift */
-    int substeps;         /* RK4 substeps per controller tick */
     double C_b0n[3][3];   /* C_b0^n: base frame -> ENU */
     double w_ie_n[3];     /* Earth rate in ENU */
     double w_ie_b0[3];    /* Earth rate in base axes */

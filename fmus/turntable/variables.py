@@ -32,7 +32,11 @@ def _axis_variables(a: str) -> list:
     v += [
         real(f"{a}.inertia", "parameter", DEFAULT_INERTIA[a], "kg.m2", "motor + load inertia"),
         real(f"{a}.viscous", "parameter", DEFAULT_VISCOUS[a], "N.m.s/rad", "viscous friction"),
-        real(f"{a}.coulomb", "parameter", DEFAULT_COULOMB[a], "N.m", "Coulomb friction torque"),
+        real(f"{a}.coulomb", "parameter", DEFAULT_COULOMB[a], "N.m",
+             "Coulomb (sliding) friction torque"),
+        real(f"{a}.static_friction", "parameter", 0.0, "N.m",
+             "static friction (breakaway) torque; values below coulomb, e.g. the default 0, "
+             "mean equal to coulomb"),
         real(f"{a}.torque_max", "parameter", DEFAULT_TORQUE_MAX[a], "N.m", "motor torque limit"),
         real(f"{a}.rate_max", "parameter", 300.0 * DEG, "rad/s", "rate limit of the reference"),
         real(f"{a}.acc_max", "parameter", 200.0 * DEG, "rad/s2",
@@ -78,9 +82,11 @@ VARIABLES = [
     real("servo.rate", "parameter", CONTROL_RATE_HZ, "Hz",
          "controller rate; the communication step must be a multiple of its period"),
     real("servo.feedforward", "parameter", 1.0, "1",
-         "1: add J*alpha_ref + B*omega_ref to the controller torque, 0: pure feedback"),
-    real("servo.friction_smoothing", "parameter", 1e-3, "rad/s",
-         "velocity scale of the smoothed Coulomb friction tanh(w / w_s)"),
+         "1: add J*alpha_ref + B*omega_ref + coulomb*sign(omega_ref) to the controller "
+         "torque, 0: pure feedback"),
+    real("servo.stick_velocity", "parameter", 1e-6, "rad/s",
+         "Karnopp band: an axis slower than this whose applied torque is within the static "
+         "friction sticks (rate set to exactly 0)"),
     real("site.latitude", "parameter", 39.9 * DEG, "rad", "geodetic latitude"),
     real("site.height", "parameter", 50.0, "m", "height above the ellipsoid"),
     real("site.gravity", "parameter", 0.0, "m/s2",
@@ -103,7 +109,7 @@ VARIABLES += [real(f"plate.f.{c}", "output", None, "m/s2",
               for c in "xyz"]
 VARIABLES += [real(f"plate.omega_int.{c}", "output", None, "rad",
                    f"integral of plate.omega.{c} over the communication step just ended "
-                   "(exact to the servo's integrator: quintic Hermite + 3-point Gauss per tick)")
+                   "(closed-form axis motion, 2-point Gauss per smooth piece of each tick)")
               for c in "xyz"]
 VARIABLES += [real(f"plate.f_int.{c}", "output", None, "m/s",
                    f"integral of plate.f.{c} over the communication step just ended")
