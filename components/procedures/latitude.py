@@ -29,7 +29,9 @@ Steps (seed 002 steps 4-9; labels of the rotate segments ``spinNN-<kind>``):
    and sign convention, with k_p the positive peak):  δθ = γ cos k_p / cos ψ,
    δψ = -γ sin k_p (the seed's δθ = γ sin k / cos ψ, δψ = γ cos k with k the zero crossing
    before the peak and the opposite accelerometer sign). Iterated until γ is below the
-   tolerance (or its noise, 3σ): the number of corrections is reported as iterations.
+   tolerance, its noise (3σ) or one encoder count (commands are whole counts): the number of
+   corrections is reported as iterations. (With the builtin table's 2^24 counts/rev the first
+   vertical g1 is usually within a count already: 0 corrections.)
 4. ``spinNN-north``: the same (flat) attitude, a long spin; the gyro's sinusoid peaks at the
    horizontal Earth rate (north); east = s(k_N - 90°). Its accelerometer fit refines the
    vertical once more: up = normalize(d + γ s(k_p)) with d the inner axis.
@@ -55,7 +57,7 @@ import numpy as np
 
 from components.result import CalibrationResult, schedule_of
 
-from components.procedures.common import as_data, noise_sigma, sample_interval, segments
+from components.procedures.common import angle_quantum, as_data, noise_sigma, sample_interval, segments
 
 NAME = "latitude"
 SENSOR = 0  # plate x
@@ -379,7 +381,9 @@ def drive(scenario, *, rate_dps: float = 10.0, acc_turns: int = 1, north_turns: 
     for it in range(max_iterations + 1):
         data, f3, _ = spin("vertical", (th, ps), acc_turns)
         g, sg = vertical_error(f3, G)
-        flat = g < max(tol_arcsec * ARCSEC, 3 * sg)
+        # flat: below the tolerance, the noise (3σ) or one encoder count (the commanded
+        # angles are whole counts: a smaller correction cannot be made)
+        flat = g < max(tol_arcsec * ARCSEC, 3 * sg, angle_quantum(data))
         decisions.append({"step": f"vertical spin {it + 1}", "gamma_arcsec": g / ARCSEC,
                           "sigma_gamma_arcsec": sg / ARCSEC, "flat": bool(flat)})
         if verbose:
