@@ -419,6 +419,16 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     imu_names = set(istart) | _names(imu_path)
     if sc.imu_mapping.get("alpha.x", "alpha.x") in imu_names:
         conns.append(Connection("table.plate.alpha", "imu.alpha"))
+    # exact step integrals of the plate motion, when the table gives them and the IMU takes
+    # them: without them the IMU's interpolation between samples misses the servo's transients
+    # (a stop inside a step costs ~7e-6 rad, two orders above a navigation-grade gyro's noise)
+    table_names = set(tstart) | _names(table_path)
+    integrals = [(src, dst) for src, dst in (("plate.omega_int", "omega_int"), ("plate.f_int", "f_int"))
+                 if sc.table_mapping.get(f"{src}.x", f"{src}.x") in table_names
+                 and sc.imu_mapping.get(f"{dst}.x", f"{dst}.x") in imu_names]
+    if len(integrals) == 2 and "input_integrals" in imu_names and "input_integrals" not in iparams:
+        conns += [Connection(f"table.{src}", f"imu.{dst}") for src, dst in integrals]
+        iparams["input_integrals"] = 1
     rec = ["imu.gyro", "imu.acc", "ctrl.segment", "ctrl.done"]
     if sc.imu_mapping.get("temperature", "temperature") in imu_names:
         rec.append("imu.temperature")
