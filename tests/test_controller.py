@@ -135,7 +135,10 @@ label = "rot-inner"
         earth = sum(C_pn(*a).T @ w_ie for a in mid) * h
         got = incr[first:last + 1].sum(axis=0)
         want = n * 2 * math.pi * axis_plate + earth
-        assert np.abs(got - want).max() < 1e-6, (label, got - want)
+        # the true angles at rest sit within a count of the encoder's (stick-slip friction
+        # holds the axis where it stops): a tilt of up to one count q of the rotating axis
+        # turns n full turns into an error of up to |n| 2 pi q on the cross axes
+        assert np.abs(got - want).max() < abs(n) * 2 * math.pi * Q + 1e-9, (label, got - want)
         # the rate during the turn: the commanded one (rate mode), no overshoot beyond 10 %
         rate = incr[first:last + 1] @ axis_plate / h
         w = 40 * DEG if k == 0 else 90 * DEG
