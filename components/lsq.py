@@ -11,6 +11,8 @@ estimator and its covariance (Hᵀ R⁻¹ H)⁻¹ the Cramér–Rao bound (domai
 """
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -20,7 +22,10 @@ from components.effects import effect_of, parameters_of, regressor_of
 from components.geometry import TableGeometry
 from components.motion import Motion, interpolate_angles, motion_from_profile
 
-TABLE_STEP = 1e-6  # rad, central-difference step of the geometry parameters
+TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
+# Geometry columns depend only on the angle profile, the blocks and the geometry: logs that
+# share the motion (Monte-Carlo seeds, effects hidden in the IMU only) reuse them.
+_GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
 
 
 @dataclass
@@ -248,12 +253,19 @@ def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tab
     # geometry columns by forward differences (the prediction is smooth in these small angles:
     # the truncation error is ~1e-6 of the column, far below what the fit can resolve)
     base_g, base_a = (gb.sum(motion.ideal_gyro), ab.sum(motion.ideal_acc)) if table_params else (0, 0)
+    blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
+                                + ab.stop.tobytes()).hexdigest() if table_params else ""
     for p in table_params:
         k = params.index(p)
-        v = table_parameter_value(geo, p)
-        mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
-        Hg[:, :, k] = (gb.sum(mp.ideal_gyro) - base_g) / TABLE_STEP
-        Ha[:, :, k] = (ab.sum(mp.ideal_acc) - base_a) / TABLE_STEP
+        key = (motion.profile_key, blocks_key, geo, p)
+        if key not in _GEOMETRY_COLUMNS:
+            v = table_parameter_value(geo, p)
+            mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
+            _GEOMETRY_COLUMNS[key] = ((gb.sum(mp.ideal_gyro) - base_g) / TABLE_STEP,
+                                      (ab.sum(mp.ideal_acc) - base_a) / TABLE_STEP)
+            while len(_GEOMETRY_COLUMNS) > 256:
+                _GEOMETRY_COLUMNS.popitem(last=False)
+        Hg[:, :, k], Ha[:, :, k] = _GEOMETRY_COLUMNS[key]
     # uncertainty of the rest angles at the two ends of a moving gyro block (taken isotropic)
     var_g = gb.count[:, None] * sg[None, :] ** 2 + np.where(
         gb.moving[:, None], 2 * np.sum(rest**2), 0.0)

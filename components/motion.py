@@ -11,6 +11,7 @@ with the table over whole rest-to-rest moves (see components.blocks).
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +51,7 @@ class Motion:
     elapsed_q: np.ndarray  # (N, Q) time since the start of the log
     t0_temperature: float
     lever: np.ndarray      # (3, 3) row i: offset of accelerometer i used by f_at
+    profile_key: str = ""  # the angle profile it was computed from
 
     def f_at(self, i: str) -> np.ndarray:
         """Specific force (N, Q, 3) at accelerometer i's location (size effect)."""
@@ -103,6 +105,7 @@ class AngleProfile:
     acc_end: np.ndarray
     attitudes: np.ndarray | None = None  # distinct angles of the static intervals
     attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
+    key: str = ""  # digest of time, angles and quadrature: equal profiles give equal motions
 
 
 def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
@@ -150,8 +153,9 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         acc_end[a:b] = spl(time[a:b], 2)
     att, inv = (np.unique(measured[static], axis=0, return_inverse=True) if static.any()
                 else (np.zeros((0, n_ax)), np.zeros(0, int)))
+    digest = hashlib.sha256(time.tobytes() + measured.tobytes() + bytes([quadrature, n_ax])).hexdigest()
     return AngleProfile(time, t_prev, dt, static, x, w, th_q, rate_q, acc_q, measured,
-                        rate_end, acc_end, att, inv.ravel())
+                        rate_end, acc_end, att, inv.ravel(), digest)
 
 
 def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
@@ -220,6 +224,7 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
         omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e,
         dtemp_q=dtemp_q, elapsed_q=tq_all - p.t_prev[0], t0_temperature=T0,
         lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
+        profile_key=p.key,
     )
 
 
