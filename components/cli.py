@@ -1,4 +1,5 @@
-"""The ``calbench`` command line."""
+"""calbench: IMU calibration on turntables by FMI co-simulation — simulate, calibrate, compare,
+diagnose, plan, verify."""
 from __future__ import annotations
 
 import argparse
