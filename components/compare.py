@@ -33,7 +33,7 @@ from scipy import stats
 
 from components.blocks import make_blocks, white_noise_sigma
 from components.effects import effect_of
-from components.lsq import LogData, apply_table_parameter, rest_sigma, sensor_columns
+from components.lsq import LogData, apply_table_parameter, rest_sigma, rest_variance, sensor_columns
 from components.result import CalibrationResult
 
 CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
@@ -86,7 +86,7 @@ class Comparison:
                 "conditions": self.conditions}
 
 
-def _blocks_rows(data: LogData, motion, residual, sigma, rest, chunk_s):
+def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s):
     dt = float(np.median(np.diff(data.time)))
     n_chunk = max(1, int(round(chunk_s / dt)))
     gb = make_blocks(motion.static, n_chunk, whole_moves=True)
@@ -96,7 +96,7 @@ def _blocks_rows(data: LogData, motion, residual, sigma, rest, chunk_s):
         s = blocks.sum(residual[:, sl])
         var = blocks.count[:, None] * sigma[sl][None, :] ** 2
         if name == "gyro":
-            var = var + np.where(blocks.moving[:, None], 2 * np.sum(rest**2), 0.0)
+            var = var + rest_variance(data, geo, blocks, rest)
         z = s / np.sqrt(var)
         zs.append(z.reshape(-1))
         sens += [name] * z.size
@@ -125,8 +125,10 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     sigma = white_noise_sigma(resid, motion.static)
     floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(motion.dt))
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
+    if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
+        rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
     rest = rest_sigma(data.angles, rest_angle_sigma)
-    rows = _blocks_rows(data, motion, resid, sigma, rest, chunk_s)
+    rows = _blocks_rows(data, geo, motion, resid, sigma, rest, chunk_s)
     chi2 = float(np.sum(rows["z"] ** 2))
     dof = max(len(rows["z"]) - fitted_parameters, 1)
     channels = {}

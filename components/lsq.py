@@ -106,6 +106,7 @@ class Fit:
     motion: Motion
     iterations: int
     rows: dict = field(default_factory=dict)  # design of the last iteration, for diagnostics
+    rest_sigma: np.ndarray | None = None  # σ of the rest angles used (estimated or given) [rad]
 
     @property
     def sigma(self) -> np.ndarray:
@@ -179,6 +180,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
                                  else white_noise_sigma(data.acc, motion.static), float),
                       9.8 * dt_mean)
     q = rest_sigma(data.angles, rest_angle_sigma)
+    if rest_angle_sigma is None and np.any(q):
+        q = _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
     value = np.array([(fixed or {}).get(p, 0.0) if effect_of(p).target == "table"
                       else 0.0 for p in params])
     for p in table_params:
@@ -216,7 +219,59 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     info = (Hw / scale).T @ (Hw / scale)
     cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
     rows["residual"] = resid_vec
-    return Fit(params, value, cov, chi2, max(len(y) - len(params), 1), sg, sa, geo, motion, it, rows)
+    fit = Fit(params, value, cov, chi2, max(len(y) - len(params), 1), sg, sa, geo, motion, it, rows)
+    fit.rest_sigma = q
+    return fit
+
+
+def _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for):
+    """How far the table really rests from its encoder readings, from the data: the moving gyro
+    blocks' residual variance beyond their white noise, against the geometric factor of the
+    rest angles (a method-of-moments variance component). Starts from one count uniform (the
+    prior q/√12) and stays within [0, 2 q/√12]; the estimator's σ then matches its spread."""
+    y, H, w, rows = _design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+    Hw = H * w[:, None]
+    scale = np.linalg.norm(Hw, axis=0)
+    scale[scale == 0] = 1.0
+    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=None)[0] / scale
+    r = y - H @ sol
+    n_g = 3 * len(gb)
+    mv = np.repeat(gb.moving, 3)
+    unit = rest_variance(data, geo, gb, np.ones_like(q)).reshape(-1)[mv]
+    white = (gb.count[:, None] * sg[None, :] ** 2).reshape(-1)[mv]
+    if unit.sum() <= 0:
+        return q
+    # residuals shrink by the fitted parameters' share (leverage ~ p / rows on average)
+    shrink = max(1.0 - len(params) / max(len(y), 1), 0.5)
+    s2 = float(np.sum(r[:n_g][mv] ** 2 / shrink - white) / np.sum(unit))
+    s = np.sqrt(min(max(s2, 0.0), (2 * q.max()) ** 2))
+    return np.full_like(q, s)
+
+
+def rest_directions(angles: np.ndarray, geo: TableGeometry, at: np.ndarray) -> np.ndarray:
+    """Plate-frame rotation direction of each stage (B, n_axes, 3) at the logged angles of the
+    samples *at*: how a small error of that stage's rest angle shows in the gyro triad."""
+    th = np.atleast_2d(angles[at])
+    _, w0, _, _ = geo.kinematics(th)
+    out = np.empty((len(th), th.shape[1], 3))
+    for k in range(th.shape[1]):
+        e = np.zeros_like(th)
+        e[:, k] = 1.0
+        out[:, k, :] = geo.kinematics(th, e)[1] - w0
+    return out
+
+
+def rest_variance(data, geo: TableGeometry, gb: Blocks, rest: np.ndarray) -> np.ndarray:
+    """(B, 3) variance a moving gyro block gets from the rest angles at its two ends: a rest
+    angle error δ_k of stage k shifts the integral of the gyro by b_k δ_k (b_k its rotation
+    direction in plate axes), independently at the start and at the end of the move."""
+    var = np.zeros((len(gb), 3))
+    mv = np.nonzero(gb.moving)[0]
+    if len(mv) == 0 or not np.any(rest):
+        return var
+    b = rest_directions(data.angles, geo, np.maximum(gb.stop[mv] - 1, 0))
+    var[mv] = 2 * np.einsum("bki,k->bi", b**2, np.asarray(rest, float) ** 2)
+    return var
 
 
 def rest_sigma(angles: np.ndarray, given=None) -> np.ndarray:
@@ -266,9 +321,7 @@ def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tab
             while len(_GEOMETRY_COLUMNS) > 256:
                 _GEOMETRY_COLUMNS.popitem(last=False)
         Hg[:, :, k], Ha[:, :, k] = _GEOMETRY_COLUMNS[key]
-    # uncertainty of the rest angles at the two ends of a moving gyro block (taken isotropic)
-    var_g = gb.count[:, None] * sg[None, :] ** 2 + np.where(
-        gb.moving[:, None], 2 * np.sum(rest**2), 0.0)
+    var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)
     var_a = ab.count[:, None] * sa[None, :] ** 2
     y = np.concatenate([yg.reshape(-1), ya.reshape(-1)])
     H = np.concatenate([Hg.reshape(-1, len(params)), Ha.reshape(-1, len(params))])

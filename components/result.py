@@ -155,6 +155,9 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
         "gyro_arw_rad_per_sqrt_s": [float(x / np.sqrt(dt)) for x in fit.sigma_gyro],
         "acc_vrw_mps_per_sqrt_s": [float(x / np.sqrt(dt)) for x in fit.sigma_acc],
     }
+    if getattr(fit, "rest_sigma", None) is not None:
+        # how far the table rests from its encoder readings (estimated from the moves)
+        noise["rest_angle_sigma_rad"] = [float(x) for x in fit.rest_sigma]
     fitd = {"chi2": fit.chi2, "dof": fit.dof, "chi2_per_dof": fit.chi2 / fit.dof,
             "iterations": fit.iterations,
             "observations": "block sums: rest-to-rest gyro moves and static chunks, accelerometer chunks"}
