@@ -44,6 +44,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     sim.load()
     for chk in sim.role_checks:
         print(chk.report())
+    from fmpy.validation import validate_fmu
+
+    for name, unit in sim.units.items():
+        path = getattr(unit, "path", None)
+        if path is not None:
+            problems = validate_fmu(str(path))
+            for p in problems:
+                print(f"unit {name}: validation: {p}")
     out = args.out or f"{system.name}.parquet"
     rec = sim.run(out)
     print(f"{system.name}: {rec.rows} rows x {len(rec.signals)} signals, "
