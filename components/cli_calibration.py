@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 
 
 
@@ -141,15 +143,43 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     log = read_log(args.log)
     data = LogData.from_log(log)
-    model = _load_model(args.model)
-    c = compare(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0)
+    if args.model.endswith((".toml", ".ssp")):
+        # a system: its IMU unit (ours or a supplier's FMU) replayed on the log's motion
+        from components.compare import assess
+        from components.replay import replay_imu
+
+        motion = data.motion(data.geometry)
+        c = assess(data, data.geometry, motion, replay_imu(data, args.model, motion))
+        print(f"model: the IMU unit of {args.model}, replayed on the log's motion")
+    else:
+        model = _load_model(args.model)
+        c = compare(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0)
     _print_comparison(c)
+    if args.servo is not None:
+        _print_servo(log, None if args.servo == "builtin" else args.servo)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(c.summary(), f, indent=1)
     if args.residuals:
         write_residuals(args.residuals, log, c)
     return 0
+
+
+def _print_servo(log, system_file) -> None:
+    from components.replay import replay_servo
+
+    from components.cli import UserError
+
+    try:
+        res = replay_servo(log, system_file)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    src = system_file or "the built-in turntable FMU"
+    print(f"servo: commanded angles replayed through {src}; measured − simulated encoder angle [arcsec]:")
+    print(f"{'axis':8s} {'rms':>10s} {'max':>10s} {'rms moving':>11s} {'rms rest':>10s}")
+    k = 180 * 3600 / np.pi
+    for a, v in res.items():
+        print(f"{a:8s} {v['rms'] * k:10.4g} {v['max'] * k:10.4g} {v['rms_moving'] * k:11.4g} {v['rms_rest'] * k:10.4g}")
 
 
 def write_residuals(path: str, log, c) -> None:
@@ -240,7 +270,11 @@ def add_model_commands(sub) -> None:
     c = sub.add_parser("compare", help="replay a log's motion through a model: residuals, "
                                        "chi2/dof, fit, whiteness, where it fails")
     c.add_argument("log")
-    c.add_argument("--model", required=True, help="calibration result (JSON)")
+    c.add_argument("--model", required=True,
+                   help="calibration result (JSON), or a system (TOML/SSP) whose IMU unit is replayed")
+    c.add_argument("--servo", nargs="?", const="builtin", metavar="SYSTEM",
+                   help="also replay the logged commands through the turntable FMU (the built-in "
+                        "one, or a system's turntable unit) and compare with the logged angles")
     c.add_argument("--json", help="write the per-channel figures as JSON")
     c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units)")
     c.set_defaults(func=_cmd_compare)

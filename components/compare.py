@@ -114,19 +114,26 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     """Residual of *model* on *data*. ``fitted_parameters``: how many parameters were fitted to
     this same log (subtracted from the degrees of freedom)."""
     geo = model_geometry(data, model)
-    T0 = model.temperature_ref
-    motion = data.motion(geo, T0)
+    motion = data.motion(geo, model.temperature_ref)
     sensor_params = [p for p in model.values if effect_of(p).target != "table"]
     values = np.array([model.values[p] for p in sensor_params])
     G, A = sensor_columns(motion, sensor_params)
     pred = np.hstack([motion.ideal_gyro + G @ values, motion.ideal_acc + A @ values])
+    if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
+        rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
+    return assess(data, geo, motion, pred, fitted_parameters=fitted_parameters, chunk_s=chunk_s,
+                  rest_angle_sigma=rest_angle_sigma)
+
+
+def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: int = 0,
+           chunk_s: float = 1.0, rest_angle_sigma=None) -> Comparison:
+    """The misfit figures of a prediction (N, 6) of the log's IMU increments, whatever made it
+    (a calibration result, or a supplier's IMU FMU replayed on the log's motion)."""
     meas = np.hstack([data.gyro, data.acc])
     resid = meas - pred
     sigma = white_noise_sigma(resid, motion.static)
     floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(motion.dt))
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
-    if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
-        rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
     rest = rest_sigma(data.angles, rest_angle_sigma)
     rows = _blocks_rows(data, geo, motion, resid, sigma, rest, chunk_s)
     chi2 = float(np.sum(rows["z"] ** 2))

@@ -47,6 +47,7 @@ class Motion:
     omega_end: np.ndarray
     f_start: np.ndarray
     f_end: np.ndarray
+    alpha_end: np.ndarray  # (N, 3) angular acceleration at the sample times
     dtemp_q: np.ndarray    # (N, Q) temperature - T0
     elapsed_q: np.ndarray  # (N, Q) time since the start of the log
     t0_temperature: float
@@ -202,10 +203,11 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     # values at the sample times: static ends share the attitudes above; moving ends computed
     om_e = np.empty((n, 3))
     f_e = np.empty((n, 3))
+    al_e = np.zeros((n, 3))
     om_e[st], f_e[st] = om[st, 0], f[st, 0]
     if mv.any():
         the, re, ae = _true_motion(geometry, p.th_end[mv], p.rate_end[mv], p.acc_end[mv])
-        _, om_e[mv], _, f_e[mv] = geometry.kinematics(the, re, ae)
+        _, om_e[mv], al_e[mv], f_e[mv] = geometry.kinematics(the, re, ae)
     omega_start = np.vstack([om_e[:1], om_e[:-1]])
     f_start = np.vstack([f_e[:1], f_e[:-1]])
     tq_all = p.t_prev[:, None] + p.dt[:, None] * p.nodes[None, :]
@@ -221,7 +223,7 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     return Motion(
         time=p.time, dt=p.dt, static=p.static, nodes=p.nodes, weights=p.weights,
         omega_q=om, alpha_q=al, f_q=f,
-        omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e,
+        omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e, alpha_end=al_e,
         dtemp_q=dtemp_q, elapsed_q=tq_all - p.t_prev[0], t0_temperature=T0,
         lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
         profile_key=p.key,

@@ -64,6 +64,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from components.controller import CalibrationController
 from components.effects import EFFECTS, G0, effect_of
 from components.schedule import DEG, Schedule, ScheduleError, load_schedule
@@ -433,6 +435,8 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     if sc.imu_mapping.get("temperature", "temperature") in imu_names:
         rec.append("imu.temperature")
     rec += [f"table.{a}.angle" for a in axes] + [f"table.{a}.angle_cmd" for a in axes]
+    # the full command (mode and rate too): extra log columns a servo replay can use
+    rec += [f"table.{a}.mode" for a in axes] + [f"table.{a}.rate_cmd" for a in axes]
     rec += [r for r in (record or []) if r not in rec]
     period = multiple * sc.step
     bound = sc.schedule.time_bound(min(acc))
@@ -496,6 +500,11 @@ def run_scenario(sc: Scenario, record: list[str] | None = None, progress: bool |
     desc = sc.description or f"simulated run of scenario {sc.name}"
     log = log_from_recording(rec, metadata=meta, table="table", imu="imu", axes=sc.table_axes,
                              segment_signal="ctrl.segment", segment_labels=ctrl.labels, description=desc)
+    for a in sc.table_axes:
+        # kept as extra columns (the spec keeps unknown columns): the servo replay of
+        # components.replay drives a turntable FMU with the same mode and rate commands
+        log.extra[f"servo_mode_{a}"] = np.asarray(rec[f"table.{a}.mode"][1:], dtype=float)
+        log.extra[f"servo_rate_{a}"] = np.asarray(rec[f"table.{a}.rate_cmd"][1:], dtype=float)
     truth = _truth(sc, ctrl, info, rec)
     return RunResult(sc, rec, ctrl, log, truth, info)
 
