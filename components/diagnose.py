@@ -240,8 +240,12 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         # a fitted magnitude far outside anything physical means the linearised model is being
         # used to absorb something else (table angles beyond the small-angle range, or a
         # near-degenerate column): such a candidate is reported but cannot be the verdict
+        # (sensor effects are linear in their parameters, so only an absurd value is suspect: the
+        # typical magnitudes are navigation grade, tactical grade is up to 1000 times them, and a
+        # drift or temperature coefficient must be far above them to show in a short run)
         typical = EFFECTS[effect].typical
-        implausible = [p for p in ps if abs(values[p][0]) > max(1000 * typical,
+        factor = 1000 if EFFECTS[effect].target == "table" else 1e5
+        implausible = [p for p in ps if abs(values[p][0]) > max(factor * typical,
                                                                   0.01 if EFFECTS[effect].unit == "rad" else 0)]
         cand = Candidate(effect, float(F), math.exp(logp), 1.0,
                          float(chi2_c - chi2_b + k * math.log(design.n)),
