@@ -1,0 +1,92 @@
+"""Ready-made system-level configurations (``calbench kf NAME LOG``) and a TOML loader.
+
+- ``seed_001``: seed 001 steps 3–7 on the seed_001 schedule: the CW/CCW closed forms give the
+  gyro scale factors and misalignments (and the coarse accelerometer scale factors), the data are
+  corrected with them, then a filter on the 18-position sequence (labels ``sys..``) estimates
+  gyro biases and accelerometer scale factor, misalignment and bias (9 + 15 states); its scale
+  factors correct the coarse ones (the result holds the sum).
+- ``seed_001_single``: the single system-level filter on the same 18 positions, all gyro and
+  accelerometer bias / scale factor / misalignment states at once (the comparison of the
+  seed's claim).
+- ``seed_003``: S203 39-state filter (9 nav + gyro bias 3 + acc bias 3 + gyro sf/mis 9 +
+  acc sf/mis 6 + inner lever arms 6 + K2 3) on the y-x-z / z-x-y excitation, then the 12-state
+  bias filter (9 nav + 3 gyro biases) on the S204 azimuth back-and-forth, which replaces the
+  gyro biases.
+- ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml) with
+  gyro and accelerometer bias / sf / mis and the IMU time offset as a state.
+
+Accelerometer misalignment: without table angles the body frame is defined by the
+accelerometers' triad, so only 3 of the 6 off-diagonal terms are observable (domain.md §4);
+the configurations keep ``acc.mis.yx, zx, zy`` (the lower triangle) and 9 gyro sf/mis terms.
+"""
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from components.effects import parameters_of
+from components.navigation.system import Config, Stage
+
+ACC_MIS3 = ["acc.mis.yx", "acc.mis.zx", "acc.mis.zy"]
+GYRO9 = parameters_of(["gyro.sf", "gyro.mis"])
+ACC_LEVER6 = ["acc.lever.x.y", "acc.lever.x.z", "acc.lever.y.x", "acc.lever.y.z",
+              "acc.lever.z.x", "acc.lever.z.y"]
+
+
+def _seed003() -> Config:
+    p39 = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"])
+           + ACC_MIS3 + ACC_LEVER6 + parameters_of(["acc.k2"]))
+    return Config("seed_003", "seed 003 S203 39-state filter, then the S204 12-state bias filter", [
+        Stage("kf", "S202+S203 39-state", parameters=p39, window=r"^(move-)?S20[23]",
+              settings={"passes": 3}),
+        Stage("kf", "S204 12-state bias", parameters=parameters_of(["gyro.bias"]),
+              window=r"^(move-)?S204", settings={"passes": 2}),
+    ], schedule="seed_003")
+
+
+def _seed001() -> Config:
+    p = parameters_of(["gyro.bias", "acc.sf"]) + ACC_MIS3 + parameters_of(["acc.bias"])
+    return Config("seed_001", "seed 001: CW/CCW gyro stage, then the 18-position filter", [
+        Stage("cwccw", "CW/CCW gyro sf/mis + coarse acc sf", effects=["gyro.sf", "gyro.mis", "acc.sf"]),
+        Stage("kf", "18-position", parameters=p, window=r"^(move-)?sys", settings={"passes": 2}),
+    ], schedule="seed_001")
+
+
+def _seed001_single() -> Config:
+    p = (parameters_of(["gyro.bias"]) + GYRO9 + parameters_of(["acc.sf"]) + ACC_MIS3
+         + parameters_of(["acc.bias"]))
+    return Config("seed_001_single", "one system-level filter on the 18 positions", [
+        Stage("kf", "18-position single", parameters=p, window=r"^(move-)?sys",
+              settings={"passes": 2}),
+    ], schedule="seed_001")
+
+
+def _psins19() -> Config:
+    p = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"]) + ACC_MIS3
+         + ["imu.time_offset"])
+    return Config("psins19", "19-position PSINS-style sequence, time offset as a state", [
+        Stage("kf", "19-position", parameters=p, window=None, settings={"passes": 3}),
+    ], schedule="psins19")
+
+
+READY = {"seed_003": _seed003, "seed_001": _seed001, "seed_001_single": _seed001_single,
+         "psins19": _psins19}
+
+
+def load_config(spec: str) -> Config:
+    """A ready-made name, or a TOML file: [config] name, description; [[stages]] kind, name,
+    effects or parameters, window, settings = {...}."""
+    if spec in READY:
+        return READY[spec]()
+    path = Path(spec)
+    if not path.exists():
+        raise ValueError(f"{spec!r}: not a ready-made configuration ({', '.join(READY)}) nor a file")
+    d = tomllib.loads(path.read_text())
+    c = d.get("config", {})
+    stages = [Stage(kind=s.get("kind", "kf"), name=s.get("name", ""), effects=s.get("effects", []),
+                    parameters=s.get("parameters"), window=s.get("window"),
+                    settings=dict(s.get("settings", {})), align_max_s=s.get("align_max_s", 60.0))
+              for s in d.get("stages", [])]
+    if not stages:
+        raise ValueError(f"{path}: no [[stages]]")
+    return Config(c.get("name", path.stem), c.get("description", ""), stages, c.get("schedule"))

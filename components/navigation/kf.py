@@ -1,0 +1,234 @@
+"""The system-level error-state Kalman filter (domain.md §7).
+
+State: the 9 navigation errors ``[φE φN φU δVE δVN δVU δL δλ δh]`` followed by the residuals
+of any chosen effect parameters (vocabulary names, each a random constant: x_θ = θ − θ̂).
+
+Dynamics, per navigation step T (two samples), with C the attitude at the step's midpoint and
+δω_ib^b = G x_θ, δf^b = A x_θ from the effects' regressors on the measured motion
+(components.navigation.sensor)::
+
+    φ̇  = φ × ω_ie^n − C δω          δv̇ = f^n × φ + C δf − 2 ω_ie^n × δv
+    δL̇ = δV_N / R_M                 δλ̇ = δV_E / (R_N cos L)          δḣ = δV_U
+
+discretised per step as ``x ← A_k x + B_k x_θ`` (A_k = I + F T + (F T)²/2, B_k the integrated
+regressors mapped by C) and accumulated over the filter interval into the transition matrix
+``Φ = [[ΠA, ΣΠA B], [0, I]]``; process noise from the white noise per sample (ARW on φ, VRW on
+δv) accumulated the same way.
+
+Prediction and update: filterpy's ``KalmanFilter`` (predict: P = Φ P Φᵀ + Q; update: Joseph form).
+Observation: the navigation velocity (the truth is zero) in filter intervals whose samples are
+all static (or in every interval, ``observe="always"``). After each update the estimate is fed
+back (closed loop): attitude, velocity and position corrected, the effect estimates θ̂ += x_θ,
+the state reset to zero; the sensor data of the next steps are corrected with θ̂. Repeated passes
+start again from the beginning with θ̂ of the previous pass and the prior covariance (the
+linearisation improves; in the noise-free limit the prior's pull shrinks each pass).
+
+RTS smoother (``smoother=True``): the filter's (Φ, P⁻, P⁺, x⁺) are kept and run backwards; the
+feedback is a known input (x⁻_{k+1} = Φ (x⁺_k − u_k) = 0), so ``x^s_k = x⁺_k + C_k x^s_{k+1}``,
+``C_k = P⁺_k Φᵀ (P⁻_{k+1})⁻¹``. For the random-constant effect states the smoothed value at
+every step equals the final filtered one (a check); the smoother gives the navigation-error
+history (attitude and velocity errors over the run). It keeps 3 (n×n) matrices per interval.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+
+from components.effects import effect_of
+from components.geometry import skew
+from components.navigation.earth import Site
+from components.navigation.strapdown import Strapdown, rot
+
+NAV_STATES = ["phi.E", "phi.N", "phi.U", "dv.E", "dv.N", "dv.U", "dpos.L", "dpos.lon", "dpos.h"]
+
+
+@dataclass
+class FilterSettings:
+    parameters: list[str]
+    kf_interval: float = 0.1          # s between predictions / updates
+    passes: int = 2
+    phi0: tuple = (1e-4, 1e-4, 3e-3)  # initial attitude σ [rad] (level, level, heading)
+    v0: float = 1e-3                  # m/s
+    pos0: float = 1e-6                # rad / m
+    prior_sigma: dict = field(default_factory=dict)  # parameter -> σ of the prior; default:
+    prior_scale: float = 10.0         # prior_scale × the effect's typical magnitude
+    initial: dict = field(default_factory=dict)      # starting estimates
+    sigma_gyro: object = None         # per-sample white noise [rad] (None: from static data)
+    sigma_acc: object = None          # [m/s]
+    r_vel: float | None = None        # observation σ [m/s]; default: from the noise
+    observe: str = "static"           # "static" or "always"
+    smoother: bool = False
+    history_every: int = 1            # record θ̂ and σ every n updates
+
+
+@dataclass
+class FilterOutput:
+    parameters: list[str]
+    values: np.ndarray
+    covariance: np.ndarray            # of the effect states (m, m)
+    P: np.ndarray                     # full final covariance
+    C_final: np.ndarray
+    sigma_nav: np.ndarray             # final σ of the 9 navigation errors
+    updates: int
+    predictions: int
+    history_t: np.ndarray             # time of each recorded update [s]
+    history_values: np.ndarray        # θ̂ after each recorded update (K, m)
+    history_sigma: np.ndarray         # σ after each recorded update (K, m)
+    innovations: np.ndarray           # (K, 3) velocity innovations
+    innovation_var: np.ndarray        # (K, 3) their predicted variance
+    smoothed_nav: np.ndarray | None = None   # (K, 9) smoothed navigation errors
+    smoothed_values: np.ndarray | None = None  # θ at the first interval, smoothed
+    pass_values: list = field(default_factory=list)
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance))
+
+
+def prior_sigmas(params: list[str], settings: FilterSettings) -> np.ndarray:
+    return np.array([settings.prior_sigma.get(p, settings.prior_scale * effect_of(p).typical)
+                     for p in params], float)
+
+
+def _nav_F(site: Site) -> np.ndarray:
+    F = np.zeros((9, 9))
+    w = site.w_ie
+    F[0:3, 0:3] = -skew(w)
+    F[3:6, 3:6] = -2.0 * skew(w)
+    F[6, 4] = 1.0 / site.rm
+    F[7, 3] = 1.0 / (site.rn * math.cos(site.latitude))
+    F[8, 5] = 1.0
+    return F
+
+
+def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.ndarray,
+               static: np.ndarray, settings: FilterSettings, regressors=None,
+               theta0: np.ndarray | None = None, time0: float = 0.0) -> FilterOutput:
+    """One pass of the closed-loop filter over increments (N, 3) starting at attitude C0."""
+    params = list(settings.parameters)
+    m = len(params)
+    n = 9 + m
+    N = len(gyro)
+    theta = np.zeros(m) if theta0 is None else np.array(theta0, float)
+    sg = np.broadcast_to(np.asarray(1e-12 if settings.sigma_gyro is None else settings.sigma_gyro,
+                                    float), (3,))
+    sa = np.broadcast_to(np.asarray(1e-10 if settings.sigma_acc is None else settings.sigma_acc,
+                                    float), (3,))
+    sg = np.maximum(sg, 1e-12)
+    sa = np.maximum(sa, 1e-10)
+    r = settings.r_vel if settings.r_vel is not None else max(3.0 * float(np.max(sa)), 1e-6)
+    kf = KalmanFilter(dim_x=n, dim_z=3)
+    kf.x = np.zeros((n, 1))
+    P0 = np.zeros(n)
+    P0[0:3] = np.asarray(settings.phi0, float) ** 2
+    P0[3:6] = settings.v0 ** 2
+    P0[6:8] = (settings.pos0 / site.rm) ** 2
+    P0[8] = settings.pos0 ** 2
+    if m:
+        P0[9:] = prior_sigmas(params, settings) ** 2
+    kf.P = np.diag(P0)
+    H = np.zeros((3, n))
+    H[:, 3:6] = np.eye(3)
+    R = np.eye(3) * r * r
+    nav = Strapdown(site, C0, dt)
+    Fn = _nav_F(site)
+    steps = max(1, int(round(settings.kf_interval / (2 * dt))))
+    Qg, Qa = np.diag(sg ** 2), np.diag(sa ** 2)
+    I9 = np.eye(9)
+    hist_t, hist_v, hist_s, innov, innov_var = [], [], [], [], []
+    store = [] if settings.smoother else None
+    updates = predictions = 0
+    k = 0
+    while k < N:
+        Aacc = I9.copy()
+        Bacc = np.zeros((9, m))
+        Qacc = np.zeros((9, 9))
+        all_static = True
+        for _ in range(steps):
+            if k >= N:
+                break
+            c = 2 if k + 1 < N else 1
+            if m:
+                Gk, Ak = regressors.block(k, k + c)
+                dth = gyro[k:k + c] - Gk @ theta
+                dv = acc[k:k + c] - Ak @ theta
+            else:
+                dth, dv = gyro[k:k + c], acc[k:k + c]
+            T = c * dt
+            phi_b = dth.sum(0)
+            Cm = nav.C @ rot(0.5 * phi_b)
+            fn = Cm @ dv.sum(0) / T
+            nav.step(dth, dv)
+            F = Fn.copy()
+            F[3:6, 0:3] = skew(fn)
+            FT = F * T
+            Ak9 = I9 + FT + 0.5 * (FT @ FT)
+            Aacc = Ak9 @ Aacc
+            Qk = np.zeros((9, 9))
+            Qk[0:3, 0:3] = c * (Cm @ Qg @ Cm.T)
+            Qk[3:6, 3:6] = c * (Cm @ Qa @ Cm.T)
+            Qacc = Ak9 @ Qacc @ Ak9.T + Qk
+            if m:
+                Bk = np.zeros((9, m))
+                Bk[0:3] = -Cm @ Gk.sum(0)
+                Bk[3:6] = Cm @ Ak.sum(0)
+                Bacc = Ak9 @ Bacc + Bk
+            all_static = all_static and bool(np.all(static[k:k + c]))
+            k += c
+        Phi = np.eye(n)
+        Phi[:9, :9] = Aacc
+        Phi[:9, 9:] = Bacc
+        Q = np.zeros((n, n))
+        Q[:9, :9] = Qacc
+        kf.predict(F=Phi, Q=Q)
+        predictions += 1
+        P_prior = kf.P.copy() if store is not None else None
+        observed = settings.observe == "always" or all_static
+        if observed:
+            z = nav.v.reshape(3, 1)
+            kf.update(z, R=R, H=H)
+            updates += 1
+            innov.append(kf.y.ravel().copy())
+            innov_var.append(np.diag(kf.S).copy())
+        x = kf.x.ravel().copy()
+        if store is not None:
+            store.append((Phi, P_prior, kf.P.copy(), x))
+        nav.correct(x[0:3], x[3:6], x[6:9])
+        if m:
+            theta = theta + x[9:]
+        kf.x = np.zeros((n, 1))
+        if observed and (updates % settings.history_every == 0):
+            hist_t.append(time0 + k * dt)
+            hist_v.append(theta.copy())
+            hist_s.append(np.sqrt(np.diag(kf.P)[9:]))
+    out = FilterOutput(params, theta, kf.P[9:, 9:].copy(), kf.P.copy(), nav.C.copy(),
+                       np.sqrt(np.diag(kf.P)[:9]), updates, predictions,
+                       np.array(hist_t), np.array(hist_v, float).reshape(len(hist_t), m),
+                       np.array(hist_s, float).reshape(len(hist_t), m), np.array(innov).reshape(-1, 3),
+                       np.array(innov_var).reshape(-1, 3))
+    if store:
+        out.smoothed_nav, out.smoothed_values = _rts(store, theta, m)
+    return out
+
+
+def _rts(store, theta_final, m):
+    """Backward pass with the feedback as a known input (see the module docstring). Returns the
+    smoothed navigation errors per interval (K, 9) (relative to each interval's navigation
+    solution before its feedback) and the smoothed effect values at the first interval."""
+    K = len(store)
+    xs = store[-1][3].copy()
+    nav = np.zeros((K, 9))
+    nav[-1] = xs[:9]
+    for i in range(K - 2, -1, -1):
+        _, _, P_post, x_post = store[i]
+        Phi_next, P_prior_next = store[i + 1][0], store[i + 1][1]
+        Cg = np.linalg.solve(P_prior_next.T, (P_post @ Phi_next.T).T).T
+        xs = x_post + Cg @ xs  # x⁻_{i+1} = 0 after the feedback
+        nav[i] = xs[:9]
+    # θ at the first interval: θ̂ after the first feedback minus the first x⁺ plus the smoothed x
+    theta_first = theta_final - sum(s[3][9:] for s in store[1:]) if m else np.zeros(0)
+    smoothed = theta_first - store[0][3][9:] + xs[9:] if m else np.zeros(0)
+    return nav, smoothed

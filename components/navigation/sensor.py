@@ -1,0 +1,98 @@
+"""Effect regressors evaluated on the IMU's own measured motion.
+
+The system-level filter has no table angles: the contribution of one unit of each effect
+parameter to each sample's increment (components.effects, the same regressors the least-squares
+engine uses) is evaluated on a :class:`components.motion.Motion` built from the IMU data:
+rate and specific force at the sample midpoints from the increments, angular acceleration and
+the interval-end values from neighbouring samples (central differences). Errors of this
+evaluation are products of two small quantities (the parameter residual times the sensor error
+or noise), below the filter's resolution.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from components.effects import regressor_of
+from components.motion import Motion
+
+
+def measured_motion(gyro: np.ndarray, acc: np.ndarray, dt: float, t0: float = 0.0,
+                    temperature: np.ndarray | None = None, t_ref: float | None = None) -> Motion:
+    """Motion (one node per interval, at its midpoint) from increments (N, 3)."""
+    n = len(gyro)
+    w = gyro / dt
+    f = acc / dt
+    pad = lambda x: np.concatenate([x[:1], x, x[-1:]])  # noqa: E731
+    wp, fp = pad(w), pad(f)
+    w_b = 0.5 * (wp[1:] + wp[:-1])  # (N+1,) boundaries
+    f_b = 0.5 * (fp[1:] + fp[:-1])
+    alpha = (wp[2:] - wp[:-2]) / (2 * dt)
+    if temperature is not None:
+        T0 = float(temperature[0]) if t_ref is None else t_ref
+        dtemp = (np.asarray(temperature, float) - T0)[:, None]
+    else:
+        T0, dtemp = 0.0, np.zeros((n, 1))
+    kw = dict(time=t0 + dt * np.arange(1, n + 1), dt=np.full(n, dt), static=np.zeros(n, bool),
+              nodes=np.array([0.5]), weights=np.array([1.0]), omega_q=w[:, None, :],
+              alpha_q=alpha[:, None, :], f_q=f[:, None, :], omega_start=w_b[:-1],
+              omega_end=w_b[1:], f_start=f_b[:-1], f_end=f_b[1:], dtemp_q=dtemp,
+              elapsed_q=(t0 + dt * (np.arange(n) + 0.5))[:, None], t0_temperature=T0,
+              lever=np.zeros((3, 3)))
+    names = {f.name for f in dataclasses.fields(Motion)}
+    if "alpha_end" in names:
+        a_b = np.concatenate([alpha[1:], alpha[-1:]])
+        kw["alpha_end"] = 0.5 * (alpha + a_b)
+    return Motion(**{k: v for k, v in kw.items() if k in names})
+
+
+class Regressors:
+    """Per-sample regressors of *parameters* on the measured data, computed by chunks (an hour
+    at 200 Hz with 30 parameters would be ~1 GB at once). ``block(a, b)`` -> (G, A), each
+    (b - a, 3, m): gyro and accelerometer increments per unit parameter."""
+
+    def __init__(self, parameters: list[str], gyro: np.ndarray, acc: np.ndarray, dt: float,
+                 temperature: np.ndarray | None = None, chunk: int = 8000):
+        self.parameters = list(parameters)
+        self.gyro, self.acc, self.dt = gyro, acc, dt
+        self.temperature = temperature
+        self.chunk = chunk
+        self._cache: tuple[int, int, np.ndarray, np.ndarray] | None = None
+
+    def _compute(self, a: int, b: int):
+        n = len(self.gyro)
+        lo, hi = max(a - 1, 0), min(b + 1, n)
+        temp = None if self.temperature is None else self.temperature[lo:hi]
+        t_ref = None if self.temperature is None else float(self.temperature[0])
+        m = measured_motion(self.gyro[lo:hi], self.acc[lo:hi], self.dt, lo * self.dt, temp, t_ref)
+        k = len(self.parameters)
+        G = np.zeros((hi - lo, 3, k))
+        A = np.zeros((hi - lo, 3, k))
+        for j, p in enumerate(self.parameters):
+            g, ac = regressor_of(m, p)
+            if g is not None:
+                G[:, :, j] = g
+            if ac is not None:
+                A[:, :, j] = ac
+        return G[a - lo:b - lo], A[a - lo:b - lo]
+
+    def block(self, a: int, b: int):
+        c = self._cache
+        if c is None or not (c[0] <= a and b <= c[1]):
+            start = a
+            stop = min(max(b, a + self.chunk), len(self.gyro))
+            G, A = self._compute(start, stop)
+            self._cache = c = (start, stop, G, A)
+        return c[2][a - c[0]:b - c[0]], c[3][a - c[0]:b - c[0]]
+
+    def correct(self, values: np.ndarray, chunk: int = 20000):
+        """Corrected increments (raw − regressors · values) for all samples."""
+        g, a = self.gyro.copy(), self.acc.copy()
+        if not self.parameters or not np.any(values):
+            return g, a
+        for s in range(0, len(g), chunk):
+            G, A = self._compute(s, min(s + chunk, len(g)))
+            g[s:s + len(G)] -= G @ values
+            a[s:s + len(A)] -= A @ values
+        return g, a

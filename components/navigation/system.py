@@ -1,0 +1,200 @@
+"""System-level calibration of a log: stages of a configuration (components.navigation.configs)
+run in order on the log; each stage's estimates correct the data of the next ones and the merged
+estimates form one CalibrationResult (method "system-level KF"), with the same vocabulary and
+file as the least-squares procedures (compare / diagnose / add work on it).
+
+A ``kf`` stage: the samples of a window (segment labels matching a regular expression, from the
+first to the last match), corrected by the earlier stages' estimates; per pass: coarse and fine
+alignment on the window's first static run (data corrected by the current estimates), then the
+closed-loop filter (components.navigation.kf) from the start of that run to the window's end.
+A ``cwccw`` stage: the CW/CCW closed forms (components.procedures.cwccw) for the listed
+parameters (seed 001's gyro stage).
+
+Deterministic: no random numbers, a fixed order of operations, so a raw log re-solved later
+gives bit-identical values (seed 003's offline re-solve).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from components.blocks import white_noise_sigma
+from components.effects import effect_of, parameters_of
+from components.lsq import LogData
+from components.navigation.alignment import coarse_align, fine_align, static_run
+from components.navigation.earth import Site
+from components.navigation.kf import FilterOutput, FilterSettings, run_filter
+from components.navigation.sensor import Regressors
+from components.result import CalibrationResult, schedule_of
+
+METHOD = "system-level KF"
+STATIC_TOL = 1e-9  # rad: an angle change per sample below this is "at rest"
+
+
+@dataclass
+class Stage:
+    kind: str = "kf"                      # "kf" or "cwccw"
+    name: str = ""
+    effects: list = field(default_factory=list)
+    parameters: list | None = None        # explicit parameter list (default: all of effects)
+    window: str | None = None             # regex on segment labels
+    settings: dict = field(default_factory=dict)  # FilterSettings fields
+    align_max_s: float = 60.0
+
+
+@dataclass
+class Config:
+    name: str
+    description: str
+    stages: list
+    schedule: str | None = None           # the ready-made schedule it is meant for
+
+
+def static_mask(angles: np.ndarray) -> np.ndarray:
+    d = np.abs(np.diff(angles, axis=0, prepend=angles[:1]))
+    return np.all(d <= STATIC_TOL, axis=1)
+
+
+def window_of(segment, pattern: str | None, n: int) -> tuple[int, int]:
+    if pattern is None or segment is None:
+        return 0, n
+    rx = re.compile(pattern)
+    hit = np.array([bool(rx.search(str(s))) for s in segment])
+    idx = np.nonzero(hit)[0]
+    if len(idx) == 0:
+        raise ValueError(f"no segment label matches {pattern!r}")
+    return int(idx[0]), int(idx[-1]) + 1
+
+
+@dataclass
+class StageOutput:
+    stage: Stage
+    parameters: list
+    values: np.ndarray
+    covariance: np.ndarray
+    filter: FilterOutput | None = None
+    window: tuple = (0, 0)
+    passes: list = field(default_factory=list)
+
+
+def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
+                 dt: float) -> StageOutput:
+    params = stage.parameters or parameters_of(stage.effects)
+    a, b = window_of(data.segment, stage.window, len(data.time))
+    site = Site.of_geometry(data.geometry)
+    # the earlier stages' estimates, applied once to the window's raw data
+    fixed_p = [p for p, v in fixed.items() if v != 0.0]
+    g, ac = data.gyro[a:b], data.acc[a:b]
+    temp = None if data.temperature is None else data.temperature[a:b]
+    if fixed_p:
+        g, ac = Regressors(fixed_p, g, ac, dt, temp).correct(np.array([fixed[p] for p in fixed_p]))
+    st = static[a:b]
+    s0, s1 = static_run(st)
+    s1 = min(s1, s0 + max(2, int(round(stage.align_max_s / dt))))
+    settings = FilterSettings(parameters=params, **stage.settings)
+    if settings.sigma_gyro is None:
+        settings.sigma_gyro = white_noise_sigma(g, st)
+    if settings.sigma_acc is None:
+        settings.sigma_acc = white_noise_sigma(ac, st)
+    for key in ("sigma_gyro", "sigma_acc"):
+        v = np.asarray(getattr(settings, key), float)
+        setattr(settings, key, np.where(np.isfinite(v), v, 0.0))
+    g, ac, st = g[s0:], ac[s0:], st[s0:]
+    temp = None if temp is None else temp[s0:]
+    regs = Regressors(params, g, ac, dt, temp)
+    theta = np.array([settings.initial.get(p, 0.0) for p in params], float)
+    passes = []
+    out = None
+    n_passes = settings.passes
+    for _ in range(n_passes):
+        n_al = s1 - s0
+        if params:
+            G, A = regs.block(0, n_al)
+            ga, aa = g[:n_al] - G @ theta, ac[:n_al] - A @ theta
+        else:
+            ga, aa = g[:n_al], ac[:n_al]
+        C0 = coarse_align(ga, aa, site)
+        C0, sphi = fine_align(ga, aa, dt, site, C0, settings.sigma_gyro, settings.sigma_acc)
+        phi0 = np.maximum(np.asarray(settings.phi0, float), 3 * sphi)
+        run_settings = replace(settings, phi0=tuple(phi0))
+        out = run_filter(g, ac, dt, site, C0, st, run_settings, regs, theta,
+                         time0=float(data.time[a + s0] - dt))
+        theta = out.values
+        passes.append(theta.copy())
+    out.pass_values = passes
+    return StageOutput(stage, params, theta, out.covariance, out, (a + s0, b), passes)
+
+
+def run_cwccw_stage(log, stage: Stage) -> StageOutput:
+    from components.procedures import cwccw
+
+    res = cwccw.run(log)
+    params = stage.parameters or [p for p in res.values if effect_of(p).name in stage.effects]
+    vals = np.array([res.values[p] for p in params])
+    cov = np.diag([res.sigmas.get(p, np.nan) ** 2 for p in params])
+    return StageOutput(stage, params, vals, cov)
+
+
+def calibrate_system(log, config: Config) -> tuple[CalibrationResult, list[StageOutput]]:
+    """Run a configuration's stages on a MeasurementLog."""
+    data = LogData.from_log(log)
+    dt = float(log.dt)
+    static = static_mask(data.angles)
+    fixed: dict[str, float] = {}
+    sigmas: dict[str, float] = {}
+    outputs = []
+    for stage in config.stages:
+        if stage.kind == "cwccw":
+            so = run_cwccw_stage(log, stage)
+            for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
+                fixed[p] = fixed.get(p, 0.0) + float(v)
+                sigmas[p] = float(s)
+        else:
+            so = run_kf_stage(data, stage, fixed, static, dt)
+            for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
+                fixed[p] = fixed.get(p, 0.0) + float(v)
+                sigmas[p] = float(s)
+        outputs.append(so)
+    return _result(log, data, config, fixed, sigmas, outputs), outputs
+
+
+def _result(log, data, config, values, sigmas, outputs) -> CalibrationResult:
+    effects = list(dict.fromkeys(effect_of(p).name for p in values))
+    params = list(values)
+    # correlations within each stage's filter; across stages 0
+    corr = np.eye(len(params))
+    for so in outputs:
+        if so.filter is None:
+            continue
+        s = np.sqrt(np.diag(so.covariance))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = so.covariance / np.outer(s, s)
+        for i, p in enumerate(so.parameters):
+            for j, q in enumerate(so.parameters):
+                corr[params.index(p), params.index(q)] = c[i, j]
+    stages = []
+    for so in outputs:
+        d = {"name": so.stage.name, "kind": so.stage.kind, "parameters": so.parameters}
+        if so.filter is not None:
+            f = so.filter
+            nu = f.innovations / np.sqrt(np.maximum(f.innovation_var, 1e-300))
+            d.update({"window_samples": [int(so.window[0]), int(so.window[1])],
+                      "passes": len(so.passes), "updates_per_pass": f.updates,
+                      "predictions_per_pass": f.predictions,
+                      "final_nav_sigma": [float(x) for x in f.sigma_nav],
+                      "normalised_innovation_rms": float(np.sqrt(np.mean(nu ** 2))) if len(nu) else None})
+        stages.append(d)
+    dt = float(log.dt)
+    noise = {"model": "white noise per sample (estimated from static data)", "sample_interval_s": dt}
+    fit = {"config": config.name, "stages": stages,
+           "observations": "navigation velocity (zero truth) in static filter intervals"}
+    data_d = {"samples": int(len(data.time)), "duration_s": float(data.time[-1] - data.time[0] + dt)}
+    if log.source:
+        data_d["log"] = str(log.source)
+    return CalibrationResult(effects=effects, values={p: float(values[p]) for p in params},
+                             sigmas={p: float(sigmas.get(p, np.nan)) for p in params},
+                             correlation=corr, noise=noise, fit=fit,
+                             temperature_ref=None, schedule=schedule_of(data.time, data.segment),
+                             data=data_d, method=METHOD)
