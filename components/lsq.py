@@ -23,6 +23,7 @@ from components.geometry import TableGeometry
 from components.motion import Motion, interpolate_angles, motion_from_profile
 
 TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
+RCOND = 1e-7  # relative singular value below which a design direction is not resolved
 # Geometry columns depend only on the angle profile, the blocks and the geometry: logs that
 # share the motion (Monte-Carlo seeds, effects hidden in the IMU only) reuse them.
 _GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
@@ -193,7 +194,12 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         Hw = H * w[:, None]
         scale = np.linalg.norm(Hw, axis=0)
         scale[scale == 0] = 1.0
-        sol, *_ = np.linalg.lstsq(Hw / scale, y * w, rcond=None)
+        # rcond: a direction of the column-normalised design below 1e-7 of the largest is a
+        # parameter combination the data cannot see (e.g. a wobble of an inner stage, which is a
+        # constant rotation of the plate = IMU misalignment, left only with the forward-
+        # difference error of its column); resolving it would amplify noise into a huge step
+        # of the geometry and wreck the next linearisation
+        sol, *_ = np.linalg.lstsq(Hw / scale, y * w, rcond=RCOND)
         step = sol / scale
         sensor_idx = [k for k, p in enumerate(params) if p not in table_params]
         value[sensor_idx] = step[sensor_idx]
@@ -211,7 +217,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     Hw = H * w[:, None]
     scale = np.linalg.norm(Hw, axis=0)
     scale[scale == 0] = 1.0
-    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=None)[0] / scale
+    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=RCOND)[0] / scale
     for k, p in enumerate(params):
         value[k] = value[k] + sol[k] if p in table_params else sol[k]
     resid_vec = y - H @ sol

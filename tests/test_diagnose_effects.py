@@ -198,14 +198,18 @@ def test_wobble_outer_is_reported_indistinguishable_from_nonorth(logs):
     other = "table.nonorth" if diag.verdict == "table.wobble" else "table.wobble"
     rho = {o: r for o, r, _ in _candidate(diag, diag.verdict).indistinguishable}
     assert other in rho and rho[other] > 0.98
-    _, _, comp = _fit(logs, "table.wobble", BASELINE + [diag.verdict])
-    _assert_fits(comp, "table.wobble.outer.c via " + diag.verdict)
+    for added in ("table.wobble", "table.nonorth"):
+        _, _, comp = _fit(logs, "table.wobble", BASELINE + [added])
+        _assert_fits(comp, "table.wobble.outer.c, added " + added)
 
 
 def test_wobble_inner_is_absorbed_by_the_baseline(logs):
     _, _, comp = _fit(logs, "wobble-inner", BASELINE)
     _assert_fits(comp, "table.wobble.inner.c, baseline")
     assert _diagnose(logs, "wobble-inner").verdict is None
+    # adding the wobble anyway must not break the fit (its unobservable directions stay put)
+    _, _, comp = _fit(logs, "wobble-inner", BASELINE + ["table.wobble"])
+    _assert_fits(comp, "table.wobble.inner.c, added table.wobble")
 
 
 def test_two_hidden_effects_are_found_in_turn(logs):
