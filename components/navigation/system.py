@@ -80,7 +80,7 @@ class StageOutput:
 
 
 def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
-                 dt: float) -> StageOutput:
+                 dt: float, earlier_sigma: dict | None = None) -> StageOutput:
     params = stage.parameters or parameters_of(stage.effects)
     a, b = window_of(data.segment, stage.window, len(data.time))
     site = Site.of_geometry(data.geometry)
@@ -94,6 +94,12 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     s0, s1 = static_run(st)
     s1 = min(s1, s0 + max(2, int(round(stage.align_max_s / dt))))
     settings = FilterSettings(parameters=params, **stage.settings)
+    # a parameter an earlier stage estimated starts from that estimate with its σ (×3) as the
+    # prior: a later filter refines it where its data are informative and keeps it elsewhere
+    for p in params:
+        s_prev = (earlier_sigma or {}).get(p)
+        if s_prev is not None and np.isfinite(s_prev) and p not in settings.prior_sigma:
+            settings.prior_sigma = {**settings.prior_sigma, p: 3.0 * s_prev}
     if settings.sigma_gyro is None:
         settings.sigma_gyro = white_noise_sigma(g, st)
     if settings.sigma_acc is None:
@@ -152,7 +158,7 @@ def calibrate_system(log, config: Config) -> tuple[CalibrationResult, list[Stage
                 fixed[p] = fixed.get(p, 0.0) + float(v)
                 sigmas[p] = float(s)
         else:
-            so = run_kf_stage(data, stage, fixed, static, dt)
+            so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas))
             for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
                 fixed[p] = fixed.get(p, 0.0) + float(v)
                 sigmas[p] = float(s)

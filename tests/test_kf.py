@@ -1,0 +1,110 @@
+"""System-level Kalman filter (components.navigation): truth recovery on noise-free data,
+result file, offline re-solve determinism, RTS smoother consistency.
+
+The noise-free data: the independent simulator's ideal vector (a perfect IMU on a 6-position +
+rotation schedule) with errors added through the vocabulary's regressors, so the check is the
+filter (error model, feedback, passes) against the forward model the least squares use."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.effects import ARCSEC, DEG_H, G0, UG, effect_of
+from components.logfile import read_log
+from components.navigation.configs import load_config
+from components.navigation.sensor import Regressors
+from components.navigation.system import Config, Stage, calibrate_system
+from components.result import CalibrationResult
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
+pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
+
+TRUTH = {
+    "gyro.bias.x": 0.01 * DEG_H, "gyro.bias.y": -0.02 * DEG_H, "gyro.bias.z": 0.015 * DEG_H,
+    "acc.bias.x": 60 * UG, "acc.bias.y": -40 * UG, "acc.bias.z": 80 * UG,
+    "gyro.sf.x": 20e-6, "gyro.sf.y": -15e-6, "gyro.sf.z": 25e-6,
+    "gyro.mis.xy": 20 * ARCSEC, "gyro.mis.xz": -15 * ARCSEC, "gyro.mis.yx": 10 * ARCSEC,
+    "gyro.mis.yz": 25 * ARCSEC, "gyro.mis.zx": -30 * ARCSEC, "gyro.mis.zy": 12 * ARCSEC,
+    "acc.sf.x": 50e-6, "acc.sf.y": -30e-6, "acc.sf.z": 40e-6,
+    "acc.mis.yx": 15 * ARCSEC, "acc.mis.zx": 30 * ARCSEC, "acc.mis.zy": -20 * ARCSEC,
+    "acc.lever.x.y": 0.020, "acc.lever.x.z": -0.015, "acc.lever.y.x": 0.010,
+    "acc.lever.y.z": 0.012, "acc.lever.z.x": -0.008, "acc.lever.z.y": 0.018,
+    "acc.k2.x": 30 * UG / G0**2, "acc.k2.y": -20 * UG / G0**2, "acc.k2.z": 40 * UG / G0**2,
+}
+# numerical floors (as the least-squares tests): 1e-4 deg/h, 0.01 ppm, 0.01", 0.1 ug, 0.01 mm
+FLOORS = {"gyro.bias": 1e-4 * DEG_H, "gyro.sf": 1e-8, "gyro.mis": 0.01 * ARCSEC,
+          "acc.bias": 0.1 * UG, "acc.sf": 1e-8, "acc.mis": 0.01 * ARCSEC,
+          "acc.k2": 0.1 * UG / G0**2, "acc.lever": 1e-5}
+
+
+def _corrupted_ideal():
+    log = read_log(EXAMPLES / "ideal")
+    ps = list(TRUTH)
+    log.gyro, log.acc = Regressors(ps, log.gyro, log.acc, log.dt).correct(
+        -np.array([TRUTH[p] for p in ps]))
+    return log
+
+
+def _config(passes=3, smoother=False):
+    p39 = load_config("seed_003").stages[0].parameters
+    return Config("test-39", "39 states on the whole log", [
+        Stage("kf", "39-state", parameters=p39, settings={"passes": passes, "smoother": smoother})])
+
+
+@pytest.fixture(scope="module")
+def solved():
+    log = _corrupted_ideal()
+    res, outs = calibrate_system(log, _config())
+    return log, res, outs
+
+
+def test_seed003_state_set_has_39_states():
+    cfg = load_config("seed_003")
+    assert 9 + len(cfg.stages[0].parameters) == 39
+    assert 9 + len(cfg.stages[1].parameters) == 12
+
+
+def test_noise_free_every_state_within_one_percent_or_floor(solved):
+    _, res, _ = solved
+    bad = []
+    for p, v in res.values.items():
+        t = TRUTH[p]
+        if abs(v - t) > max(0.01 * abs(t), FLOORS[effect_of(p).name]):
+            bad.append((p, t, v))
+    assert not bad, bad
+
+
+def test_result_file_round_trip(solved, tmp_path):
+    _, res, _ = solved
+    assert res.method == "system-level KF"
+    path = res.save(tmp_path / "kf.json")
+    back = CalibrationResult.load(path)
+    assert back.values == res.values and back.method == "system-level KF"
+    assert all(np.isfinite(s) and s > 0 for s in back.sigmas.values())
+
+
+def test_offline_re_solve_is_bit_identical(solved, tmp_path):
+    log, res, _ = solved
+    again, _ = calibrate_system(_corrupted_ideal(), _config())
+    a = json.dumps(res.to_dict(), sort_keys=True)
+    b = json.dumps(again.to_dict(), sort_keys=True)
+    assert a == b
+
+
+def test_rts_smoother_agrees_with_the_filter_on_constants():
+    log = _corrupted_ideal()
+    n = 12000  # the first minute: keeps the stored matrices small
+    log.time, log.gyro, log.acc = log.time[:n], log.gyro[:n], log.acc[:n]
+    log.gimbal = {k: v[:n] for k, v in log.gimbal.items()}
+    log.segment = log.segment[:n]
+    if log.temperature is not None:
+        log.temperature = log.temperature[:n]
+    cfg = Config("rts", "", [Stage("kf", "bias", parameters=["gyro.bias.x", "gyro.bias.y",
+                                                              "gyro.bias.z", "acc.bias.x",
+                                                              "acc.bias.y", "acc.bias.z"],
+                                   settings={"passes": 1, "smoother": True})])
+    _, outs = calibrate_system(log, cfg)
+    f = outs[0].filter
+    assert f.smoothed_nav.shape[1] == 9
+    np.testing.assert_allclose(f.smoothed_values, f.values, rtol=1e-6, atol=1e-15)
