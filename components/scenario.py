@@ -408,7 +408,10 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     acc = [sc.acc_max if sc.acc_max is not None else
            float(tparams.get(f"{fmu_axis[a]}.acc_max", tstart.get(f"{fmu_axis[a]}.acc_max", 200 * DEG)))
            for a in axes]
-    iparams = {**sc.imu_effects, **sc.imu_noise, **sc.imu_parameters, "seed": sc.seed}
+    imu_names = set(istart) | _names(imu_path)
+    iparams = {**sc.imu_effects, **sc.imu_noise, **sc.imu_parameters}
+    if sc.imu_mapping.get("seed", "seed") in imu_names:
+        iparams["seed"] = sc.seed  # a supplier's IMU may have no noise seed
     multiple = int(round(1.0 / (sc.controller_rate_hz * sc.step)))
     ctrl = CalibrationController("ctrl", sc.schedule, axes=axes, counts_per_rev=cpr, acc_max=acc)
     conns = []
@@ -418,7 +421,6 @@ def build_system(sc: Scenario, record: list[str] | None = None):
         for v in ("angle", "rate"):
             conns.append(Connection(f"table.{a}.{v}", f"ctrl.{a}.{v}"))
     conns += [Connection("table.plate.omega", "imu.omega"), Connection("table.plate.f", "imu.f")]
-    imu_names = set(istart) | _names(imu_path)
     if sc.imu_mapping.get("alpha.x", "alpha.x") in imu_names:
         conns.append(Connection("table.plate.alpha", "imu.alpha"))
     # exact step integrals of the plate motion, when the table gives them and the IMU takes
@@ -474,7 +476,7 @@ class RunResult:
 def run_scenario(sc: Scenario, record: list[str] | None = None, progress: bool | None = None) -> RunResult:
     """Run the scenario until the controller is done; the log and the truth in memory."""
     import components.roles  # noqa: F401
-    from components.logfile import log_from_recording
+    from components.log_recording import log_from_recording
 
     system, ctrl, info = build_system(sc, record)
     from orchestrator.master import Simulation
