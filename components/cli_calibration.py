@@ -355,6 +355,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     for p, s in crb.items():
         unit, scale = effect_of(p).display
         print(f"{p:22s} {s / scale:12.4g}  {unit:10s} {s / scale * hours ** 0.5:20.4g}")
+    if args.observability:
+        from components.navigation.observability import plan_observability
+
+        print(plan_observability(log, args.observability, noise.gyro_arw, noise.acc_vrw, effects))
     return 0
 
 
@@ -370,4 +374,8 @@ def add_plan_command(sub) -> None:
     p.add_argument("--acc-bi", type=float, help="accelerometer bias instability [ug]")
     p.add_argument("--bi-tau", type=float, default=100.0, help="bias-instability correlation time [s]")
     p.add_argument("--dwell", type=float, help="override the schedule's dwell [s]")
+    p.add_argument("--observability", metavar="CONFIG",
+                   help="also the system-level filter's PWCS/SVD observability and its covariance "
+                        "(white noise of the grade): a kf configuration (seed_003, ...: each stage on "
+                        "its window) or 'effects' (the --effects on the whole run)")
     p.set_defaults(func=_cmd_plan)
