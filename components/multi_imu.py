@@ -62,7 +62,7 @@ def run_variants(sc, variants: list[Variant], temperature_profile: Callable | No
     from orchestrator.master import Simulation
     from orchestrator.system import Connection, UnitSpec
 
-    from components.logfile import log_from_recording
+    from components.log_recording import log_from_recording
     from components.scenario import ScenarioError, _truth, build_system
 
     names = [v.name for v in variants]

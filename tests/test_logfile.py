@@ -150,7 +150,7 @@ def test_large_log_loads_fast(tmp_path):
 # ------------------------------------------------------------------ from an orchestrator run
 def test_log_from_orchestrator_run(tmp_path):
     import components  # noqa: F401
-    from components.logfile import log_from_recording
+    from components.log_recording import log_from_recording
     from orchestrator.master import simulate
     from orchestrator.system import system_from_dict
 
