@@ -1,0 +1,145 @@
+"""One case, in this process: simulate the scenario, run the procedure, judge the criteria.
+
+``python -m components.campaign.case TASK.json RESULT.json`` is how a worker runs it in a child
+process of its own (components.campaign.isolate): a crash of an FMU takes down only that child.
+The record holds no time and no path: the same task gives a byte-identical record."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+FORMAT = "calbench-campaign-case/1"
+
+
+def _f(x):
+    """JSON-safe float (NaN/inf -> None)."""
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _mark(task: dict) -> None:
+    """A marker file per execution (how tests count that no finished case ran twice)."""
+    d = task.get("marker_dir")
+    if d and Path(d).is_dir():
+        (Path(d) / f"{task['case']['id']}.{os.getpid()}.{os.urandom(4).hex()}").touch()
+
+
+def _procedure(proc: dict, log):
+    from components.lsq import LogData, calibrate
+    from components.result import result_from_fit
+
+    data = LogData.from_log(log)
+    if proc["method"] == "lsq":
+        fit = calibrate(data, list(proc["effects"]), **proc.get("options", {}))
+        return data, result_from_fit(fit, list(proc["effects"]), data)
+    from components import procedures
+
+    opts = dict(proc.get("options", {}))
+    if proc["method"] in ("tilt", "tilt_ignored") and proc.get("effects"):
+        opts["effects"] = tuple(proc["effects"])
+    return data, procedures.run(proc["method"], data, **opts)
+
+
+def _crb(data, model, noise: dict) -> dict:
+    import numpy as np
+
+    from components.crb import NoiseModel, cramer_rao
+    from components.effects import EFFECTS
+
+    arw = noise.get("gyro.noise.arw") or float(np.mean(model.noise.get("gyro_arw_rad_per_sqrt_s", [0.0])))
+    vrw = noise.get("acc.noise.vrw") or float(np.mean(model.noise.get("acc_vrw_mps_per_sqrt_s", [0.0])))
+    effects = [e for e in model.effects if e in EFFECTS]
+    if not effects or not (arw > 0 and vrw > 0):
+        return {}
+    try:
+        return cramer_rao(data, effects, NoiseModel(gyro_arw=arw, acc_vrw=vrw),
+                          rest_angle_sigma=model.noise.get("rest_angle_sigma_rad"))
+    except Exception:  # noqa: BLE001  (a bound we cannot compute is reported as missing)
+        return {}
+
+
+def numbers_of(task: dict) -> tuple[dict, object, object, object]:
+    """(numbers, data, model, comparison) of the case: the estimates against the truth and the
+    CRB, chi2/dof of the model on its own log, the diagnosis verdict (when a criterion asks)."""
+    from components.compare import compare
+    from components.scenario import run_scenario, scenario_from_dict
+
+    sc = scenario_from_dict(task["scenario"], task["source"], Path(task["base_dir"]))
+    run = run_scenario(sc, progress=False)
+    data, model = _procedure(task["procedure"], run.log)
+    truth = task["truth"]
+    crb = _crb(data, model, run.truth.get("noise", {}))
+    est = {}
+    for p, v in model.values.items():
+        t = truth.get(p, 0.0)
+        est[p] = {"value": _f(v), "sigma": _f(model.sigmas.get(p)), "truth": _f(t), "error": _f(v - t),
+                  "crb": _f(crb.get(p))}
+    comp = None
+    chi2 = None
+    try:
+        comp = compare(data, model, fitted_parameters=len(model.values))
+        chi2 = comp.chi2_per_dof
+    except Exception:  # noqa: BLE001  (a result the comparison cannot replay: no chi2)
+        pass
+    diag = None
+    if task.get("diagnose"):
+        from components.diagnose import diagnose
+
+        diag = diagnose(data, model, forward=False).verdict
+    numbers = {"estimates": est, "chi2_per_dof": _f(chi2), "diagnosis": diag,
+               "fmus": {"imu": run.truth["imu"]["sha256"], "turntable": run.truth["turntable"]["sha256"]},
+               "samples": int(run.log.n)}
+    return numbers, data, model, comp
+
+
+def record(task: dict, numbers: dict | None, reason: str | None = None) -> dict:
+    """The case record: verdict pass (every criterion passed), fail or error (with the reason)."""
+    from components.campaign.criteria import evaluate
+
+    rec = {"format": FORMAT, **task["case"], "truth": task["truth"], "not_injected": task.get("not_injected", [])}
+    if numbers is None:
+        return {**rec, "verdict": "error", "reason": reason,
+                "criteria": [{"id": c["id"], "requirement": c["requirement"], "kind": c["kind"], "passed": None,
+                              "message": "not evaluated: the case errored"} for c in task["criteria"]]}
+    results = [evaluate(c, numbers) for c in task["criteria"]]
+    failed = [r["id"] for r in results if not r["passed"]]
+    return {**rec, "verdict": "fail" if failed else "pass",
+            "reason": f"failed: {', '.join(failed)}" if failed else None, "criteria": results, **numbers}
+
+
+def run_case(task: dict) -> dict:
+    _mark(task)
+    try:
+        numbers = numbers_of(task)[0]
+    except Exception as e:  # noqa: BLE001  (any failure of the case is its own error, not the campaign's)
+        return record(task, None, f"{type(e).__name__}: {e}")
+    return record(task, numbers)
+
+
+def dumps(rec: dict) -> str:
+    return json.dumps(rec, indent=1, sort_keys=True, allow_nan=False) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 2:
+        print("usage: python -m components.campaign.case TASK.json RESULT.json", file=sys.stderr)
+        return 2
+    task = json.loads(Path(argv[0]).read_text())
+    import components.roles  # noqa: F401  (roles and builtin: FMUs)
+
+    rec = run_case(task)
+    out = Path(argv[1])
+    tmp = out.with_suffix(".tmp")
+    tmp.write_text(dumps(rec))
+    os.replace(tmp, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
