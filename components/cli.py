@@ -170,6 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     _calibration_commands(sub)
     __import__("components.procedures.cli", fromlist=["add_commands"]).add_commands(sub)
     __import__("components.navigation.cli", fromlist=["add_kf_commands"]).add_kf_commands(sub)
+    __import__("components.campaign.cli", fromlist=["add_campaign_commands"]).add_campaign_commands(sub)
 
     dm = sub.add_parser("demo", help="simulate a run with a hidden effect, calibrate, compare, "
                                      "diagnose, add the winner, compare again, write the report")
