@@ -23,6 +23,7 @@
     gyro_output = "rate"
     acc_output = "specific_force"
     timeout_s = 30
+    replicates = 1           # fewer (or more) seeds for this system than [campaign] replicates
     [systems.acme.parameters]                            # fixed FMU parameters (its names, its units)
     FailAt = 1e300
     [systems.acme.effects]                               # vocabulary -> [FMU parameter, its unit]
@@ -122,6 +123,7 @@ class System:
     parameters: dict = field(default_factory=dict)
     effects: dict | None = None   # vocabulary -> (FMU name, SI per FMU unit); None: the FMU uses the vocabulary
     timeout_s: float | None = None
+    replicates: int | None = None
 
 
 @dataclass
@@ -341,7 +343,12 @@ def _scenario(d: dict, src, base: Path):
 def _system(name: str, d, src, base: Path) -> System:
     w = f"[systems.{name}]"
     _expect(isinstance(d, dict), src, w, d, "a table")
-    _keys(d, {"imu", "mapping", "gyro_output", "acc_output", "parameters", "effects", "timeout_s"}, src, w)
+    _keys(d, {"imu", "mapping", "gyro_output", "acc_output", "parameters", "effects", "timeout_s", "replicates"},
+          src, w)
+    reps = d.get("replicates")
+    if reps is not None:
+        _expect(isinstance(reps, int) and not isinstance(reps, bool) and reps >= 1, src, f"{w} replicates", reps,
+                "an integer >= 1")
     imu = d.get("imu")
     _expect(isinstance(imu, str), src, f"{w} imu", imu, "'builtin:imu', 'build:<model folder>' or a .fmu path")
     try:
@@ -380,7 +387,7 @@ def _system(name: str, d, src, base: Path) -> System:
     for k in ("gyro_output", "acc_output"):
         _expect(isinstance(d.get(k, ""), str), src, f"{w} {k}", d.get(k), "text")
     return System(name, imu, path, dict(mp), d.get("gyro_output", "increment"), d.get("acc_output", "increment"),
-                  dict(params), effects, None if t is None else float(t))
+                  dict(params), effects, None if t is None else float(t), reps)
 
 
 def _procedure(name: str, d, src) -> Procedure:
@@ -464,6 +471,15 @@ def _criteria(lst, src, systems, procedures) -> list:
             _expect(isinstance(pats, list) and pats and all(isinstance(p, str) for p in pats), src,
                     f"{w} parameters", pats, "a non-empty list of parameter names or patterns (acc.bias.*)")
             crit.parameters = pats
+            vocab = [q for e in EFFECTS.values() for q in e.parameters]
+            names = match_parameters(pats, vocab)
+            if not names:
+                raise CampaignError(f"{src}: {w} parameters = {pats!r}: expected names or patterns of parameters "
+                                    "of the effect vocabulary (e.g. acc.bias.x, acc.bias.*)")
+            for key in ("tolerance", "max"):
+                if key in d and not (kind == "chi2"):
+                    for q in names:  # the limit must have each parameter's dimension
+                        parse_value(q, d[key], f"{src}: {w} {key}")
         if kind == "estimate":
             if not any(k in d for k in ("tolerance", "crb_sigmas", "sigmas")):
                 raise CampaignError(f"{src}: {w}: an estimate criterion needs tolerance, crb_sigmas or sigmas")
@@ -537,12 +553,13 @@ def draws(camp: Campaign, g: int, r: int) -> dict:
 
 def expand(camp: Campaign) -> list[Case]:
     points = grid_points(camp)
-    gw, rw = len(str(len(points) - 1)), len(str(camp.replicates - 1))
+    nrep = max([camp.replicates] + [s.replicates or 0 for s in camp.systems.values()])
+    gw, rw = len(str(len(points) - 1)), len(str(nrep - 1))
     cases = []
     for pname in camp.procedures:
         for sname in camp.systems:
             for g, point in enumerate(points):
-                for r in range(camp.replicates):
+                for r in range(camp.systems[sname].replicates or camp.replicates):
                     var = {**point, **draws(camp, g, r)}
                     cases.append(Case(f"{pname}-{sname}-g{g:0{gw}d}-r{r:0{rw}d}", pname, sname, g, r,
                                       derive_seed(camp.seed, "noise", g, r), dict(sorted(var.items()))))

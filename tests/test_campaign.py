@@ -1,0 +1,297 @@
+"""Test campaigns (components.campaign) on real Dask local clusters and real FMUs.
+
+One campaign of 22 cases: the six-position schedule (1 s dwell, 100 Hz) calibrated by least
+squares on our IMU FMU (10 Monte-Carlo seeds) and on a mapped supplier IMU (10), plus one case
+on a supplier IMU that segfaults and one on a supplier IMU that hangs.
+
+- 2 workers, uninterrupted: the 20 good cases pass, the segfault and the hang are errored with
+  their reason, the reports say so (JUnit, summary, HTML) and the [expected] block holds.
+- 1 worker, terminated after a few case records exist, then resumed: the final records are
+  byte-identical to the 2-worker run (so: worker count and completion order do not matter, and
+  resume loses nothing), and no case that had finished before the kill ran again."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import pytest
+
+from components.campaign.criteria import evaluate
+from components.campaign.spec import CampaignError, load_campaign
+from components.campaign.store import Store
+from components.cli import main as cli_main
+
+ROOT = Path(__file__).resolve().parents[1]
+FMUS = Path(__file__).parent / "fmus"
+AX = "XYZ"
+MAPPING = "\n".join([f'"omega.{c.lower()}" = "AngularRate_{c}"' for c in AX]
+                    + [f'"f.{c.lower()}" = "Accel_{c}"' for c in AX]
+                    + [f'"gyro.{c.lower()}" = "GyroRate_{c}"' for c in AX]
+                    + [f'"acc.{c.lower()}" = "Accel_Out_{c}"' for c in AX])
+EFFECTS = "\n".join([f'"gyro.bias.{c.lower()}" = ["GyroBias_{c}", "deg/s"]' for c in AX]
+                    + [f'"acc.bias.{c.lower()}" = ["AccBias_{c}", "g"]' for c in AX]
+                    + [f'"acc.sf.{c.lower()}" = ["AccSF_{c}", "1"]' for c in AX])
+N_CASES = 22
+
+
+def _supplier(name: str, model: str, extra: str = "") -> str:
+    return f"""
+[systems.{name}]
+imu = "build:{FMUS / model}"
+gyro_output = "rate"
+acc_output = "specific_force"
+{extra}
+[systems.{name}.mapping]
+{MAPPING}
+[systems.{name}.effects]
+{EFFECTS}
+"""
+
+
+CAMPAIGN = f"""
+[campaign]
+name = "test"
+description = "22 cases: our IMU and a supplier's, 10 seeds each; a segfaulting and a hanging supplier"
+seed = 7
+replicates = 10
+timeout_s = 60
+
+[scenario]
+file = "{ROOT / 'examples' / 'scenarios' / 'six_position.toml'}"
+step = 0.01
+[scenario.schedule_overrides]
+dwell = 1.0
+
+[systems.ours]
+imu = "builtin:imu"
+{_supplier("acme", "supplier_imu")}
+{_supplier("segv", "segv_imu", 'replicates = 1')}
+[systems.segv.parameters]
+FailAt = 3.0
+{_supplier("hang", "hang_imu", 'replicates = 1' + chr(10) + 'timeout_s = 6')}
+[systems.hang.parameters]
+FailAt = 3.0
+
+[procedures.lsq]
+method = "lsq"
+
+[variations."acc.bias.x"]
+distribution = "uniform"
+low = "-200 ug"
+high = "200 ug"
+[variations."gyro.bias.z"]
+distribution = "normal"
+mean = "0 deg/h"
+sigma = "0.01 deg/h"
+
+[[criteria]]
+id = "ACC-BIAS"
+requirement = "REQ-010"
+kind = "estimate"
+parameters = ["acc.bias.*"]
+tolerance = "40 ug"
+
+[[criteria]]
+id = "GYRO-BIAS"
+requirement = "REQ-011"
+kind = "estimate"
+parameters = ["gyro.bias.*"]
+crb_sigmas = 5
+systems = ["ours"]
+
+[[criteria]]
+id = "OBS"
+requirement = "REQ-020"
+kind = "crb"
+parameters = ["acc.sf.*"]
+max = "5 ppm"
+systems = ["ours"]
+
+[[criteria]]
+id = "FIT"
+requirement = "REQ-030"
+kind = "chi2"
+max = 1.6
+systems = ["ours"]
+
+[expected]
+verdict = "pass"
+[[expected.cases]]
+system = "segv"
+verdict = "error"
+reason = "SIGSEGV"
+[[expected.cases]]
+system = "hang"
+verdict = "error"
+reason = "timeout"
+"""
+
+
+@pytest.fixture(scope="module")
+def campaign_file(tmp_path_factory) -> Path:
+    p = tmp_path_factory.mktemp("campaign") / "test.toml"
+    p.write_text(CAMPAIGN)
+    load_campaign(p)  # builds the supplier FMUs once, before any worker needs them
+    return p
+
+
+@pytest.fixture(scope="module")
+def two_workers(campaign_file, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("two")
+    rc = cli_main(["campaign", str(campaign_file), "--out", str(out), "--workers", "2", "--pages", "1"])
+    assert rc == 0  # complete and as the [expected] block says
+    return out
+
+
+def test_cases_expand_deterministically(campaign_file):
+    a, b = load_campaign(campaign_file), load_campaign(campaign_file)
+    assert len(a.cases) == N_CASES
+    assert [c.key() for c in a.cases] == [c.key() for c in b.cases]
+    ours = [c for c in a.cases if c.system == "ours"]
+    acme = [c for c in a.cases if c.system == "acme"]
+    # paired: a replicate has the same seed and draws whatever the system
+    assert [(c.seed, c.variation) for c in ours] == [(c.seed, c.variation) for c in acme]
+    assert len({c.seed for c in ours}) == 10
+
+
+def test_two_workers_verdicts_and_reports(two_workers):
+    store = Store(two_workers)
+    recs = {r["id"]: r for r in store.records(store.done())}
+    assert len(recs) == N_CASES
+    for cid, r in recs.items():
+        if cid.startswith("lsq-segv"):
+            assert r["verdict"] == "error" and "SIGSEGV" in r["reason"], r["reason"]
+        elif cid.startswith("lsq-hang"):
+            assert r["verdict"] == "error" and "timeout" in r["reason"], r["reason"]
+        else:
+            assert r["verdict"] == "pass", (cid, r["reason"], r["criteria"])
+            assert all(c["passed"] for c in r["criteria"])
+    ours = recs["lsq-ours-g0-r0"]
+    assert {c["id"] for c in ours["criteria"]} == {"ACC-BIAS", "GYRO-BIAS", "OBS", "FIT"}
+    assert {c["requirement"] for c in ours["criteria"]} == {"REQ-010", "REQ-011", "REQ-020", "REQ-030"}
+    assert {c["id"] for c in recs["lsq-acme-g0-r0"]["criteria"]} == {"ACC-BIAS"}
+    # the supplier's truth is what reached its parameters (no misalignment parameter: not injected)
+    assert "acc.bias.x" in recs["lsq-acme-g0-r0"]["truth"]
+    assert "acc.mis.xy" in recs["lsq-acme-g0-r0"]["not_injected"]
+    # no time inside a case record
+    assert not any("time" in k or k in ("start", "end") for k in ours)
+
+    junit = ET.parse(two_workers / "junit.xml").getroot()
+    assert (junit.get("tests"), junit.get("failures"), junit.get("errors")) == (str(N_CASES), "0", "2")
+    errs = {tc.get("name"): tc.find("error").get("message") for tc in junit.iter("testcase")
+            if tc.find("error") is not None}
+    assert set(errs) == {"lsq-segv-g0-r0", "lsq-hang-g0-r0"}
+
+    summary = json.loads((two_workers / "summary.json").read_text())
+    assert summary["counts"] == {"pass": 20, "fail": 0, "error": 2, "missing": 0, "total": N_CASES}
+    assert summary["expected"] == {"ok": True, "mismatches": []}
+    reqs = {r["requirement"]: r for r in summary["requirements"]}
+    assert reqs["REQ-011"]["verdict"] == "pass"
+    assert reqs["REQ-010"]["verdict"] == "error"  # ACC-BIAS applies to the crashed suppliers too
+
+    manifest = json.loads((two_workers / "manifest.json").read_text())
+    for k in ("campaign", "scenario", "schedule", "fmu:turntable", "fmu:ours", "fmu:acme", "fmu:segv", "fmu:hang"):
+        assert len(manifest["files"][k]["sha256"]) == 64
+    assert manifest["software"]["libraries"]["distributed"]
+    assert manifest["seeds"]["cases"]["lsq-ours-g0-r0"] == ours["seed"]
+    assert manifest["sessions"][0]["start"] and manifest["sessions"][0]["end"]
+
+    page = (two_workers / "report.html").read_text()
+    for text in ("Traceability", "REQ-030", "Cramér–Rao", "SIGSEGV", "timeout", "Manifest", "<svg"):
+        assert text in page
+    pages = list((two_workers / "pages").glob("*.html"))
+    assert len(pages) == 1 and f"href='pages/{pages[0].name}'" in page
+
+
+def test_kill_resume_one_worker_identical(campaign_file, two_workers, tmp_path):
+    """1 worker, SIGTERM after a few records, --resume: byte-identical to the 2-worker run, and
+    no case that had finished before the kill ran again."""
+    out = tmp_path / "one"
+    cmd = [sys.executable, "-m", "components.cli", "campaign", str(campaign_file), "--out", str(out),
+           "--workers", "1", "--pages", "0"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    cases = out / "cases"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if cases.is_dir() and len(list(cases.glob("*.json"))) >= 4:
+            break
+        time.sleep(0.2)
+    assert proc.poll() is None, proc.stdout.read().decode()
+    proc.send_signal(signal.SIGTERM)
+    log = proc.communicate(timeout=60)[0].decode()
+    assert proc.returncode == 130, log
+    before = {p.stem for p in cases.glob("*.json")}
+    assert 4 <= len(before) < N_CASES
+    assert not list(cases.glob("*.tmp")) and not list(cases.glob(".*"))
+
+    # without --resume the folder is refused
+    assert cli_main(["campaign", str(campaign_file), "--out", str(out), "--workers", "1"]) == 2
+    assert cli_main(["campaign", str(campaign_file), "--out", str(out), "--workers", "1", "--resume",
+                     "--pages", "0"]) == 0
+
+    ref = {p.name: p.read_bytes() for p in (two_workers / "cases").glob("*.json")}
+    got = {p.name: p.read_bytes() for p in cases.glob("*.json")}
+    assert sorted(got) == sorted(ref)
+    assert [n for n in ref if got[n] != ref[n]] == []
+    runs = Store(out).runs()
+    assert all(runs.get(cid) == 1 for cid in before), {cid: runs.get(cid) for cid in before}
+    assert set(runs) == {n[:-5] for n in ref}
+    manifest = json.loads((out / "manifest.json").read_text())
+    s1, s2 = manifest["sessions"]
+    assert s1["interrupted"] and not s2["interrupted"] and s2["resume"]
+    assert set(s2["ran"]).isdisjoint(before) and len(s2["ran"]) == N_CASES - len(before)
+    # the summary of the resumed campaign equals the uninterrupted one
+    assert (out / "summary.json").read_bytes() == (two_workers / "summary.json").read_bytes()
+    assert (out / "junit.xml").read_bytes() == (two_workers / "junit.xml").read_bytes()
+
+
+# ----------------------------------------------------------------------------- no cluster
+def _write(tmp_path, text: str) -> Path:
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("change, words", [
+    (("requirement = \"REQ-010\"\n", ""), ["[[criteria]] ACC-BIAS requirement", "requirement it verifies"]),
+    (('kind = "chi2"', 'kind = "chi3"'), ["kind", "estimate, chi2, crb, diagnosis"]),
+    (('distribution = "normal"', 'distribution = "cauchy"'), ['[variations."gyro.bias.z"] distribution', "normal"]),
+    (('tolerance = "40 ug"', 'tolerance = "40 parsecs"'), ["acc.bias", "40 parsecs"]),
+    (('method = "lsq"', 'method = "kalman"'), ["[procedures.lsq] method", "lsq, cwccw"]),
+    (('systems = ["ours"]\n\n[[criteria]]\nid = "OBS"', 'systems = ["theirs"]\n\n[[criteria]]\nid = "OBS"'),
+     ["systems", "ours, acme, segv, hang"]),
+    (("replicates = 10", "replicates = 0"), ["[campaign] replicates", "integer >= 1"]),
+])
+def test_bad_campaign_files_name_file_key_and_expectation(tmp_path, campaign_file, change, words):
+    text = campaign_file.read_text()
+    assert change[0] in text
+    p = _write(tmp_path, text.replace(change[0], change[1], 1))
+    with pytest.raises(CampaignError) as e:
+        load_campaign(p)
+    msg = str(e.value)
+    assert str(p) in msg
+    for w in words:
+        assert w in msg, msg
+
+
+def test_criteria_verdicts():
+    est = {"acc.bias.x": {"value": 1e-4, "sigma": 1e-5, "truth": 0.0, "error": 1e-4, "crb": 1e-5}}
+    crit = {"id": "A", "requirement": "R", "kind": "estimate", "parameters": ["acc.bias.*"]}
+    assert not evaluate({**crit, "tolerance": "5 ug"}, {"estimates": est})["passed"]
+    assert evaluate({**crit, "tolerance": "20 ug"}, {"estimates": est})["passed"]
+    r = evaluate({**crit, "crb_sigmas": 5}, {"estimates": est})
+    assert not r["passed"] and "CRB" in r["message"]
+    assert not evaluate({**crit, "parameters": ["gyro.*"], "sigmas": 3}, {"estimates": est})["passed"]
+    assert evaluate({"id": "C", "requirement": "R", "kind": "crb", "parameters": ["acc.bias.x"], "max": "2 ug"},
+                    {"estimates": est})["passed"]
+    assert not evaluate({"id": "X", "requirement": "R", "kind": "chi2", "max": 1.5}, {"chi2_per_dof": 2.0})["passed"]
+    assert evaluate({"id": "D", "requirement": "R", "kind": "diagnosis", "verdict": "none"},
+                    {"diagnosis": None})["passed"]
+    assert not evaluate({"id": "D", "requirement": "R", "kind": "diagnosis", "verdict": "none"},
+                        {"diagnosis": "acc.k2"})["passed"]
