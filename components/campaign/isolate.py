@@ -1,20 +1,25 @@
 """The Dask task: run one case in a child process of its own, with a timeout.
 
-A segfault (or any signal) of the child, a hang past the timeout or a non-zero exit becomes an
-errored record with the reason (signal name / timeout / last line of stderr); the worker, and
-so the campaign, go on."""
+On Linux the child is forked from a warm case server (components.campaign.forkserver; one per
+worker thread, started on first use); elsewhere, or with CALBENCH_CASE_ISOLATION=spawn, it is a
+fresh ``python -m components.campaign.case``. Either way a segfault (or any signal) of the child,
+a hang past the timeout or a non-zero exit becomes an errored record with the reason (signal
+name / timeout / last line of stderr); the worker, and so the campaign, go on."""
 from __future__ import annotations
 
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 # one BLAS thread per case: the workers are the parallelism, and results do not depend on it
 _ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+_local = threading.local()
 
 
 def _die_with_parent() -> None:  # pragma: no cover  (runs in the child before exec)
@@ -27,11 +32,67 @@ def _die_with_parent() -> None:  # pragma: no cover  (runs in the child before e
         pass
 
 
-def signal_name(returncode: int) -> str:
+def signal_name(signum: int) -> str:
     try:
-        return signal.Signals(-returncode).name
+        return signal.Signals(signum).name
     except ValueError:
-        return f"signal {-returncode}"
+        return f"signal {signum}"
+
+
+def _use_server() -> bool:
+    return hasattr(os, "fork") and sys.platform.startswith("linux") and \
+        os.environ.get("CALBENCH_CASE_ISOLATION", "fork") != "spawn"
+
+
+class _Server:
+    def __init__(self):
+        self.p = subprocess.Popen([sys.executable, "-m", "components.campaign.forkserver"],
+                                  env={**os.environ, **_ENV}, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                  preexec_fn=_die_with_parent)
+        if json.loads(self._read(120.0) or "{}").get("status") != "ready":
+            self.close()
+            raise RuntimeError("the case server did not start")
+
+    def _read(self, timeout: float) -> str | None:
+        r, _, _ = select.select([self.p.stdout], [], [], timeout)
+        return self.p.stdout.readline().decode() if r else None
+
+    def run(self, req: dict, timeout: float) -> dict:
+        self.p.stdin.write((json.dumps(req) + "\n").encode())
+        self.p.stdin.flush()
+        line = self._read(timeout + 60.0)
+        if not line:
+            raise RuntimeError("the case server did not answer")
+        return json.loads(line)
+
+    def alive(self) -> bool:
+        return self.p.poll() is None
+
+    def close(self) -> None:
+        try:
+            self.p.kill()
+            self.p.wait(5)
+        except Exception:  # noqa: BLE001
+            pass
+
+
+def _server() -> _Server:
+    s = getattr(_local, "server", None)
+    if s is None or not s.alive():
+        s = _local.server = _Server()
+    return s
+
+
+def _spawn(tin: Path, tout: Path, terr: Path, timeout: float) -> dict:
+    cmd = [sys.executable, "-m", "components.campaign.case", str(tin), str(tout)]
+    with open(terr, "wb") as err:
+        try:
+            p = subprocess.run(cmd, env={**os.environ, **_ENV}, stdout=err, stderr=err, timeout=timeout,
+                               preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+        except subprocess.TimeoutExpired:
+            return {"status": "timeout"}
+    return {"status": "signal", "signal": -p.returncode} if p.returncode < 0 else {"status": "exit",
+                                                                                  "code": p.returncode}
 
 
 def run_isolated(task: dict, timeout_s: float | None = None) -> dict:
@@ -39,19 +100,23 @@ def run_isolated(task: dict, timeout_s: float | None = None) -> dict:
     from components.campaign.case import record
 
     timeout = float(timeout_s if timeout_s is not None else task.get("timeout_s") or 300.0)
-    env = {**os.environ, **_ENV}
     with tempfile.TemporaryDirectory(prefix="calbench-case-") as tmp:
-        tin, tout = Path(tmp) / "task.json", Path(tmp) / "result.json"
+        tin, tout, terr = Path(tmp) / "task.json", Path(tmp) / "result.json", Path(tmp) / "stderr.txt"
         tin.write_text(json.dumps(task))
-        cmd = [sys.executable, "-m", "components.campaign.case", str(tin), str(tout)]
-        try:
-            p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=timeout,
-                               preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
-        except subprocess.TimeoutExpired:
+        if _use_server():
+            try:
+                st = _server().run({"task": str(tin), "result": str(tout), "stderr": str(terr),
+                                    "timeout": timeout}, timeout)
+            except (RuntimeError, OSError, ValueError):
+                _local.server = None
+                st = _spawn(tin, tout, terr, timeout)
+        else:
+            st = _spawn(tin, tout, terr, timeout)
+        if st["status"] == "timeout":
             return record(task, None, f"timeout: no result after {timeout:g} s (the case was killed)")
-        if p.returncode < 0:
-            return record(task, None, f"crashed: the case process died of {signal_name(p.returncode)}")
-        if p.returncode != 0 or not tout.exists():
-            lines = [ln for ln in p.stderr.decode(errors="replace").splitlines() if ln.strip()]
-            return record(task, None, f"exit code {p.returncode}: {lines[-1] if lines else 'no message'}")
+        if st["status"] == "signal":
+            return record(task, None, f"crashed: the case process died of {signal_name(st['signal'])}")
+        if st["code"] != 0 or not tout.exists():
+            lines = [ln for ln in terr.read_text(errors="replace").splitlines() if ln.strip()] if terr.exists() else []
+            return record(task, None, f"exit code {st['code']}: {lines[-1] if lines else 'no message'}")
         return json.loads(tout.read_text())
