@@ -38,6 +38,12 @@ def connect(workers: int | None = None, scheduler: str | None = None):
         cluster = LocalCluster(n_workers=max(1, int(workers or 1)), threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR)
         client = Client(cluster)
+    from components.campaign.isolate import warm
+
+    try:
+        client.run(warm)  # each worker's case server imports now, not inside the first case
+    except Exception:  # noqa: BLE001  (a worker that cannot warm starts its server on first use)
+        pass
     info = client.scheduler_info() if hasattr(client, "scheduler_info") else {}
     slots = sum(w.get("nthreads", 1) for w in info.get("workers", {}).values()) or (workers or 1)
     return client, cluster, slots

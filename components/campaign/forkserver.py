@@ -66,6 +66,8 @@ def serve() -> int:
     import components.lsq  # noqa: F401
     import components.scenario  # noqa: F401
     import fmpy  # noqa: F401
+    import components.log_recording  # noqa: F401  (imports python-control, matplotlib: ~1.2 s)
+    import fmus.turntable.variables  # noqa: F401
     import orchestrator.master  # noqa: F401
 
     out = sys.stdout

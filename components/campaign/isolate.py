@@ -1,7 +1,7 @@
 """The Dask task: run one case in a child process of its own, with a timeout.
 
 On Linux the child is forked from a warm case server (components.campaign.forkserver; one per
-worker thread, started on first use); elsewhere, or with CALBENCH_CASE_ISOLATION=spawn, it is a
+worker thread, started on first use or by warm()); elsewhere, or with CALBENCH_CASE_ISOLATION=spawn, it is a
 fresh ``python -m components.campaign.case``. Either way a segfault (or any signal) of the child,
 a hang past the timeout or a non-zero exit becomes an errored record with the reason (signal
 name / timeout / last line of stderr); the worker, and so the campaign, go on."""
@@ -19,7 +19,6 @@ from pathlib import Path
 
 # one BLAS thread per case: the workers are the parallelism, and results do not depend on it
 _ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-_local = threading.local()
 
 
 def _die_with_parent() -> None:  # pragma: no cover  (runs in the child before exec)
@@ -76,11 +75,29 @@ class _Server:
             pass
 
 
-def _server() -> _Server:
-    s = getattr(_local, "server", None)
-    if s is None or not s.alive():
-        s = _local.server = _Server()
-    return s
+_pool: list = []            # idle case servers of this (worker) process
+_pool_lock = threading.Lock()
+
+
+def _take() -> _Server:
+    with _pool_lock:
+        while _pool:
+            s = _pool.pop()
+            if s.alive():
+                return s
+    return _Server()
+
+
+def _give(s: _Server) -> None:
+    with _pool_lock:
+        _pool.append(s)
+
+
+def warm() -> int:
+    """Start an idle case server in this process now (a cluster's workers, before the cases)."""
+    if _use_server():
+        _give(_take())
+    return os.getpid()
 
 
 def _spawn(tin: Path, tout: Path, terr: Path, timeout: float) -> dict:
@@ -105,10 +122,11 @@ def run_isolated(task: dict, timeout_s: float | None = None) -> dict:
         tin.write_text(json.dumps(task))
         if _use_server():
             try:
-                st = _server().run({"task": str(tin), "result": str(tout), "stderr": str(terr),
-                                    "timeout": timeout}, timeout)
+                server = _take()
+                st = server.run({"task": str(tin), "result": str(tout), "stderr": str(terr),
+                                 "timeout": timeout}, timeout)
+                _give(server)
             except (RuntimeError, OSError, ValueError):
-                _local.server = None
                 st = _spawn(tin, tout, terr, timeout)
         else:
             st = _spawn(tin, tout, terr, timeout)
