@@ -198,7 +198,6 @@ def main(argv: list[str] | None = None) -> int:
     from components.scenario import ScenarioError
     from components.schedule import ScheduleError
 
-    import components.roles  # noqa: F401  (registers the roles and builtin: FMUs)
 
     args = build_parser().parse_args(argv)
     try:

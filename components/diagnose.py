@@ -23,8 +23,8 @@ import numpy as np
 from scipy import stats
 
 from components.blocks import make_blocks, white_noise_sigma
-from components.effects import EFFECTS, Effect, effect_of, parameters_of
-from components.lsq import LogData, _design, apply_table_parameter, rest_sigma
+from components.effects import EFFECTS, effect_of, parameters_of
+from components.lsq import LogData, _design, rest_sigma
 from components.result import CalibrationResult
 
 # Which schedule change separates two effects (order-free pairs), else a generic hint per effect.
@@ -172,20 +172,16 @@ class _Design:
         return U[:, s > 1e-8 * s[0]]
 
 
-def default_candidates(model_effects: list[str], axes: list[str]) -> list[str]:
-    out = []
-    for name, e in EFFECTS.items():
-        if name in model_effects:
-            continue
-        out.append(name)
-    return out
+def default_candidates(model_effects: list[str]) -> list[str]:
+    """Every effect of the vocabulary the model does not have."""
+    return [name for name in EFFECTS if name not in model_effects]
 
 
 def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] | None = None,
              alpha: float = 0.01, forward: bool = True, max_steps: int = 4, chunk_s: float = 1.0,
              rest_angle_sigma=None) -> Diagnosis:
     base_effects = list(model.effects)
-    cands = candidates if candidates is not None else default_candidates(base_effects, [])
+    cands = candidates if candidates is not None else default_candidates(base_effects)
     cands = [c for c in cands if c not in base_effects]
     params = list(dict.fromkeys(parameters_of(base_effects) + parameters_of(cands)))
     # table-effect parameters for stages this table does not have contribute nothing
@@ -290,6 +286,3 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         del c._basis  # type: ignore[attr-defined]
     return out, chi2_b, dof_b
 
-
-def effect_display(effect: str) -> Effect:
-    return EFFECTS[effect]

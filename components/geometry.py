@@ -18,7 +18,7 @@ fmus/turntable/model.c), so a model fitted here and the FMU that produced the da
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 

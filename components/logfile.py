@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 
-from components.log_rules import (_NONFINITE, _NUMBER, ACC_OUTPUTS, FORMAT, GYRO_OUTPUTS, XYZ,  # noqa: F401
+from components.log_rules import (_NONFINITE, _NUMBER, FORMAT, XYZ,  # noqa: F401  (FORMAT: re-exported)
                                   LogFormatError,
                                   _check_columns, _check_samples, _numeric_columns, _parse_metadata)
 

@@ -58,7 +58,6 @@ def run_variants(sc, variants: list[Variant], temperature_profile: Callable | No
 
     Returns ``{variant name: (MeasurementLog, truth dict)}``; each truth is the scenario's truth
     with that instance's effects, noise seed and parameters."""
-    import components.roles  # noqa: F401
     from orchestrator.master import Simulation
     from orchestrator.system import Connection, UnitSpec
 

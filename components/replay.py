@@ -59,7 +59,6 @@ def _unit_of_role(system: System, role: str) -> UnitSpec:
 
 def replay_imu(data, system_file: str | Path, motion=None) -> np.ndarray:
     """Predicted increments (N, 6) [rad, m/s] of the system's IMU unit on the log's motion."""
-    import components.roles  # noqa: F401  (roles and builtin: FMUs)
     from orchestrator.master import Simulation, resolve_fmu
     from orchestrator.units import load_fmu_unit
 
@@ -110,7 +109,6 @@ def replay_imu(data, system_file: str | Path, motion=None) -> np.ndarray:
 def replay_servo(log, system_file: str | Path | None = None, parameters: dict | None = None) -> dict:
     """The turntable FMU driven by the log's commanded angles: per axis the RMS and largest
     difference between simulated and logged encoder angles, at rest and while moving."""
-    import components.roles  # noqa: F401
     from orchestrator.master import Simulation
 
     missing = [a for a in log.axis_names if a not in log.command]

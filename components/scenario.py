@@ -311,7 +311,6 @@ def load_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
 
 # ----------------------------------------------------------------------------- building
 def _fmu_path(spec: str, base_dir: Path) -> Path:
-    import components.roles  # noqa: F401  (registers builtin:)
     from orchestrator.master import resolve_fmu
 
     return resolve_fmu(spec, base_dir)
@@ -475,7 +474,6 @@ class RunResult:
 
 def run_scenario(sc: Scenario, record: list[str] | None = None, progress: bool | None = None) -> RunResult:
     """Run the scenario until the controller is done; the log and the truth in memory."""
-    import components.roles  # noqa: F401
     from components.log_recording import log_from_recording
 
     system, ctrl, info = build_system(sc, record)
@@ -536,7 +534,6 @@ def _truth(sc: Scenario, ctrl: CalibrationController, info: dict, rec) -> dict:
     sched = sc.schedule
     st = sched.settings
     effects = {k: v for k, v in {**sc.imu_effects, **sc.table_effects}.items() if v != 0.0}
-    from components.logfile import FORMAT  # noqa: F401
 
     return {
         "format": TRUTH_FORMAT,

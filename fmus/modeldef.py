@@ -47,7 +47,6 @@ _BASE_UNITS = {
     "rad.s3/m2": {"rad": 1, "s": 3, "m": -2},
     "rad/s/K": {"rad": 1, "s": -1, "K": -1},
     "m/s2/K": {"m": 1, "s": -2, "K": -1},
-    "rad/s2": {"rad": 1, "s": -2},
     "rad/s/s": {"rad": 1, "s": -2},
     "m/s2/s": {"m": 1, "s": -3},
     "rad/s/sqrt(s)": {"rad": 1, "s": -1},  # density: exponent of sqrt(s) not expressible; informative
@@ -251,7 +250,7 @@ def model_description_fmi2(table: ModelTable, token: str, source_files: list[str
         '  variableNamingConvention="structured"',
         '  numberOfEventIndicators="0">',
         f'  <CoSimulation modelIdentifier="{table.identifier}"',
-        f'    canHandleVariableCommunicationStepSize="true"',
+        '    canHandleVariableCommunicationStepSize="true"',
         f'    canInterpolateInputs="{str(table.can_interpolate_inputs).lower()}"',
         f'    maxOutputDerivativeOrder="{table.max_output_derivative_order}"',
         '    canGetAndSetFMUstate="true" canSerializeFMUstate="true"',

@@ -89,9 +89,6 @@ def resolve_fmu(spec: str, base_dir: Path) -> Path:
     return p if p.is_absolute() else base_dir / p
 
 
-def _fmu_file(system: System, spec_fmu: str, name: str) -> Path:
-    return resolve_fmu(spec_fmu, system.base_dir)
-
 
 @dataclass
 class _PyPort:
@@ -122,7 +119,7 @@ class Simulation:
     def load(self) -> None:
         for spec in self.system.units:
             if spec.fmu is not None:
-                self.units[spec.name] = load_fmu_unit(spec.name, _fmu_file(self.system, spec.fmu, spec.name))
+                self.units[spec.name] = load_fmu_unit(spec.name, resolve_fmu(spec.fmu, self.system.base_dir))
             else:
                 self.units[spec.name] = ComponentUnit(
                     spec.name, _import_component(spec.component, spec.name, spec.config))

@@ -399,9 +399,9 @@ def _parameter_value(par: ET.Element, where: str):
 def _fmu_variables(system: System, spec: UnitSpec) -> tuple[Path, dict]:
     from fmpy import read_model_description
 
-    from orchestrator.master import _fmu_file
+    from orchestrator.master import resolve_fmu
 
-    path = _fmu_file(system, spec.fmu, spec.name)
+    path = resolve_fmu(spec.fmu, system.base_dir)
     if not Path(path).exists():
         raise SystemError_(f"units.{spec.name}.fmu = {spec.fmu!r}: {path} does not exist")
     md = read_model_description(str(path))

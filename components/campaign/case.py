@@ -131,7 +131,6 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m components.campaign.case TASK.json RESULT.json", file=sys.stderr)
         return 2
     task = json.loads(Path(argv[0]).read_text())
-    import components.roles  # noqa: F401  (roles and builtin: FMUs)
 
     rec = run_case(task)
     out = Path(argv[1])

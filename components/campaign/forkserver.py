@@ -58,7 +58,6 @@ def _wait(pid: int, timeout: float) -> dict:
 
 def serve() -> int:
     # the imports every case needs, once (children inherit them)
-    import components.roles  # noqa: F401
     import components.campaign.case  # noqa: F401
     import components.compare  # noqa: F401
     import components.crb  # noqa: F401

@@ -45,7 +45,7 @@ from components.effects import AX
 from components.geometry import TableGeometry
 from components.result import CalibrationResult, schedule_of
 
-from components.procedures.common import (Segment, angle_quantum, as_data, is_static,
+from components.procedures.common import (angle_quantum, as_data, is_static,
                                           linear_covariance, noise_sigma, sample_interval, segments)
 
 NAME = "cwccw"

@@ -25,9 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.effects import AX
 from components.lsq import calibrate
-from components.result import result_from_fit
+from components.result import CalibrationResult, result_from_fit
 
 from components.procedures.common import as_data, is_static, sample_interval, segments
 
@@ -96,7 +95,7 @@ def _second_stage(data, log, effects, fixed, method):
     return res
 
 
-def run(log_or_data, *, effects=DEFAULT_EFFECTS) -> "CalibrationResult":  # noqa: F821
+def run(log_or_data, *, effects=DEFAULT_EFFECTS) -> CalibrationResult:
     """Seed 000: base tilt from the four outer positions, then the multi-position accelerometer
     calibration with the geometry carrying that tilt. The result holds the tilt
     (table.base_tilt.x/.y, σ from stage 1) and the accelerometer parameters."""
