@@ -295,3 +295,40 @@ def test_criteria_verdicts():
                     {"diagnosis": None})["passed"]
     assert not evaluate({"id": "D", "requirement": "R", "kind": "diagnosis", "verdict": "none"},
                         {"diagnosis": "acc.k2"})["passed"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="case servers fork on Linux only")
+def test_case_child_dies_with_its_worker(campaign_file, tmp_path):
+    """A worker killed while its case hangs (the campaign interrupted, a machine going down) takes
+    the case's process with it: no orphan left spinning (found: one ran on at 90 % CPU)."""
+    from components.campaign.isolate import _Server
+    from components.campaign.spec import task_for
+
+    camp = load_campaign(campaign_file)
+    task = task_for(camp, next(c for c in camp.cases if c.id.startswith("lsq-hang")))
+    (tmp_path / "task.json").write_text(json.dumps(task))
+    server = _Server()
+    req = {"task": str(tmp_path / "task.json"), "result": str(tmp_path / "r.json"),
+           "stderr": str(tmp_path / "err.txt"), "timeout": 600}
+    server.p.stdin.write((json.dumps(req) + "\n").encode())
+    server.p.stdin.flush()
+    children = Path(f"/proc/{server.p.pid}/task/{server.p.pid}/children")
+    deadline = time.monotonic() + 30
+    kids: list[int] = []
+    while time.monotonic() < deadline and not kids:
+        kids = [int(k) for k in children.read_text().split()]
+        time.sleep(0.05)
+    assert kids, "the case server forked no child"
+    time.sleep(1.0)  # the child is inside the hanging FMU now
+    server.close()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and Path(f"/proc/{kids[0]}").exists():
+        status = Path(f"/proc/{kids[0]}/status")
+        if status.exists() and "State:\tZ" in status.read_text():
+            break
+        time.sleep(0.05)
+    status = Path(f"/proc/{kids[0]}/status")
+    survived = status.exists() and "State:\tZ" not in status.read_text()
+    if survived:
+        os.kill(kids[0], signal.SIGKILL)  # leave no spinning process to the other tests
+    assert not survived, "the case child outlived its server"

@@ -17,18 +17,10 @@ import tempfile
 import threading
 from pathlib import Path
 
+from components.campaign.forkserver import die_with_parent
+
 # one BLAS thread per case: the workers are the parallelism, and results do not depend on it
 _ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
-
-def _die_with_parent() -> None:  # pragma: no cover  (runs in the child before exec)
-    """Linux: the child gets SIGKILL when the worker that started it dies (no orphans)."""
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except Exception:  # noqa: BLE001
-        pass
 
 
 def signal_name(signum: int) -> str:
@@ -47,7 +39,7 @@ class _Server:
     def __init__(self):
         self.p = subprocess.Popen([sys.executable, "-m", "components.campaign.forkserver"],
                                   env={**os.environ, **_ENV}, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                  preexec_fn=_die_with_parent)
+                                  preexec_fn=die_with_parent)
         if json.loads(self._read(120.0) or "{}").get("status") != "ready":
             self.close()
             raise RuntimeError("the case server did not start")
@@ -105,7 +97,7 @@ def _spawn(tin: Path, tout: Path, terr: Path, timeout: float) -> dict:
     with open(terr, "wb") as err:
         try:
             p = subprocess.run(cmd, env={**os.environ, **_ENV}, stdout=err, stderr=err, timeout=timeout,
-                               preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+                               preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
         except subprocess.TimeoutExpired:
             return {"status": "timeout"}
     return {"status": "signal", "signal": -p.returncode} if p.returncode < 0 else {"status": "exit",
