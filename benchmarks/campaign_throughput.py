@@ -61,7 +61,7 @@ def main() -> int:
     args = ap.parse_args()
     from components.campaign.case import run_case
     from components.campaign.execute import connect
-    from components.campaign.isolate import run_isolated
+    from components.campaign.isolate import run_isolated, warm
     from components.campaign.spec import load_campaign, task_for
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -77,6 +77,7 @@ def main() -> int:
         out["direct_s_per_case"] = (time.perf_counter() - t) / len(tasks)
 
         k = min(4, len(tasks))
+        warm()  # this process's case server starts here, as a worker's does before its first case
         t = time.perf_counter()
         isolated = [run_isolated(tk) for tk in tasks[:k]]
         out["isolated_s_per_case"] = (time.perf_counter() - t) / k

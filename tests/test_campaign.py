@@ -332,3 +332,46 @@ def test_case_child_dies_with_its_worker(campaign_file, tmp_path):
     if survived:
         os.kill(kids[0], signal.SIGKILL)  # leave no spinning process to the other tests
     assert not survived, "the case child outlived its server"
+
+
+def test_existing_cluster_by_address_gives_the_same_records(campaign_file, two_workers, tmp_path):
+    """`--scheduler ADDRESS`: a Dask cluster started on its own (`dask scheduler`, `dask worker`
+    as an operator would), no other change: the same verdicts and byte-identical records."""
+    sched_file = tmp_path / "scheduler.json"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    def dask(cli: str) -> list[str]:  # `dask scheduler` / `dask worker`, with this interpreter
+        return [sys.executable, "-m", f"distributed.cli.dask_{cli}"]
+
+    procs = [subprocess.Popen([*dask("scheduler"), "--host", "127.0.0.1", "--port", "0",
+                               "--no-dashboard", "--scheduler-file", str(sched_file)],
+                              cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not sched_file.exists():
+            time.sleep(0.1)
+        assert sched_file.exists(), "the scheduler did not start"
+        address = json.loads(sched_file.read_text())["address"]
+        procs.append(subprocess.Popen([*dask("worker"), address, "--nworkers", "2", "--nthreads", "1",
+                                       "--no-dashboard"], cwd=tmp_path, env=env,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(address, timeout="30s") as c:
+            c.wait_for_workers(2, timeout=60)
+        out = tmp_path / "remote"
+        assert cli_main(["campaign", str(campaign_file), "--out", str(out), "--scheduler", address,
+                         "--pages", "0"]) == 0
+        ref = {p.name: p.read_bytes() for p in (two_workers / "cases").glob("*.json")}
+        got = {p.name: p.read_bytes() for p in (out / "cases").glob("*.json")}
+        assert sorted(got) == sorted(ref)
+        assert [n for n in ref if got[n] != ref[n]] == []
+        session = json.loads((out / "manifest.json").read_text())["sessions"][0]
+        assert session["scheduler"] == address and session["workers"] is None
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in reversed(procs):
+            try:
+                p.wait(30)
+            except subprocess.TimeoutExpired:
+                p.kill()
