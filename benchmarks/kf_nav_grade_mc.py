@@ -56,10 +56,10 @@ def one_run(seed: int, dwell: float, exc_dwell: float, cycles: int, config: str 
     # NEES of the first (39-state) stage's effect states, with its full covariance; the values
     # of that stage (before the S204 bias filter replaced the gyro biases)
     so = outs[0]
-    e1 = np.array([so.values[i] - truth.get(p, 0.0) for i, p in enumerate(so.parameters)])
+    e1 = np.array([so.totals[i] - truth.get(p, 0.0) for i, p in enumerate(so.parameters)])
     nees1 = float(e1 @ np.linalg.solve(so.covariance, e1))
     so2 = outs[-1]
-    e2 = np.array([so2.values[i] - truth.get(p, 0.0) for i, p in enumerate(so2.parameters)])
+    e2 = np.array([so2.totals[i] - truth.get(p, 0.0) for i, p in enumerate(so2.parameters)])
     nees2 = float(e2 @ np.linalg.solve(so2.covariance, e2))
     return {"seed": seed, "err": err, "sigma": dict(res.sigmas), "nees_stage1": nees1,
             "dof_stage1": len(e1), "nees_stage2": nees2, "dof_stage2": len(e2),

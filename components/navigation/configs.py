@@ -10,8 +10,9 @@
   seed's claim).
 - ``seed_003``: S203 39-state filter (9 nav + gyro bias 3 + acc bias 3 + gyro sf/mis 9 +
   acc sf/mis 6 + inner lever arms 6 + K2 3) on the y-x-z / z-x-y excitation, then the 12-state
-  bias filter (9 nav + 3 gyro biases) on the S204 azimuth back-and-forth, which replaces the
-  gyro biases.
+  bias filter (9 nav + 3 gyro biases) on the S204 azimuth back-and-forth: its prior is the
+  39-state result (with correlations), the other 27 parameters are consider states (kept, their
+  uncertainty accounted for), so its gyro biases refine those of S203 consistently.
 - ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml) with
   gyro and accelerometer bias / sf / mis and the IMU time offset as a state.
 
@@ -40,7 +41,7 @@ def _seed003() -> Config:
         Stage("kf", "S202+S203 39-state", parameters=p39, window=r"^(move-)?S20[23]",
               settings={"passes": 3}),
         Stage("kf", "S204 12-state bias", parameters=parameters_of(["gyro.bias"]),
-              window=r"^(move-)?S204", settings={"passes": 2}),
+              window=r"^(move-)?S204", settings={"passes": 2}, consider_earlier=True),
     ], schedule="seed_003")
 
 
@@ -85,7 +86,8 @@ def load_config(spec: str) -> Config:
     c = d.get("config", {})
     stages = [Stage(kind=s.get("kind", "kf"), name=s.get("name", ""), effects=s.get("effects", []),
                     parameters=s.get("parameters"), window=s.get("window"),
-                    settings=dict(s.get("settings", {})), align_max_s=s.get("align_max_s", 60.0))
+                    settings=dict(s.get("settings", {})), align_max_s=s.get("align_max_s", 60.0),
+                    align_min_s=s.get("align_min_s", 10.0), consider_earlier=s.get("consider_earlier", False))
               for s in d.get("stages", [])]
     if not stages:
         raise ValueError(f"{path}: no [[stages]]")

@@ -23,6 +23,14 @@ the state reset to zero; the sensor data of the next steps are corrected with θ
 start again from the beginning with θ̂ of the previous pass and the prior covariance (the
 linearisation improves; in the noise-free limit the prior's pull shrinks each pass).
 
+Consider states (``consider``, a Schmidt–Kalman filter): parameters an earlier stage estimated
+and this one keeps. They are states (their uncertainty drives the navigation errors through
+their regressors, and their cross-covariance with the estimated states is kept) but the gain's
+rows for them are zero, so they are never updated; the Joseph form keeps P exact for that
+sub-optimal gain. Without them a reduced filter (seed 003's 12-state bias stage) believes
+the other parameters perfect and is overconfident (NEES 18.6 for 3 states, before). The joint
+prior of estimated and consider states is ``prior_cov`` (from the earlier stage).
+
 RTS smoother (``smoother=True``): the filter's (Φ, P⁻, P⁺, x⁺) are kept and run backwards; the
 feedback is a known input (x⁻_{k+1} = Φ (x⁺_k − u_k) = 0), so ``x^s_k = x⁺_k + C_k x^s_{k+1}``,
 ``C_k = P⁺_k Φᵀ (P⁻_{k+1})⁻¹``. For the random-constant effect states the smoothed value at
@@ -42,6 +50,14 @@ from components.geometry import skew
 from components.navigation.earth import Site
 from components.navigation.strapdown import Strapdown, rot
 
+# Per-sample noise floors [rad], [m/s]: noise-free data still carry the filter's own numerical
+# floor (linearisation, the discretised error model: ~1e-3 deg/h, 0.05 ug, 0.05 ppm seen), and a
+# filter told the noise is 1e-12 rad reports σ a thousand times below it, which makes a later
+# stage's consider states (their covariance) wrong by as much. 1e-10 rad and 1e-9 m/s per sample
+# are 5e-5 deg/sqrt(h) and 0.02 ug/sqrt(Hz) at 200 Hz: 40x below navigation grade.
+SIGMA_GYRO_FLOOR = 1e-10
+SIGMA_ACC_FLOOR = 1e-9
+
 NAV_STATES = ["phi.E", "phi.N", "phi.U", "dv.E", "dv.N", "dv.U", "dpos.L", "dpos.lon", "dpos.h"]
 
 
@@ -50,7 +66,7 @@ class FilterSettings:
     parameters: list[str]
     kf_interval: float = 0.1          # s between predictions / updates
     passes: int = 2
-    phi0: tuple = (1e-4, 1e-4, 3e-3)  # initial attitude σ [rad] (level, level, heading)
+    phi0: tuple = (1e-3, 1e-3, 1e-2)  # initial attitude σ [rad] (level, level, heading)
     v0: float = 1e-3                  # m/s
     pos0: float = 1e-6                # rad / m
     prior_sigma: dict = field(default_factory=dict)  # parameter -> σ of the prior; default:
@@ -62,6 +78,8 @@ class FilterSettings:
     observe: str = "static"           # "static" or "always"
     smoother: bool = False
     history_every: int = 1            # record θ̂ and σ every n updates
+    consider: list = field(default_factory=list)   # kept, not updated (Schmidt–Kalman)
+    prior_cov: object = None          # joint prior covariance of parameters + consider
 
 
 @dataclass
@@ -106,22 +124,33 @@ def _nav_F(site: Site) -> np.ndarray:
 
 def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.ndarray,
                static: np.ndarray, settings: FilterSettings, regressors=None,
-               theta0: np.ndarray | None = None, time0: float = 0.0) -> FilterOutput:
-    """One pass of the closed-loop filter over increments (N, 3) starting at attitude C0."""
-    params = list(settings.parameters)
+               theta0: np.ndarray | None = None, time0: float = 0.0,
+               prior_mean: np.ndarray | None = None) -> FilterOutput:
+    """One pass of the closed-loop filter over increments (N, 3) starting at attitude C0.
+    ``regressors`` cover the parameters followed by the consider states; ``theta0`` the
+    parameters only (the consider states' values are in the data already). ``prior_mean``: the
+    centre of the parameters' prior when it differs from ``theta0`` (a later pass linearises at
+    the previous pass's estimate but keeps the prior where it was: no data counted twice)."""
+    params = list(settings.parameters) + list(settings.consider)
+    m_est = len(settings.parameters)
+    e = slice(9, 9 + m_est)  # the estimated parameters in the state
     m = len(params)
     n = 9 + m
     N = len(gyro)
-    theta = np.zeros(m) if theta0 is None else np.array(theta0, float)
-    sg = np.broadcast_to(np.asarray(1e-12 if settings.sigma_gyro is None else settings.sigma_gyro,
+    theta = np.zeros(m)
+    if theta0 is not None:
+        theta[:m_est] = theta0
+    sg = np.broadcast_to(np.asarray(SIGMA_GYRO_FLOOR if settings.sigma_gyro is None else settings.sigma_gyro,
                                     float), (3,))
-    sa = np.broadcast_to(np.asarray(1e-10 if settings.sigma_acc is None else settings.sigma_acc,
+    sa = np.broadcast_to(np.asarray(SIGMA_ACC_FLOOR if settings.sigma_acc is None else settings.sigma_acc,
                                     float), (3,))
-    sg = np.maximum(sg, 1e-12)
-    sa = np.maximum(sa, 1e-10)
+    sg = np.maximum(sg, SIGMA_GYRO_FLOOR)
+    sa = np.maximum(sa, SIGMA_ACC_FLOOR)
     r = settings.r_vel if settings.r_vel is not None else max(3.0 * float(np.max(sa)), 1e-6)
     kf = KalmanFilter(dim_x=n, dim_z=3)
     kf.x = np.zeros((n, 1))
+    if prior_mean is not None and m_est:
+        kf.x[e, 0] = np.asarray(prior_mean, float) - theta[:m_est]
     P0 = np.zeros(n)
     P0[0:3] = np.asarray(settings.phi0, float) ** 2
     P0[3:6] = settings.v0 ** 2
@@ -130,6 +159,11 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     if m:
         P0[9:] = prior_sigmas(params, settings) ** 2
     kf.P = np.diag(P0)
+    if settings.prior_cov is not None:
+        kf.P[9:, 9:] = np.asarray(settings.prior_cov, float)
+    keep = np.ones((n, 1))
+    keep[9 + m_est:] = 0.0  # Schmidt: no gain for the consider states
+    schmidt = m > m_est
     H = np.zeros((3, n))
     H[:, 3:6] = np.eye(3)
     R = np.eye(3) * r * r
@@ -189,7 +223,10 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
         observed = settings.observe == "always" or all_static
         if observed:
             z = nav.v.reshape(3, 1)
-            kf.update(z, R=R, H=H)
+            if schmidt:
+                _schmidt_update(kf, z, R, H, keep)
+            else:
+                kf.update(z, R=R, H=H)
             updates += 1
             innov.append(kf.y.ravel().copy())
             innov_var.append(np.diag(kf.S).copy())
@@ -202,16 +239,31 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
         kf.x = np.zeros((n, 1))
         if observed and (updates % settings.history_every == 0):
             hist_t.append(time0 + k * dt)
-            hist_v.append(theta.copy())
-            hist_s.append(np.sqrt(np.diag(kf.P)[9:]))
-    out = FilterOutput(params, theta, kf.P[9:, 9:].copy(), kf.P.copy(), nav.C.copy(),
+            hist_v.append(theta[:m_est].copy())
+            hist_s.append(np.sqrt(np.diag(kf.P)[e]))
+    out = FilterOutput(params[:m_est], theta[:m_est], kf.P[e, e].copy(), kf.P.copy(), nav.C.copy(),
                        np.sqrt(np.diag(kf.P)[:9]), updates, predictions,
-                       np.array(hist_t), np.array(hist_v, float).reshape(len(hist_t), m),
-                       np.array(hist_s, float).reshape(len(hist_t), m), np.array(innov).reshape(-1, 3),
+                       np.array(hist_t), np.array(hist_v, float).reshape(len(hist_t), m_est),
+                       np.array(hist_s, float).reshape(len(hist_t), m_est), np.array(innov).reshape(-1, 3),
                        np.array(innov_var).reshape(-1, 3))
     if store:
         out.smoothed_nav, out.smoothed_values = _rts(store, theta, m)
+        out.smoothed_values = out.smoothed_values[:m_est]
     return out
+
+
+def _schmidt_update(kf: KalmanFilter, z: np.ndarray, R: np.ndarray, H: np.ndarray,
+                    keep: np.ndarray) -> None:
+    """filterpy's update with the consider states' gain rows set to zero (Joseph form)."""
+    P = kf.P
+    PHt = P @ H.T
+    S = H @ PHt + R
+    K = np.linalg.solve(S, PHt.T).T * keep
+    y = z - H @ kf.x
+    kf.x = kf.x + K @ y
+    IKH = np.eye(len(P)) - K @ H
+    kf.P = IKH @ P @ IKH.T + K @ R @ K.T
+    kf.y, kf.S, kf.K = y, S, K
 
 
 def _rts(store, theta_final, m):

@@ -7,6 +7,8 @@ A ``kf`` stage: the samples of a window (segment labels matching a regular expre
 first to the last match), corrected by the earlier stages' estimates; per pass: coarse and fine
 alignment on the window's first static run (data corrected by the current estimates), then the
 closed-loop filter (components.navigation.kf) from the start of that run to the window's end.
+The alignment run is the window's first rest of at least ``align_min_s`` (a table settling after
+an index creeps; data before that rest are not used).
 A ``cwccw`` stage: the CW/CCW closed forms (components.procedures.cwccw) for the listed
 parameters (seed 001's gyro stage).
 
@@ -23,7 +25,7 @@ import numpy as np
 from components.blocks import white_noise_sigma
 from components.effects import effect_of, parameters_of
 from components.lsq import LogData
-from components.navigation.alignment import coarse_align, fine_align, static_run
+from components.navigation.alignment import alignment_run, coarse_align, fine_align
 from components.navigation.earth import Site
 from components.navigation.kf import FilterOutput, FilterSettings, run_filter
 from components.navigation.sensor import Regressors
@@ -42,6 +44,8 @@ class Stage:
     window: str | None = None             # regex on segment labels
     settings: dict = field(default_factory=dict)  # FilterSettings fields
     align_max_s: float = 60.0
+    align_min_s: float = 10.0             # the filter starts at the first rest this long
+    consider_earlier: bool = False        # keep what earlier stages estimated as consider states
 
 
 @dataclass
@@ -77,11 +81,36 @@ class StageOutput:
     filter: FilterOutput | None = None
     window: tuple = (0, 0)
     passes: list = field(default_factory=list)
+    joint_parameters: list = field(default_factory=list)   # estimated + consider
+    joint_covariance: np.ndarray | None = None
+    totals: np.ndarray | None = None      # the parameters' values after this stage: ``values``
+    #                                       are the increments on the earlier stages' estimates
+
+
+def joint_prior(outputs: list, names: list[str]) -> np.ndarray:
+    """Covariance of ``names`` from earlier stages: each pair from the latest stage that had
+    both in its joint state (cross-stage pairs 0)."""
+    P = np.zeros((len(names), len(names)))
+    for i, p in enumerate(names):
+        for j, q in enumerate(names):
+            for so in reversed(outputs):
+                jp = so.joint_parameters or so.parameters
+                jc = so.joint_covariance if so.joint_covariance is not None else so.covariance
+                if p in jp and q in jp:
+                    P[i, j] = jc[jp.index(p), jp.index(q)]
+                    break
+                if p in jp or q in jp:
+                    break
+    return P
 
 
 def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
-                 dt: float, earlier_sigma: dict | None = None) -> StageOutput:
+                 dt: float, earlier_sigma: dict | None = None, earlier: list | None = None) -> StageOutput:
     params = stage.parameters or parameters_of(stage.effects)
+    consider = []
+    if stage.consider_earlier and earlier:
+        consider = [q for so in earlier for q in so.parameters if q not in params]
+        consider = list(dict.fromkeys(consider))
     a, b = window_of(data.segment, stage.window, len(data.time))
     site = Site.of_geometry(data.geometry)
     # the earlier stages' estimates, applied once to the window's raw data
@@ -91,10 +120,15 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     if fixed_p:
         g, ac = Regressors(fixed_p, g, ac, dt, temp).correct(np.array([fixed[p] for p in fixed_p]))
     st = static[a:b]
-    s0, s1 = static_run(st)
+    s0, s1 = alignment_run(st, max(2, int(round(stage.align_min_s / dt))))
     s1 = min(s1, s0 + max(2, int(round(stage.align_max_s / dt))))
     settings = FilterSettings(parameters=params, **stage.settings)
-    # a parameter an earlier stage estimated starts from that estimate with its σ (×3) as the
+    if consider:
+        # the earlier stages' joint covariance is this stage's prior, as is (no inflation):
+        # continuing their filter on new data, with the consider states held
+        settings.consider = consider
+        settings.prior_cov = joint_prior(earlier, params + consider)
+        earlier_sigma = {}    # a parameter an earlier stage estimated starts from that estimate with its σ (×3) as the
     # prior: a later filter refines it where its data are informative and keeps it elsewhere
     for p in params:
         s_prev = (earlier_sigma or {}).get(p)
@@ -109,8 +143,12 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
         setattr(settings, key, np.where(np.isfinite(v), v, 0.0))
     g, ac, st = g[s0:], ac[s0:], st[s0:]
     temp = None if temp is None else temp[s0:]
-    regs = Regressors(params, g, ac, dt, temp)
+    regs = Regressors(params + consider, g, ac, dt, temp)
     theta = np.array([settings.initial.get(p, 0.0) for p in params], float)
+    # an earlier stage's posterior is information: later passes keep it centred where it was
+    # (no data counted twice); a vague default prior is only a regulariser, re-centred on each
+    # pass's estimate so that the passes converge to the data's own estimate
+    prior_mean = theta.copy() if consider else None
     passes = []
     out = None
     n_passes = settings.passes
@@ -118,7 +156,8 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
         n_al = s1 - s0
         if params:
             G, A = regs.block(0, n_al)
-            ga, aa = g[:n_al] - G @ theta, ac[:n_al] - A @ theta
+            th = np.concatenate([theta, np.zeros(len(consider))])
+            ga, aa = g[:n_al] - G @ th, ac[:n_al] - A @ th
         else:
             ga, aa = g[:n_al], ac[:n_al]
         C0 = coarse_align(ga, aa, site)
@@ -126,11 +165,12 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
         phi0 = np.maximum(np.asarray(settings.phi0, float), 3 * sphi)
         run_settings = replace(settings, phi0=tuple(phi0))
         out = run_filter(g, ac, dt, site, C0, st, run_settings, regs, theta,
-                         time0=float(data.time[a + s0] - dt))
+                         time0=float(data.time[a + s0] - dt), prior_mean=prior_mean)
         theta = out.values
         passes.append(theta.copy())
     out.pass_values = passes
-    return StageOutput(stage, params, theta, out.covariance, out, (a + s0, b), passes)
+    return StageOutput(stage, params, theta, out.covariance, out, (a + s0, b), passes,
+                       params + consider, out.P[9:, 9:].copy())
 
 
 def run_cwccw_stage(log, stage: Stage) -> StageOutput:
@@ -154,14 +194,12 @@ def calibrate_system(log, config: Config) -> tuple[CalibrationResult, list[Stage
     for stage in config.stages:
         if stage.kind == "cwccw":
             so = run_cwccw_stage(log, stage)
-            for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
-                fixed[p] = fixed.get(p, 0.0) + float(v)
-                sigmas[p] = float(s)
         else:
-            so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas))
-            for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
-                fixed[p] = fixed.get(p, 0.0) + float(v)
-                sigmas[p] = float(s)
+            so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas), outputs)
+        for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
+            fixed[p] = fixed.get(p, 0.0) + float(v)
+            sigmas[p] = float(s)
+        so.totals = np.array([fixed[p] for p in so.parameters])
         outputs.append(so)
     return _result(log, data, config, fixed, sigmas, outputs), outputs
 
