@@ -63,7 +63,7 @@ def same_result(a, b):
 @pytest.fixture(scope="module")
 def seed003_run():
     d = {"scenario": {"name": "cwccw-test", "seed": 1},
-         "schedule": {"name": "seed_003", "overrides": {"dwell": 2.0, "exc_dwell": 1.0, "cycles": 1, "turns": 1}},
+         "schedule": {"name": "seed_003", "overrides": {"dwell": 2.0, "exc_dwell": 1.0, "cycles": 1, "bias_cycles": 1, "turns": 1}},
          "turntable": {"fmu": "builtin:turntable"},
          "imu": {"fmu": "builtin:imu", "effects": IMU_EFFECTS}}
     return run_scenario(scenario_from_dict(d))

@@ -5,20 +5,31 @@ import argparse
 
 
 def _cmd_kf(args: argparse.Namespace) -> int:
+    from components.cli import UserError
     from components.logfile import read_log
     from components.navigation.configs import load_config
     from components.navigation.system import calibrate_system
 
-    cfg = load_config(args.config)
+    try:
+        cfg = load_config(args.config)
+    except (ValueError, OSError) as e:
+        raise UserError(f"kf: configuration {args.config}: {e}") from None
+    if args.simulate and args.log:
+        raise UserError("kf: give a LOG or --simulate SCENARIO, not both")
     if args.simulate:
         from components.scenario import load_scenario, run_scenario
 
         log = run_scenario(load_scenario(args.simulate), progress=False).log
+        source = args.simulate
     elif args.log:
         log = read_log(args.log)
+        source = args.log
     else:
-        raise SystemExit("kf: give a LOG or --simulate SCENARIO")
-    res, _ = calibrate_system(log, cfg)
+        raise UserError("kf: give a LOG or --simulate SCENARIO")
+    try:
+        res, _ = calibrate_system(log, cfg)
+    except ValueError as e:  # a window no label matches, no rest to align on, ...
+        raise UserError(f"kf: {source} with configuration {cfg.name}: {e}") from None
     res.save(args.out)
     for p, v in res.values.items():
         from components.effects import effect_of

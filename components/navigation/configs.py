@@ -13,8 +13,13 @@
   bias filter (9 nav + 3 gyro biases) on the S204 azimuth back-and-forth: its prior is the
   39-state result (with correlations), the other 27 parameters are consider states (kept, their
   uncertainty accounted for), so its gyro biases refine those of S203 consistently.
-- ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml) with
-  gyro and accelerometer bias / sf / mis and the IMU time offset as a state.
+- ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml), the
+  39 states of seed 003 plus the IMU/table time offset. From velocity alone that offset is not
+  observable (a shifted IMU record on a stationary base is an equally valid trajectory: see
+  components.navigation.observability); the filter keeps its prior for it, as it should, and
+  the least-squares procedures (which see the table angles) estimate it. Not yet reliable: on
+  this 8-minute sequence, noise-free, the repeated passes drift away (µg-level accelerometer
+  bias and tens of arcsec in weakly observable combinations); open in issue 6.
 
 Accelerometer misalignment: without table angles the body frame is defined by the
 accelerometers' triad, so only 3 of the 6 off-diagonal terms are observable (domain.md §4);
@@ -64,7 +69,7 @@ def _seed001_single() -> Config:
 
 def _psins19() -> Config:
     p = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"]) + ACC_MIS3
-         + ["imu.time_offset"])
+         + ACC_LEVER6 + parameters_of(["acc.k2"]) + ["imu.time_offset"])
     return Config("psins19", "19-position PSINS-style sequence, time offset as a state", [
         Stage("kf", "19-position", parameters=p, window=None, settings={"passes": 3}),
     ], schedule="psins19")
