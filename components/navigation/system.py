@@ -145,10 +145,10 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     temp = None if temp is None else temp[s0:]
     regs = Regressors(params + consider, g, ac, dt, temp)
     theta = np.array([settings.initial.get(p, 0.0) for p in params], float)
-    # an earlier stage's posterior is information: later passes keep it centred where it was
-    # (no data counted twice); a vague default prior is only a regulariser, re-centred on each
-    # pass's estimate so that the passes converge to the data's own estimate
-    prior_mean = theta.copy() if consider else None
+    # every pass keeps the prior where it was (a Gauss–Newton iteration, components.navigation.kf);
+    # only the closed-loop mode (effect_feedback, the smoother) re-centres a vague prior
+    closed = settings.effect_feedback or settings.smoother
+    prior_mean = None if closed and not consider else theta.copy()
     passes = []
     out = None
     n_passes = settings.passes
