@@ -18,8 +18,9 @@
   observable (a shifted IMU record on a stationary base is an equally valid trajectory: see
   components.navigation.observability); the filter keeps its prior for it, as it should, and
   the least-squares procedures (which see the table angles) estimate it. Not yet reliable: on
-  this 8-minute sequence, noise-free, the repeated passes drift away (µg-level accelerometer
-  bias and tens of arcsec in weakly observable combinations); open in issue 6.
+  this 8-minute sequence, noise-free, accelerometer bias and K2 end 4.5 µg (µg/g²) apart in
+  opposite signs and the gyro scale factors 3 ppm off (75 µg without the time-offset state): a
+  mismatch particular to this sequence, not found yet; open in issue 6.
 
 Accelerometer misalignment: without table angles the body frame is defined by the
 accelerometers' triad, so only 3 of the 6 off-diagonal terms are observable (domain.md §4);
