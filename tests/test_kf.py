@@ -5,6 +5,7 @@ The noise-free data: the independent simulator's ideal vector (a perfect IMU on 
 rotation schedule) with errors added through the vocabulary's regressors, so the check is the
 filter (error model, feedback, passes) against the forward model the least squares use."""
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,21 +18,12 @@ from components.navigation.sensor import Regressors
 from components.navigation.system import Config, Stage, calibrate_system
 from components.result import CalibrationResult
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from kf_vs_lsq import TRUTH  # noqa: E402  (the injected errors, one list for tests and benchmark)
+
 EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
 pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
 
-TRUTH = {
-    "gyro.bias.x": 0.01 * DEG_H, "gyro.bias.y": -0.02 * DEG_H, "gyro.bias.z": 0.015 * DEG_H,
-    "acc.bias.x": 60 * UG, "acc.bias.y": -40 * UG, "acc.bias.z": 80 * UG,
-    "gyro.sf.x": 20e-6, "gyro.sf.y": -15e-6, "gyro.sf.z": 25e-6,
-    "gyro.mis.xy": 20 * ARCSEC, "gyro.mis.xz": -15 * ARCSEC, "gyro.mis.yx": 10 * ARCSEC,
-    "gyro.mis.yz": 25 * ARCSEC, "gyro.mis.zx": -30 * ARCSEC, "gyro.mis.zy": 12 * ARCSEC,
-    "acc.sf.x": 50e-6, "acc.sf.y": -30e-6, "acc.sf.z": 40e-6,
-    "acc.mis.yx": 15 * ARCSEC, "acc.mis.zx": 30 * ARCSEC, "acc.mis.zy": -20 * ARCSEC,
-    "acc.lever.x.y": 0.020, "acc.lever.x.z": -0.015, "acc.lever.y.x": 0.010,
-    "acc.lever.y.z": 0.012, "acc.lever.z.x": -0.008, "acc.lever.z.y": 0.018,
-    "acc.k2.x": 30 * UG / G0**2, "acc.k2.y": -20 * UG / G0**2, "acc.k2.z": 40 * UG / G0**2,
-}
 # numerical floors (as the least-squares tests): 1e-4 deg/h, 0.01 ppm, 0.01", 0.1 ug, 0.01 mm
 FLOORS = {"gyro.bias": 1e-4 * DEG_H, "gyro.sf": 1e-8, "gyro.mis": 0.01 * ARCSEC,
           "acc.bias": 0.1 * UG, "acc.sf": 1e-8, "acc.mis": 0.01 * ARCSEC,

@@ -14,27 +14,18 @@ The accuracy targets of a one-hour run are in benchmarks/kf_vs_lsq.py (a run tak
 from __future__ import annotations
 
 import multiprocessing as mp
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 from scipy.stats import chi2
 
-from components.effects import ARCSEC, DEG_H, G0, UG
 from components.navigation.kf import _schmidt_update
 
-TRUTH = {
-    "gyro.bias.x": 0.01 * DEG_H, "gyro.bias.y": -0.02 * DEG_H, "gyro.bias.z": 0.015 * DEG_H,
-    "acc.bias.x": 60 * UG, "acc.bias.y": -40 * UG, "acc.bias.z": 80 * UG,
-    "gyro.sf.x": 20e-6, "gyro.sf.y": -15e-6, "gyro.sf.z": 25e-6,
-    "gyro.mis.xy": 20 * ARCSEC, "gyro.mis.xz": -15 * ARCSEC, "gyro.mis.yx": 10 * ARCSEC,
-    "gyro.mis.yz": 25 * ARCSEC, "gyro.mis.zx": -30 * ARCSEC, "gyro.mis.zy": 12 * ARCSEC,
-    "acc.sf.x": 50e-6, "acc.sf.y": -30e-6, "acc.sf.z": 40e-6,
-    "acc.mis.yx": 15 * ARCSEC, "acc.mis.zx": 30 * ARCSEC, "acc.mis.zy": -20 * ARCSEC,
-    "acc.lever.x.y": 0.020, "acc.lever.x.z": -0.015, "acc.lever.y.x": 0.010,
-    "acc.lever.y.z": 0.012, "acc.lever.z.x": -0.008, "acc.lever.z.y": 0.018,
-    "acc.k2.x": 30 * UG / G0**2, "acc.k2.y": -20 * UG / G0**2, "acc.k2.z": 40 * UG / G0**2,
-}
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from kf_vs_lsq import TRUTH  # noqa: E402  (the injected errors, one list for tests and benchmark)
 
 
 def test_schmidt_update_reports_the_variance_of_its_errors():
