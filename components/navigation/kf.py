@@ -17,10 +17,9 @@ regressors mapped by C) and accumulated over the filter interval into the transi
 
 Prediction and update: filterpy's ``KalmanFilter`` (predict: P = Φ P Φᵀ + Q; update: Joseph form).
 Observation: the navigation velocity (the truth is zero) in filter intervals whose samples are
-all static (or in every interval, ``observe="always"``). After each update the estimate is fed
-back (closed loop): attitude, velocity and position corrected, the effect estimates θ̂ += x_θ,
-the state reset to zero; the sensor data of the next steps are corrected with θ̂. Effects: by default
-they are not fed back during a pass: the sensor data stay corrected with the pass's
+all static (or in every interval, ``observe="always"``). After each update the navigation
+errors are fed back (attitude, velocity and position corrected, their states reset to zero).
+The effects, by default, are not fed back during a pass: the sensor data stay corrected with the pass's
 linearisation point θ_lin and the effect states accumulate x_θ, so the pass ends with
 θ̂ = θ_lin + x_θ, the posterior mode of the problem linearised at θ_lin with the prior kept where
 it was (initial state x_θ = θ_prior − θ_lin). Repeated passes re-linearise at the previous
@@ -35,8 +34,8 @@ and this one keeps. They are states (their uncertainty drives the navigation err
 their regressors, and their cross-covariance with the estimated states is kept) but the gain's
 rows for them are zero, so they are never updated; the Joseph form keeps P exact for that
 sub-optimal gain. Without them a reduced filter (seed 003's 12-state bias stage) believes
-the other parameters perfect and is overconfident (NEES 18.6 for 3 states, before). The joint
-prior of estimated and consider states is ``prior_cov`` (from the earlier stage).
+the other parameters perfect and reports too small a σ. The joint prior of estimated and
+consider states is ``prior_cov`` (from the earlier stage).
 
 RTS smoother (``smoother=True``): the filter's (Φ, P⁻, P⁺, x⁺) are kept and run backwards; the
 feedback is a known input (x⁻_{k+1} = Φ (x⁺_k − u_k) = 0), so ``x^s_k = x⁺_k + C_k x^s_{k+1}``,
