@@ -71,12 +71,12 @@ dwell = 1.0
 [systems.ours]
 imu = "builtin:imu"
 {_supplier("acme", "supplier_imu")}
-{_supplier("segv", "segv_imu", 'replicates = 1')}
+{_supplier("segv", "supplier_imu", 'replicates = 1')}
 [systems.segv.parameters]
-FailAt = 3.0
-{_supplier("hang", "hang_imu", 'replicates = 1' + chr(10) + 'timeout_s = 6')}
+SegfaultAt = 3.0
+{_supplier("hang", "supplier_imu", 'replicates = 1' + chr(10) + 'timeout_s = 6')}
 [systems.hang.parameters]
-FailAt = 3.0
+HangAt = 3.0
 
 [procedures.lsq]
 method = "lsq"

@@ -25,7 +25,7 @@
     timeout_s = 30
     replicates = 1           # fewer (or more) seeds for this system than [campaign] replicates
     [systems.acme.parameters]                            # fixed FMU parameters (its names, its units)
-    FailAt = 1e300
+    SegfaultAt = 1e300
     [systems.acme.effects]                               # vocabulary -> [FMU parameter, its unit]
     "gyro.bias.x" = ["GyroBias_X", "deg/s"]
 

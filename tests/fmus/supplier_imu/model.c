@@ -1,5 +1,6 @@
 /* Supplier IMU: mean of the linear interpolation between the previous and the current input
- * knot, scale factor and bias per axis, all in the supplier's own units (deg/s, g). */
+ * knot, scale factor and bias per axis, all in the supplier's own units (deg/s, g).
+ * SegfaultAt / HangAt: a broken supplier FMU for the campaign tests (default never). */
 #include "model_instance.h"
 
 #define R(vr) (m->s.r[(vr)])
@@ -15,7 +16,14 @@ ModelStatus model_initialize(ModelInstance *m) {
 }
 
 ModelStatus model_do_step(ModelInstance *m, double h) {
-    (void)h;
+    if (m->s.time >= R(VR_SegfaultAt) - 1e-9 * h) {
+        volatile double *null = (volatile double *)0;
+        *null = m->s.time; /* deliberate: SIGSEGV */
+    }
+    if (m->s.time >= R(VR_HangAt) - 1e-9 * h) {
+        volatile long spin = 0;
+        for (;;) spin++; /* deliberate: never returns */
+    }
     for (int i = 0; i < 3; i++) {
         double wm = 0.5 * (m->s.p.prev[i] + R(VR_AngularRate_X + i));
         double fm = 0.5 * (m->s.p.prev[3 + i] + R(VR_Accel_X + i));
