@@ -60,7 +60,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,6 +68,7 @@ import numpy as np
 from components.controller import CalibrationController
 from components.effects import EFFECTS, G0, effect_of
 from components.schedule import DEG, Schedule, ScheduleError, load_schedule
+from orchestrator.tomlfile import read_toml
 
 TRUTH_FORMAT = "calbench-truth/1"
 ARCSEC = DEG / 3600.0
@@ -300,12 +300,7 @@ def _param(v, key: str, where: str):
 
 def load_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
     p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ScenarioError(f"scenario file {p} does not exist") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ScenarioError(f"{p}: not valid TOML ({e})") from None
+    data = read_toml(p, ScenarioError, "scenario")
     return scenario_from_dict(data, str(p), p.parent.resolve(), overrides)
 
 

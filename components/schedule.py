@@ -449,11 +449,7 @@ def load_schedule(spec: str | Path, overrides: dict | None = None, base_dir: Pat
         except FileNotFoundError:
             raise ScheduleError(f"schedule file {path} does not exist") from None
         source = str(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ScheduleError(f"{source}: not valid TOML ({e})") from None
-    return schedule_from_dict(data, source, overrides)
+    return loads_schedule(text, source, overrides)
 
 
 def loads_schedule(text: str, source: str = "schedule", overrides: dict | None = None) -> Schedule:

@@ -46,9 +46,10 @@ mapping translates them), the unit's own names otherwise.
 """
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from orchestrator.tomlfile import read_toml
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 AGGREGATIONS = ("sample", "sum")
@@ -218,10 +219,5 @@ def load_system(path: str | Path) -> System:
         from orchestrator.ssp import load_ssp
 
         return load_ssp(p)
-    try:
-        data = tomllib.loads(p.read_text())
-    except FileNotFoundError:
-        raise SystemError_(f"system file {p} does not exist") from None
-    except tomllib.TOMLDecodeError as e:
-        raise SystemError_(f"{p}: not valid TOML ({e})") from None
+    data = read_toml(p, SystemError_, "system")
     return system_from_dict(data, source=str(p), base_dir=p.parent.resolve())

@@ -73,11 +73,12 @@ import copy
 import fnmatch
 import hashlib
 import itertools
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from orchestrator.tomlfile import read_toml
 
 METHODS = ("lsq", "cwccw", "tilt", "tilt_ignored")
 KINDS = ("estimate", "chi2", "crb", "diagnosis")
@@ -256,13 +257,7 @@ def resolve_imu(spec: str, base_dir: Path) -> Path:
 # ----------------------------------------------------------------------------- parsing
 def load_campaign(path: str | Path) -> Campaign:
     p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CampaignError(f"campaign file {p} does not exist") from None
-    except tomllib.TOMLDecodeError as e:
-        raise CampaignError(f"{p}: not valid TOML ({e})") from None
-    return campaign_from_dict(data, p)
+    return campaign_from_dict(read_toml(p, CampaignError, "campaign"), p)
 
 
 def campaign_from_dict(data: dict, source: Path) -> Campaign:
@@ -318,12 +313,7 @@ def _scenario(d: dict, src, base: Path):
         f = d["file"]
         _expect(isinstance(f, str), src, "[scenario] file", f, "a path")
         fp = Path(f) if Path(f).is_absolute() else base / f
-        try:
-            sc = tomllib.loads(fp.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise CampaignError(f"{src}: [scenario] file = {f!r}: file {fp} does not exist") from None
-        except tomllib.TOMLDecodeError as e:
-            raise CampaignError(f"{src}: [scenario] file = {f!r}: not valid TOML ({e})") from None
+        sc = read_toml(fp, CampaignError, context=f"{src}: [scenario] file = {f!r}")
         sc_base, sc_file = fp.resolve().parent, fp.resolve()
     else:
         sc = copy.deepcopy(d["inline"])
