@@ -270,11 +270,7 @@ class CalibrationController(Component):
                 self._phase = "approach"
                 return False
             if self._phase == "approach":
-                self._position(k)
-                self._phase = "stop"
-                self._phase_tick = tick
-                self._hold_since = None
-                return False
+                return self._hold(k, tick)
             return self._wait_settled(s, tick, t, self._phase_tick, st.index_timeout)
         # Rate
         if self._phase == "spin":
@@ -290,12 +286,16 @@ class CalibrationController(Component):
                     raise self._fault(s, t, f"the axis did not stop within {st.index_timeout:g} s")
                 return False
             self._set_cmd(k, angle=self[f"{a}.angle"])
-            self._position(k)
-            self._phase = "stop"
-            self._phase_tick = tick
-            self._hold_since = None
-            return False
+            return self._hold(k, tick)
         return self._wait_settled(s, tick, t, self._phase_tick, st.index_timeout)
+
+    def _hold(self, k: int, tick: int) -> bool:
+        """Position control on the target; the step then waits until the axis has settled."""
+        self._position(k)
+        self._phase = "stop"
+        self._phase_tick = tick
+        self._hold_since = None
+        return False
 
     # ----------------------------------------------------------------- life cycle
     def initialize(self, t0: float) -> None:
