@@ -55,15 +55,10 @@ TARGET = {"gyro.bias": 0.003 * DEG_H, "gyro.sf": 2e-6, "gyro.mis": 2 * ARCSEC,
           "acc.lever": 2e-3, "imu.time_offset": 1e-4}
 
 
-def _truth_and_target():
-    return TRUTH, TARGET
-
-
 def scenario(seed: int, overrides: dict, noise: bool = True):
     from components.scenario import scenario_from_dict
 
-    truth, _ = _truth_and_target()
-    imu = {"fmu": "builtin:imu", "effects": dict(truth)}
+    imu = {"fmu": "builtin:imu", "effects": dict(TRUTH)}
     if noise:
         imu["noise"] = {"gyro.noise.arw": "0.002 deg/sqrt(h)", "acc.noise.vrw": "10 ug/sqrt(Hz)"}
     return scenario_from_dict({
@@ -76,6 +71,15 @@ def scenario(seed: int, overrides: dict, noise: bool = True):
     }, source="kf_vs_lsq")
 
 
+def stage_nees(outs, truth: dict) -> list[tuple[float, int]]:
+    """(NEES, dof) per filter stage: its errors against the truth with its own covariance."""
+    nees = []
+    for so in outs:
+        e = np.array([so.totals[i] - truth.get(p, 0.0) for i, p in enumerate(so.parameters)])
+        nees.append((float(e @ np.linalg.solve(so.covariance, e)), len(e)))
+    return nees
+
+
 def one_run(args):
     from components.lsq import LogData, calibrate
     from components.scenario import run_scenario
@@ -86,10 +90,7 @@ def one_run(args):
     t = time.perf_counter()
     res, outs = calibrate_system(run.log, load_config("seed_003"))
     kf_wall = time.perf_counter() - t
-    nees = []
-    for so in outs:
-        e = np.array([so.totals[i] - truth.get(p, 0.0) for i, p in enumerate(so.parameters)])
-        nees.append((float(e @ np.linalg.solve(so.covariance, e)), len(e)))
+    nees = stage_nees(outs, truth)
     t = time.perf_counter()
     fit = calibrate(LogData.from_log(run.log), LS_EFFECTS)
     ls_wall = time.perf_counter() - t
@@ -128,7 +129,6 @@ def main() -> int:
     ap.add_argument("--dwell", type=float, default=60.0)
     ap.add_argument("--out", default=str(HERE / "kf_vs_lsq.json"))
     a = ap.parse_args()
-    _, target = _truth_and_target()
     ov = {"cycles": a.cycles, "bias_cycles": a.bias_cycles, "exc_dwell": a.exc_dwell, "dwell": a.dwell}
     seeds = [(300 + i, ov) for i in range(a.runs)]
     with mp.get_context("fork").Pool(a.workers) as pool:
@@ -154,7 +154,7 @@ def main() -> int:
         worst = max(worst, ratio)
         el = np.array([r["ls_err"].get(p, np.nan) for r in runs])
         rls = float(np.sqrt(np.mean(el ** 2)))
-        tgt = target.get(effect_of(p).name, np.nan)
+        tgt = TARGET.get(effect_of(p).name, np.nan)
         flag = "" if rms <= tgt else "  > target"
         print(f"{p:16s} {rms / k:9.4g} {crb_kf[p] / k:9.4g} {ratio:6.2f} {rls / k:9.4g} "
               f"{crb_ls.get(p, np.nan) / k:9.4g} {rls / crb_ls.get(p, np.nan):6.2f} {tgt / k:8.4g} {unit}{flag}")

@@ -25,7 +25,7 @@ from scipy.stats import chi2
 from components.navigation.kf import _schmidt_update
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from kf_vs_lsq import TRUTH  # noqa: E402  (the injected errors, one list for tests and benchmark)
+from kf_vs_lsq import scenario, stage_nees  # noqa: E402  (the benchmark's run, 12 min here)
 
 
 def test_schmidt_update_reports_the_variance_of_its_errors():
@@ -61,25 +61,11 @@ def test_schmidt_update_reports_the_variance_of_its_errors():
 def _one_run(seed: int):
     from components.navigation.configs import load_config
     from components.navigation.system import calibrate_system
-    from components.scenario import run_scenario, scenario_from_dict
+    from components.scenario import run_scenario
 
-    sc = scenario_from_dict({
-        "scenario": {"name": f"nees{seed}", "step": 0.005, "seed": seed},
-        "schedule": {"name": "seed_003"},
-        "site": {"latitude_deg": 39.9, "height_m": 50.0},
-        "turntable": {"fmu": "builtin:turntable",
-                      "parameters": {f"{a}.encoder.bits": 0 for a in ("outer", "middle", "inner")}},
-        "imu": {"fmu": "builtin:imu", "effects": dict(TRUTH),
-                "noise": {"gyro.noise.arw": "0.002 deg/sqrt(h)", "acc.noise.vrw": "10 ug/sqrt(Hz)"}},
-    }, source="test")
-    run = run_scenario(sc, progress=False)
-    truth = run.truth["effects"]
+    run = run_scenario(scenario(seed, {}), progress=False)  # the default 12-min seed_003
     _, outs = calibrate_system(run.log, load_config("seed_003"))
-    nees = []
-    for so in outs:
-        e = np.array([so.totals[i] - truth.get(p, 0.0) for i, p in enumerate(so.parameters)])
-        nees.append((float(e @ np.linalg.solve(so.covariance, e)), len(e)))
-    return nees
+    return stage_nees(outs, run.truth["effects"])
 
 
 def test_seed003_nees_within_its_band_over_monte_carlo_runs():
