@@ -55,6 +55,13 @@ class LogData:
         return motion_from_profile(self.angle_profile(quadrature), geometry, self.temperature,
                                    t0_temperature)
 
+    def window(self, a: int, b: int) -> "LogData":
+        """Samples a..b-1 (a stage of a schedule), the same site, table and sample interval."""
+        cut = lambda x: None if x is None else x[a:b]  # noqa: E731
+        return replace(self, time=self.time[a:b], angles=self.angles[a:b], gyro=self.gyro[a:b],
+                       acc=self.acc[a:b], temperature=cut(self.temperature),
+                       segment=cut(self.segment), _profiles={})
+
     @classmethod
     def from_log(cls, log) -> "LogData":
         """From a components.logfile.MeasurementLog."""
@@ -338,4 +345,10 @@ def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tab
             "stop": np.concatenate([np.repeat(gb.stop, 3), np.repeat(ab.stop, 3)]),
             "moving": np.concatenate([np.repeat(gb.moving, 3), np.repeat(ab.moving, 3)]),
             "y": y, "H": H, "weight": w}
+    if len(data.angles) > 1 and np.any(data.angles[1] != data.angles[0]):
+        # the table moves at the first sample: the angle at the start of its interval is not in
+        # the log (interpolate_angles would take it at rest), so its blocks are left out
+        keep = rows["start"] > 0
+        rows = {k: v[keep] for k, v in rows.items()}
+        y, H, w = rows["y"], rows["H"], rows["weight"]
     return y, H, w, rows

@@ -40,10 +40,21 @@ ACC_LEVER6 = ["acc.lever.x.y", "acc.lever.x.z", "acc.lever.y.x", "acc.lever.y.z"
               "acc.lever.z.x", "acc.lever.z.y"]
 
 
+# the least-squares model of a table stage: what the IMU is calibrated for, with the table angles
+TABLE_MODEL = ["gyro.bias", "acc.bias", "gyro.sf", "gyro.mis", "acc.sf", "acc.mis", "acc.lever",
+               "acc.k2", "imu.time_offset"]
+
+
+def _time_offset_stage(name: str, window: str | None) -> Stage:
+    return Stage("table", name, effects=TABLE_MODEL, parameters=["imu.time_offset"], window=window)
+
+
 def _seed003() -> Config:
     p39 = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"])
            + ACC_MIS3 + ACC_LEVER6 + parameters_of(["acc.k2"]))
-    return Config("seed_003", "seed 003 S203 39-state filter, then the S204 12-state bias filter", [
+    return Config("seed_003", "seed 003: S201/S202 against the table (time offset), the S203 "
+                  "39-state filter, then the S204 12-state bias filter", [
+        _time_offset_stage("S201+S202 table-referenced", r"^(move-)?S20[12]"),
         Stage("kf", "S202+S203 39-state", parameters=p39, window=r"^(move-)?S20[23]",
               settings={"passes": 3}),
         Stage("kf", "S204 12-state bias", parameters=parameters_of(["gyro.bias"]),
@@ -70,8 +81,10 @@ def _seed001_single() -> Config:
 
 def _psins19() -> Config:
     p = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"]) + ACC_MIS3
-         + ACC_LEVER6 + parameters_of(["acc.k2"]) + ["imu.time_offset"])
-    return Config("psins19", "19-position PSINS-style sequence, time offset as a state", [
+         + ACC_LEVER6 + parameters_of(["acc.k2"]))
+    return Config("psins19", "19-position PSINS-style sequence: time offset against the table, "
+                  "then the 38-state filter", [
+        _time_offset_stage("19-position table-referenced", None),
         Stage("kf", "19-position", parameters=p, window=None, settings={"passes": 3}),
     ], schedule="psins19")
 

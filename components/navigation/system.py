@@ -11,6 +11,12 @@ The alignment run is the window's first rest of at least ``align_min_s`` (a tabl
 an index creeps; data before that rest are not used).
 A ``cwccw`` stage: the CW/CCW closed forms (components.procedures.cwccw) for the listed
 parameters (seed 001's gyro stage).
+A ``table`` stage: the least squares (components.lsq) with the table angles on a window, the
+model's ``effects`` fitted jointly and only ``parameters`` kept (seed 003's table-referenced
+steps S201/S202). It is where the IMU/table time offset comes from: the navigation velocity on
+a stationary base cannot see it (a delayed IMU record is an equally valid trajectory), the
+table angles can (the accelerometers lead or lag the gravity turning through them at each
+index by ``time_offset · df/dt``).
 
 Deterministic: no random numbers, a fixed order of operations, so a raw log re-solved later
 gives bit-identical values (seed 003's offline re-solve).
@@ -27,7 +33,8 @@ from components.effects import effect_of, parameters_of
 from components.lsq import LogData
 from components.navigation.alignment import alignment_run, coarse_align, fine_align
 from components.navigation.earth import Site
-from components.navigation.kf import FilterOutput, FilterSettings, run_filter
+from components.navigation.kf import (SIGMA_ACC_FLOOR, SIGMA_GYRO_FLOOR, FilterOutput,
+                                      FilterSettings, run_filter)
 from components.navigation.sensor import Regressors
 from components.result import CalibrationResult, schedule_of
 
@@ -37,7 +44,7 @@ STATIC_TOL = 1e-9  # rad: an angle change per sample below this is "at rest"
 
 @dataclass
 class Stage:
-    kind: str = "kf"                      # "kf" or "cwccw"
+    kind: str = "kf"                      # "kf", "table" or "cwccw"
     name: str = ""
     effects: list = field(default_factory=list)
     parameters: list | None = None        # explicit parameter list (default: all of effects)
@@ -109,7 +116,10 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     params = stage.parameters or parameters_of(stage.effects)
     consider = []
     if stage.consider_earlier and earlier:
-        consider = [q for so in earlier for q in so.parameters if q not in params]
+        # the earlier filters' states; a table stage's parameters (the time offset) do not enter
+        # the navigation velocity, so they are not states of a filter
+        consider = [q for so in earlier if so.stage.kind == "kf"
+                    for q in so.parameters if q not in params]
         consider = list(dict.fromkeys(consider))
     a, b = window_of(data.segment, stage.window, len(data.time))
     site = Site.of_geometry(data.geometry)
@@ -173,6 +183,34 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
                        params + consider, out.P[9:, 9:].copy())
 
 
+def run_table_stage(data: LogData, stage: Stage, fixed: dict, dt: float) -> StageOutput:
+    from components.lsq import calibrate
+
+    a, b = window_of(data.segment, stage.window, len(data.time))
+    # from the sample before the first match: a window's first match is often the start of a
+    # move, whose first interval needs the rest angle before it
+    a = max(a - 1, 0)
+    window = data.window(a, b)
+    fixed_p = [p for p, v in fixed.items() if v != 0.0 and effect_of(p).target != "table"]
+    if fixed_p:
+        g, ac = Regressors(fixed_p, window.gyro, window.acc, dt, window.temperature).correct(
+            np.array([fixed[p] for p in fixed_p]))
+        window = replace(window, gyro=g, acc=ac)
+    # per-sample σ from the rests, with the filter's floors: a noise-free log (a check of the
+    # model) would otherwise weigh its rows by 1e-13 of a sample and let model error decide
+    sg = np.fmax(np.nan_to_num(white_noise_sigma(window.gyro, static_mask(window.angles))), SIGMA_GYRO_FLOOR)
+    sa = np.fmax(np.nan_to_num(white_noise_sigma(window.acc, static_mask(window.angles))), SIGMA_ACC_FLOOR)
+    fit = calibrate(window, stage.effects, sigma_gyro=sg, sigma_acc=sa)
+    params = stage.parameters or fit.parameters
+    missing = [p for p in params if p not in fit.parameters]
+    if missing:
+        raise ValueError(f"table stage {stage.name!r}: {', '.join(missing)} not among the "
+                         f"parameters of its effects ({', '.join(stage.effects)})")
+    idx = [fit.parameters.index(p) for p in params]
+    return StageOutput(stage, params, fit.value[idx].copy(), fit.covariance[np.ix_(idx, idx)].copy(),
+                       window=(a, b))
+
+
 def run_cwccw_stage(log, stage: Stage) -> StageOutput:
     from components.procedures import cwccw
 
@@ -194,6 +232,10 @@ def calibrate_system(log, config: Config) -> tuple[CalibrationResult, list[Stage
     for stage in config.stages:
         if stage.kind == "cwccw":
             so = run_cwccw_stage(log, stage)
+        elif stage.kind == "table":
+            so = run_table_stage(data, stage, fixed, dt)
+        elif stage.kind != "kf":
+            raise ValueError(f"stage {stage.name!r}: kind {stage.kind!r}, expected kf, table or cwccw")
         else:
             so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas), outputs)
         for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
@@ -221,6 +263,9 @@ def _result(log, data, config, values, sigmas, outputs) -> CalibrationResult:
     stages = []
     for so in outputs:
         d = {"name": so.stage.name, "kind": so.stage.kind, "parameters": so.parameters}
+        if so.stage.kind == "table":
+            d.update({"window_samples": [int(so.window[0]), int(so.window[1])],
+                      "effects_fitted": list(so.stage.effects), "observations": "table angles"})
         if so.filter is not None:
             f = so.filter
             nu = f.innovations / np.sqrt(np.maximum(f.innovation_var, 1e-300))
