@@ -163,7 +163,7 @@ def total_observability(data: LogData, parameters: list[str], settings: FilterSe
     w = site.w_ie
     C_all = data.geometry.kinematics(angles)[0]
     temp = None if data.temperature is None else data.temperature[a0:b0]
-    regs = Regressors(params, gyro, acc, dt, temp) if m else None
+    regs = Regressors(params, gyro, acc, dt, temp, static=static) if m else None
     Wx = -skew(w)
     rows = []
     Psi = np.eye(n)
@@ -256,7 +256,7 @@ def filter_covariance(data: LogData, parameters: list[str], sigma_gyro: float, s
     C0 = data.geometry.kinematics(angles[:1])[0][0]
     st = FilterSettings(parameters=params, passes=1, sigma_gyro=sigma_gyro, sigma_acc=sigma_acc,
                         **(settings or {}))
-    regs = Regressors(params, gyro, acc, dt) if params else None
+    regs = Regressors(params, gyro, acc, dt, static=static) if params else None
     out = run_filter(gyro, acc, dt, site, C0, static, st, regs)
     return out, _ref_sigma(params, st)
 

@@ -3,10 +3,17 @@
 The system-level filter has no table angles: the contribution of one unit of each effect
 parameter to each sample's increment (components.effects, the same regressors the least-squares
 engine uses) is evaluated on a :class:`components.motion.Motion` built from the IMU data:
-rate and specific force at the sample midpoints from the increments, angular acceleration and
-the interval-end values from neighbouring samples (central differences). Errors of this
-evaluation are products of two small quantities (the parameter residual times the sensor error
-or noise), below the filter's resolution.
+rate and specific force at the sample midpoints from the increments, the interval-end values
+from neighbouring samples (their mean), angular acceleration from the interval-end rates (central
+differences). Errors of this evaluation are products of two small quantities (the parameter
+residual times the sensor error or noise), below the filter's resolution.
+
+Where the table starts or stops (``static``: the samples the table rests through, from its
+angles), the mean of the two neighbours would put half of the first moving sample's rate at the
+end of the last resting one: its tangential lever-arm and time-offset terms would then act in a
+sample where the table does not move, and a correction by them would put a velocity into a rest
+(on the 19-position sequence's fast three-gimbal moves, exactly what made the filter attribute
+it to lever arms and diverge). There the interval-end value is the resting sample's own.
 """
 from __future__ import annotations
 
@@ -18,17 +25,29 @@ from components.effects import regressor_of
 from components.motion import Motion
 
 
+def _interval_ends(x: np.ndarray, static: np.ndarray | None) -> np.ndarray:
+    """(N+1, 3) values at the interval boundaries: the neighbours' mean, or a resting sample's
+    own value where the table rests on one side."""
+    xp = np.concatenate([x[:1], x, x[-1:]])
+    ends = 0.5 * (xp[1:] + xp[:-1])
+    if static is not None:
+        sp = np.concatenate([[False], np.asarray(static, bool), [False]])
+        before, after = sp[:-1], sp[1:]       # the sample ending / starting at each boundary
+        ends = np.where(before[:, None], xp[:-1], np.where(after[:, None], xp[1:], ends))
+    return ends
+
+
 def measured_motion(gyro: np.ndarray, acc: np.ndarray, dt: float, t0: float = 0.0,
-                    temperature: np.ndarray | None = None, t_ref: float | None = None) -> Motion:
-    """Motion (one node per interval, at its midpoint) from increments (N, 3)."""
+                    temperature: np.ndarray | None = None, t_ref: float | None = None,
+                    static: np.ndarray | None = None) -> Motion:
+    """Motion (one node per interval, at its midpoint) from increments (N, 3); ``static`` (N,):
+    the samples the table rests through (None: not known)."""
     n = len(gyro)
     w = gyro / dt
     f = acc / dt
-    pad = lambda x: np.concatenate([x[:1], x, x[-1:]])  # noqa: E731
-    wp, fp = pad(w), pad(f)
-    w_b = 0.5 * (wp[1:] + wp[:-1])  # (N+1,) boundaries
-    f_b = 0.5 * (fp[1:] + fp[:-1])
-    alpha = (wp[2:] - wp[:-2]) / (2 * dt)
+    w_b = _interval_ends(w, static)  # (N+1,) boundaries
+    f_b = _interval_ends(f, static)
+    alpha = (w_b[1:] - w_b[:-1]) / dt
     if temperature is not None:
         T0 = float(temperature[0]) if t_ref is None else t_ref
         dtemp = (np.asarray(temperature, float) - T0)[:, None]
@@ -53,10 +72,12 @@ class Regressors:
     (b - a, 3, m): gyro and accelerometer increments per unit parameter."""
 
     def __init__(self, parameters: list[str], gyro: np.ndarray, acc: np.ndarray, dt: float,
-                 temperature: np.ndarray | None = None, chunk: int = 8000):
+                 temperature: np.ndarray | None = None, chunk: int = 8000,
+                 static: np.ndarray | None = None):
         self.parameters = list(parameters)
         self.gyro, self.acc, self.dt = gyro, acc, dt
         self.temperature = temperature
+        self.static = None if static is None else np.asarray(static, bool)
         self.chunk = chunk
         self._cache: tuple[int, int, np.ndarray, np.ndarray] | None = None
 
@@ -65,7 +86,8 @@ class Regressors:
         lo, hi = max(a - 1, 0), min(b + 1, n)
         temp = None if self.temperature is None else self.temperature[lo:hi]
         t_ref = None if self.temperature is None else float(self.temperature[0])
-        m = measured_motion(self.gyro[lo:hi], self.acc[lo:hi], self.dt, lo * self.dt, temp, t_ref)
+        st = None if self.static is None else self.static[lo:hi]
+        m = measured_motion(self.gyro[lo:hi], self.acc[lo:hi], self.dt, lo * self.dt, temp, t_ref, st)
         k = len(self.parameters)
         G = np.zeros((hi - lo, 3, k))
         A = np.zeros((hi - lo, 3, k))

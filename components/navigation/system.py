@@ -131,9 +131,10 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     fixed_p = [p for p, v in fixed.items() if v != 0.0 and p != "imu.time_offset"]
     g, ac = data.gyro[a:b], data.acc[a:b]
     temp = None if data.temperature is None else data.temperature[a:b]
-    if fixed_p:
-        g, ac = Regressors(fixed_p, g, ac, dt, temp).correct(np.array([fixed[p] for p in fixed_p]))
     st = static[a:b]
+    if fixed_p:
+        g, ac = Regressors(fixed_p, g, ac, dt, temp, static=st).correct(
+            np.array([fixed[p] for p in fixed_p]))
     s0, s1 = alignment_run(st, max(2, int(round(stage.align_min_s / dt))))
     s1 = min(s1, s0 + max(2, int(round(stage.align_max_s / dt))))
     settings = FilterSettings(parameters=params, **stage.settings)
@@ -157,7 +158,7 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
         setattr(settings, key, np.where(np.isfinite(v), v, 0.0))
     g, ac, st = g[s0:], ac[s0:], st[s0:]
     temp = None if temp is None else temp[s0:]
-    regs = Regressors(params + consider, g, ac, dt, temp)
+    regs = Regressors(params + consider, g, ac, dt, temp, static=st)
     theta = np.array([settings.initial.get(p, 0.0) for p in params], float)
     # every pass keeps the prior where it was (a Gauss–Newton iteration, components.navigation.kf);
     # only the closed-loop mode (effect_feedback, the smoother) re-centres a vague prior
@@ -197,7 +198,8 @@ def run_table_stage(data: LogData, stage: Stage, fixed: dict, dt: float) -> Stag
     window = data.window(a, b)
     fixed_p = [p for p, v in fixed.items() if v != 0.0 and effect_of(p).target != "table"]
     if fixed_p:
-        g, ac = Regressors(fixed_p, window.gyro, window.acc, dt, window.temperature).correct(
+        g, ac = Regressors(fixed_p, window.gyro, window.acc, dt, window.temperature,
+                           static=static_mask(window.angles)).correct(
             np.array([fixed[p] for p in fixed_p]))
         window = replace(window, gyro=g, acc=ac)
     # per-sample σ from the rests, with the filter's floors: a noise-free log (a check of the
