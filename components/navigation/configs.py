@@ -8,19 +8,18 @@
 - ``seed_001_single``: the single system-level filter on the same 18 positions, all gyro and
   accelerometer bias / scale factor / misalignment states at once (the comparison of the
   seed's claim).
-- ``seed_003``: S203 39-state filter (9 nav + gyro bias 3 + acc bias 3 + gyro sf/mis 9 +
-  acc sf/mis 6 + inner lever arms 6 + K2 3) on the y-x-z / z-x-y excitation, then the 12-state
-  bias filter (9 nav + 3 gyro biases) on the S204 azimuth back-and-forth: its prior is the
-  39-state result (with correlations), the other 27 parameters are consider states (kept, their
-  uncertainty accounted for), so its gyro biases refine those of S203 consistently.
-- ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml), the
-  39 states of seed 003 plus the IMU/table time offset. From velocity alone that offset is not
-  observable (a shifted IMU record on a stationary base is an equally valid trajectory: see
-  components.navigation.observability); the filter keeps its prior for it, as it should, and
-  the least-squares procedures (which see the table angles) estimate it. Not yet reliable: on
-  this 8-minute sequence, noise-free, accelerometer bias and K2 end 4.5 µg (µg/g²) apart in
-  opposite signs and the gyro scale factors 3 ppm off (75 µg without the time-offset state): a
-  mismatch particular to this sequence, not found yet; open in issue 6.
+- ``seed_003``: a table stage on S201+S202 (the seed's table-referenced steps: least squares
+  with the table angles) for the IMU/table time offset, which the navigation velocity cannot see
+  (a shifted IMU record on a stationary base is an equally valid trajectory:
+  components.navigation.observability); then the S203 39-state filter (9 nav + gyro bias 3 +
+  acc bias 3 + gyro sf/mis 9 + acc sf/mis 6 + inner lever arms 6 + K2 3) on the y-x-z / z-x-y
+  excitation (with S202 in front), then the 12-state bias filter (9 nav + 3 gyro biases) on the
+  S204 azimuth back-and-forth: its prior is the 39-state result (with correlations), the other
+  27 parameters are consider states (kept, their uncertainty accounted for), so its gyro
+  biases refine those of S203 consistently.
+- ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml): the
+  time offset from the table angles over the whole sequence, then the 39-state filter of seed
+  003 on it.
 
 Accelerometer misalignment: without table angles the body frame is defined by the
 accelerometers' triad, so only 3 of the 6 off-diagonal terms are observable (domain.md §4);
@@ -83,7 +82,7 @@ def _psins19() -> Config:
     p = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"]) + ACC_MIS3
          + ACC_LEVER6 + parameters_of(["acc.k2"]))
     return Config("psins19", "19-position PSINS-style sequence: time offset against the table, "
-                  "then the 38-state filter", [
+                  "then the 39-state filter", [
         _time_offset_stage("19-position table-referenced", None),
         Stage("kf", "19-position", parameters=p, window=None, settings={"passes": 3}),
     ], schedule="psins19")
