@@ -11,7 +11,9 @@
   states) and the S204 consider-state bias stage (3). (Found by this test: passes that
   re-centred the prior walked along weakly observable directions, NEES 59 mean, 132 at worst.)
 
-The accuracy targets of a one-hour run are in benchmarks/kf_vs_lsq.py (a run takes minutes)."""
+- The issue's accuracy targets on one run of the one-hour seed_003 preset (the benchmark's
+  first seed; ~3 min): every error within its target, every reported σ too. The Monte-Carlo
+  RMS per state against its bound is benchmarks/kf_vs_lsq.py."""
 from __future__ import annotations
 
 import multiprocessing as mp
@@ -26,7 +28,10 @@ from scipy.stats import chi2
 from components.navigation.kf import _schmidt_update
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from kf_vs_lsq import TARGET, scenario, stage_nees  # noqa: E402  (the benchmark's run, 12 min here)
+from kf_vs_lsq import TARGET, scenario, stage_nees  # noqa: E402
+from components.effects import effect_of  # noqa: E402
+
+ONE_HOUR = {"cycles": 1, "bias_cycles": 6, "exc_dwell": 150.0, "dwell": 60.0}  # seed_003.toml  (the benchmark's run, 12 min here)
 
 
 def test_schmidt_update_reports_the_variance_of_its_errors():
@@ -81,3 +86,18 @@ def test_seed003_nees_within_its_band_over_monte_carlo_runs():
     # the issue's target for the IMU/table time offset (0.2 ms injected): 0.1 ms
     tau_err = [r[1] for r in res]
     assert max(map(abs, tau_err)) <= TARGET["imu.time_offset"], tau_err
+
+
+def test_one_hour_seed003_meets_the_accuracy_targets():
+    from components.navigation.configs import load_config
+    from components.navigation.system import calibrate_system
+    from components.scenario import run_scenario
+
+    run = run_scenario(scenario(300, ONE_HOUR), progress=False)
+    assert run.log.time[-1] > 3600.0
+    res, _ = calibrate_system(run.log, load_config("seed_003"))
+    truth = run.truth["effects"]
+    assert set(TARGET) == {effect_of(p).name for p in res.values}
+    over = [(p, v - truth[p], res.sigmas[p]) for p, v in res.values.items()
+            if max(abs(v - truth[p]), res.sigmas[p]) > TARGET[effect_of(p).name]]
+    assert not over, over
