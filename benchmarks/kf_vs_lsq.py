@@ -94,11 +94,11 @@ def one_run(args):
     from components.lsq import LogData, calibrate
     from components.scenario import run_scenario
 
-    seed, overrides, noise = args
+    seed, overrides, noise, config = args
     run = run_scenario(scenario(seed, overrides, noise), progress=False)
     truth = run.truth["effects"]
     t = time.perf_counter()
-    res, outs = calibrate_system(run.log, load_config("seed_003"))
+    res, outs = calibrate_system(run.log, load_config(config))
     kf_wall = time.perf_counter() - t
     nees = stage_nees(outs, truth)
     t = time.perf_counter()
@@ -147,10 +147,12 @@ def main() -> int:
     ap.add_argument("--dwell", type=float, default=60.0)
     ap.add_argument("--noise-scale", type=float, default=1.0,
                     help="multiple of the navigation-grade ARW and VRW")
+    ap.add_argument("--config", default="seed_003", help="system-level configuration (the bounds "
+                    "are for one filter over S202-S204 whatever it is)")
     ap.add_argument("--out", default=str(HERE / "kf_vs_lsq.json"))
     a = ap.parse_args()
     ov = {"cycles": a.cycles, "bias_cycles": a.bias_cycles, "exc_dwell": a.exc_dwell, "dwell": a.dwell}
-    seeds = [(300 + i, ov, a.noise_scale) for i in range(a.runs)]
+    seeds = [(300 + i, ov, a.noise_scale, a.config) for i in range(a.runs)]
     arw, vrw = noise_density(a.noise_scale)
     print(f"white noise ARW {arw * 60 / DEG:.4g} deg/sqrt(h), VRW {vrw / UG:.4g} ug/sqrt(Hz)", flush=True)
     with mp.get_context("fork").Pool(a.workers) as pool:

@@ -17,6 +17,9 @@
   S204 azimuth back-and-forth: its prior is the 39-state result (with correlations), the other
   27 parameters are consider states (kept, their uncertainty accounted for), so its gyro
   biases refine those of S203 consistently.
+- ``seed_003_joint``: the same table stage, then one 39-state filter over S202-S204: what the
+  seed's split into a 39-state and a 12-state filter gives away (S204's rests and azimuth turns
+  also inform the misalignments and lever arms, which the 12-state stage only considers).
 - ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml): the
   time offset from the table angles over the whole sequence, then the 39-state filter of seed
   003 on it.
@@ -61,6 +64,16 @@ def _seed003() -> Config:
     ], schedule="seed_003")
 
 
+def _seed003_joint() -> Config:
+    s39 = _seed003().stages[1]
+    return Config("seed_003_joint", "seed 003 schedule: time offset against the table, then one "
+                  "39-state filter over S202-S204", [
+        _time_offset_stage("S201+S202 table-referenced", r"^(move-)?S20[12]"),
+        Stage("kf", "S202-S204 39-state", parameters=s39.parameters, window=r"^(move-)?S20[234]",
+              settings={"passes": 3}),
+    ], schedule="seed_003")
+
+
 def _seed001() -> Config:
     p = parameters_of(["gyro.bias", "acc.sf"]) + ACC_MIS3 + parameters_of(["acc.bias"])
     return Config("seed_001", "seed 001: CW/CCW gyro stage, then the 18-position filter", [
@@ -88,8 +101,8 @@ def _psins19() -> Config:
     ], schedule="psins19")
 
 
-READY = {"seed_003": _seed003, "seed_001": _seed001, "seed_001_single": _seed001_single,
-         "psins19": _psins19}
+READY = {"seed_003": _seed003, "seed_003_joint": _seed003_joint, "seed_001": _seed001,
+         "seed_001_single": _seed001_single, "psins19": _psins19}
 
 
 def load_config(spec: str) -> Config:
