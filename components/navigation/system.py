@@ -196,16 +196,16 @@ def run_table_stage(data: LogData, stage: Stage, fixed: dict, dt: float) -> Stag
     # move, whose first interval needs the rest angle before it
     a = max(a - 1, 0)
     window = data.window(a, b)
+    rests = static_mask(window.angles)
     fixed_p = [p for p, v in fixed.items() if v != 0.0 and effect_of(p).target != "table"]
     if fixed_p:
         g, ac = Regressors(fixed_p, window.gyro, window.acc, dt, window.temperature,
-                           static=static_mask(window.angles)).correct(
-            np.array([fixed[p] for p in fixed_p]))
+                           static=rests).correct(np.array([fixed[p] for p in fixed_p]))
         window = replace(window, gyro=g, acc=ac)
     # per-sample σ from the rests, with the filter's floors: a noise-free log (a check of the
     # model) would otherwise weigh its rows by 1e-13 of a sample and let model error decide
-    sg = np.fmax(np.nan_to_num(white_noise_sigma(window.gyro, static_mask(window.angles))), SIGMA_GYRO_FLOOR)
-    sa = np.fmax(np.nan_to_num(white_noise_sigma(window.acc, static_mask(window.angles))), SIGMA_ACC_FLOOR)
+    sg = np.fmax(np.nan_to_num(white_noise_sigma(window.gyro, rests)), SIGMA_GYRO_FLOOR)
+    sa = np.fmax(np.nan_to_num(white_noise_sigma(window.acc, rests)), SIGMA_ACC_FLOOR)
     fit = calibrate(window, stage.effects, sigma_gyro=sg, sigma_acc=sa)
     params = stage.parameters or fit.parameters
     missing = [p for p in params if p not in fit.parameters]
