@@ -43,7 +43,8 @@ def _cmd_kf(args: argparse.Namespace) -> int:
 def add_kf_commands(sub) -> None:
     k = sub.add_parser("kf", help="system-level Kalman-filter calibration (navigation velocity "
                                   "error on a stationary base): seed_001, seed_001_single, "
-                                  "seed_003, seed_003_joint, psins19 or a configuration TOML")
+                                  "seed_003, seed_003_joint, seed_003_external, psins19 or a "
+                                  "configuration TOML")
     k.add_argument("config", help="ready-made configuration name or .toml")
     k.add_argument("log", nargs="?", help="the log (either file of the pair, or the stem)")
     k.add_argument("--simulate", help="simulate this scenario file instead of reading a log")

@@ -20,6 +20,11 @@
 - ``seed_003_joint``: the same table stage, then one 39-state filter over S202-S204: what the
   seed's split into a 39-state and a 12-state filter gives away (S204's rests and azimuth turns
   also inform the misalignments and lever arms, which the 12-state stage only considers).
+- ``seed_003_external``: seed 003's external-table mode: the IMU off the rotation centre adds the
+  outer lever arm. The lever model becomes all 9 ``acc.lever.i.k`` (the outer arm r is the
+  diagonal ``acc.lever.i.i``; ``acc.lever.i.k`` = r_k + the inner arm of axis i), 9 nav + 33 = 42
+  states; what rests is the centre, not the IMU, so the filters observe the position too (its
+  displacement (C_b^n − C_b^n(0)) r is what shows r).
 - ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml): the
   time offset from the table angles over the whole sequence, then the 39-state filter of seed
   003 on it.
@@ -31,6 +36,7 @@ the configurations keep ``acc.mis.yx, zx, zy`` (the lower triangle) and 9 gyro s
 from __future__ import annotations
 
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 from components.effects import parameters_of
@@ -74,6 +80,19 @@ def _seed003_joint() -> Config:
     ], schedule="seed_003")
 
 
+def _seed003_external() -> Config:
+    s39, s12 = _seed003().stages[1:]
+    p42 = [p for p in s39.parameters if not p.startswith("acc.lever")] + parameters_of(["acc.lever"])
+    position = {"observe_position": True}
+    return Config("seed_003_external", "seed 003 on an external table: time offset against the "
+                  "table, the 42-state filter (outer lever arm), the S204 bias filter; position "
+                  "observed", [
+        _time_offset_stage("S201+S202 table-referenced", r"^(move-)?S20[12]"),
+        replace(s39, name="S202+S203 42-state", parameters=p42, settings={**s39.settings, **position}),
+        replace(s12, settings={**s12.settings, **position}),
+    ], schedule="seed_003")
+
+
 def _seed001() -> Config:
     p = parameters_of(["gyro.bias", "acc.sf"]) + ACC_MIS3 + parameters_of(["acc.bias"])
     return Config("seed_001", "seed 001: CW/CCW gyro stage, then the 18-position filter", [
@@ -101,7 +120,8 @@ def _psins19() -> Config:
     ], schedule="psins19")
 
 
-READY = {"seed_003": _seed003, "seed_003_joint": _seed003_joint, "seed_001": _seed001,
+READY = {"seed_003": _seed003, "seed_003_joint": _seed003_joint,
+         "seed_003_external": _seed003_external, "seed_001": _seed001,
          "seed_001_single": _seed001_single, "psins19": _psins19}
 
 

@@ -82,6 +82,11 @@ class FilterSettings:
     sigma_acc: object = None          # [m/s]
     r_vel: float | None = None        # observation σ [m/s]; default: from the noise
     observe: str = "static"           # "static" or "always"
+    # external table: the IMU sits off the rotation centre, which is what rests, so the position
+    # (truth: the start) is observed too and the outer lever arm (the diagonal acc.lever.i.i of
+    # a full 9-term lever model) becomes observable from the displacement (R − I) r
+    observe_position: bool = False
+    r_pos: float = 1e-4               # position observation σ [m]
     smoother: bool = False
     history_every: int = 1            # record θ̂ and σ every n updates
     consider: list = field(default_factory=list)   # kept, not updated (Schmidt–Kalman)
@@ -154,7 +159,7 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     sg = np.maximum(sg, SIGMA_GYRO_FLOOR)
     sa = np.maximum(sa, SIGMA_ACC_FLOOR)
     r = settings.r_vel if settings.r_vel is not None else max(3.0 * float(np.max(sa)), 1e-6)
-    kf = KalmanFilter(dim_x=n, dim_z=3)
+    kf = KalmanFilter(dim_x=n, dim_z=6 if settings.observe_position else 3)
     kf.x = np.zeros((n, 1))
     if prior_mean is not None and m_est:
         kf.x[e, 0] = np.asarray(prior_mean, float) - theta[:m_est]
@@ -172,9 +177,16 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     keep = np.ones((n, 1))
     keep[9 + m_est:] = 0.0  # Schmidt: no gain for the consider states
     schmidt = m > m_est
-    H = np.zeros((3, n))
-    H[:, 3:6] = np.eye(3)
-    R = np.eye(3) * r * r
+    nz = 6 if settings.observe_position else 3
+    H = np.zeros((nz, n))
+    H[0:3, 3:6] = np.eye(3)
+    R = np.eye(nz) * r * r
+    pos0 = np.array([site.latitude, 0.0, site.height])
+    if settings.observe_position:
+        H[3:6, 6:9] = np.eye(3)
+        R[3:6, 3:6] = np.diag([(settings.r_pos / site.rm) ** 2,
+                               (settings.r_pos / (site.rn * math.cos(site.latitude))) ** 2,
+                               settings.r_pos ** 2])
     nav = Strapdown(site, C0, dt)
     Fn = _nav_F(site)
     steps = max(1, int(round(settings.kf_interval / (2 * dt))))
@@ -230,14 +242,15 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
         P_prior = kf.P.copy() if store is not None else None
         observed = settings.observe == "always" or all_static
         if observed:
-            z = nav.v.reshape(3, 1)
+            z = nav.v if nz == 3 else np.concatenate([nav.v, nav.pos - pos0])
+            z = z.reshape(nz, 1)
             if schmidt:
                 _schmidt_update(kf, z, R, H, keep)
             else:
                 kf.update(z, R=R, H=H)
             updates += 1
-            innov.append(kf.y.ravel().copy())
-            innov_var.append(np.diag(kf.S).copy())
+            innov.append(kf.y.ravel()[:3].copy())   # the velocity's
+            innov_var.append(np.diag(kf.S)[:3].copy())
         x = kf.x.ravel().copy()
         if store is not None:
             store.append((Phi, P_prior, kf.P.copy(), x))
