@@ -44,13 +44,24 @@ def _chunks(a: int, b: int, n: int) -> list[tuple[int, int]]:
     return list(zip(edges[:-1], edges[1:]))
 
 
-def make_blocks(static: np.ndarray, samples_per_chunk: int, whole_moves: bool) -> Blocks:
+def observation_blocks(static: np.ndarray, angles: np.ndarray,
+                       samples_per_chunk: int) -> tuple[Blocks, Blocks]:
+    """(gyro blocks, accelerometer blocks) of a log. A log whose table already moves at its first
+    sample has no angle for the start of that sample's interval (the interpolation would take it
+    at rest): that sample is left out."""
+    first = 1 if len(angles) > 1 and np.any(angles[1] != angles[0]) else 0
+    return (make_blocks(static, samples_per_chunk, whole_moves=True, start=first),
+            make_blocks(static, samples_per_chunk, whole_moves=False, start=first))
+
+
+def make_blocks(static: np.ndarray, samples_per_chunk: int, whole_moves: bool,
+                start: int = 0) -> Blocks:
     """Static runs in chunks of at most *samples_per_chunk*; moving runs whole (gyro) or in
-    chunks too (accelerometers)."""
+    chunks too (accelerometers); samples before *start* left out."""
     n = len(static)
-    runs = moving_runs(static)
+    runs = [(max(a, start), b) for a, b in moving_runs(static) if b > start]
     spans: list[tuple[int, int, bool]] = []
-    pos = 0
+    pos = start
     for a, b in runs:
         spans += [(s, e, False) for s, e in _chunks(pos, a, samples_per_chunk)] if a > pos else []
         spans += [(a, b, True)] if whole_moves else [(s, e, True) for s, e in _chunks(a, b, samples_per_chunk)]

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from components.blocks import make_blocks, white_noise_sigma
+from components.blocks import observation_blocks, white_noise_sigma
 from components.effects import effect_of
 from components.lsq import LogData, apply_table_parameter, rest_sigma, rest_variance, sensor_columns
 from components.result import CalibrationResult
@@ -89,8 +89,7 @@ class Comparison:
 def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s):
     dt = float(np.median(np.diff(data.time)))
     n_chunk = max(1, int(round(chunk_s / dt)))
-    gb = make_blocks(motion.static, n_chunk, whole_moves=True)
-    ab = make_blocks(motion.static, n_chunk, whole_moves=False)
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
     zs, sens, axis, start, stop, moving = [], [], [], [], [], []
     for blocks, sl, name in ((gb, slice(0, 3), "gyro"), (ab, slice(3, 6), "acc")):
         s = blocks.sum(residual[:, sl])

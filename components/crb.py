@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.effects import effect_of, parameters_of
-from components.blocks import make_blocks
+from components.blocks import observation_blocks
 from components.lsq import LogData, _design, rest_sigma
 
 # sigma of the Gauss–Markov process whose Allan-deviation peak equals the IEEE bias-instability
@@ -68,8 +68,7 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     dt = float(np.median(np.diff(data.time)))
     motion = data.motion(geo)
     n_chunk = max(1, int(round(chunk_s / dt)))
-    gb = make_blocks(motion.static, n_chunk, whole_moves=True)
-    ab = make_blocks(motion.static, n_chunk, whole_moves=False)
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
     sg = np.full(3, max(noise.gyro_arw * np.sqrt(dt), 1e-30))
     sa = np.full(3, max(noise.acc_vrw * np.sqrt(dt), 1e-30))
     q = rest_sigma(data.angles, rest_angle_sigma)

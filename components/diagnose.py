@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from components.blocks import make_blocks, white_noise_sigma
+from components.blocks import observation_blocks, white_noise_sigma
 from components.effects import EFFECTS, effect_of, parameters_of
 from components.lsq import LogData, _design, rest_sigma
 from components.result import CalibrationResult
@@ -118,8 +118,7 @@ class _Design:
         motion = motion_for(geo)
         dt = float(np.median(np.diff(data.time)))
         n_chunk = max(1, int(round(chunk_s / dt)))
-        gb = make_blocks(motion.static, n_chunk, whole_moves=True)
-        ab = make_blocks(motion.static, n_chunk, whole_moves=False)
+        gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
         # noise from the high-frequency content of the data (differences remove the model)
         sg = white_noise_sigma(data.gyro, motion.static)
         sa = white_noise_sigma(data.acc, motion.static)

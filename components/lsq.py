@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from components.blocks import Blocks, make_blocks, white_noise_sigma
+from components.blocks import Blocks, observation_blocks, white_noise_sigma
 from components.effects import effect_of, parameters_of, regressor_of
 from components.geometry import TableGeometry
 from components.motion import Motion, interpolate_angles, motion_from_profile
@@ -179,8 +179,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         return data.motion(g, temperature_ref, quadrature)
 
     motion = motion_for(geo)
-    gb = make_blocks(motion.static, n_chunk, whole_moves=True)
-    ab = make_blocks(motion.static, n_chunk, whole_moves=False)
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
     sg = _noise_floor(np.asarray(sigma_gyro if sigma_gyro is not None
                                  else white_noise_sigma(data.gyro, motion.static), float),
                       7.3e-5 * dt_mean)
@@ -345,10 +344,4 @@ def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tab
             "stop": np.concatenate([np.repeat(gb.stop, 3), np.repeat(ab.stop, 3)]),
             "moving": np.concatenate([np.repeat(gb.moving, 3), np.repeat(ab.moving, 3)]),
             "y": y, "H": H, "weight": w}
-    if len(data.angles) > 1 and np.any(data.angles[1] != data.angles[0]):
-        # the table moves at the first sample: the angle at the start of its interval is not in
-        # the log (interpolate_angles would take it at rest), so its blocks are left out
-        keep = rows["start"] > 0
-        rows = {k: v[keep] for k, v in rows.items()}
-        y, H, w = rows["y"], rows["H"], rows["weight"]
     return y, H, w, rows
