@@ -36,7 +36,6 @@ the configurations keep ``acc.mis.yx, zx, zy`` (the lower triangle) and 9 gyro s
 from __future__ import annotations
 
 import tomllib
-from dataclasses import replace
 from pathlib import Path
 
 from components.effects import parameters_of
@@ -57,39 +56,49 @@ def _time_offset_stage(name: str, window: str | None) -> Stage:
     return Stage("table", name, effects=TABLE_MODEL, parameters=["imu.time_offset"], window=window)
 
 
+# seed 003's pieces, shared by its three configurations
+P39 = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"]) + ACC_MIS3
+       + ACC_LEVER6 + parameters_of(["acc.k2"]))
+
+
+def _s201_s202_time_offset() -> Stage:
+    return _time_offset_stage("S201+S202 table-referenced", r"^(move-)?S20[12]")
+
+
+def _s203_filter(name: str, parameters: list, window: str, **settings) -> Stage:
+    return Stage("kf", name, parameters=list(parameters), window=window, settings={"passes": 3, **settings})
+
+
+def _s204_bias_filter(**settings) -> Stage:
+    return Stage("kf", "S204 12-state bias", parameters=parameters_of(["gyro.bias"]),
+                 window=r"^(move-)?S204", settings={"passes": 2, **settings}, consider_earlier=True)
+
+
 def _seed003() -> Config:
-    p39 = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"])
-           + ACC_MIS3 + ACC_LEVER6 + parameters_of(["acc.k2"]))
     return Config("seed_003", "seed 003: S201/S202 against the table (time offset), the S203 "
                   "39-state filter, then the S204 12-state bias filter", [
-        _time_offset_stage("S201+S202 table-referenced", r"^(move-)?S20[12]"),
-        Stage("kf", "S202+S203 39-state", parameters=p39, window=r"^(move-)?S20[23]",
-              settings={"passes": 3}),
-        Stage("kf", "S204 12-state bias", parameters=parameters_of(["gyro.bias"]),
-              window=r"^(move-)?S204", settings={"passes": 2}, consider_earlier=True),
+        _s201_s202_time_offset(),
+        _s203_filter("S202+S203 39-state", P39, r"^(move-)?S20[23]"),
+        _s204_bias_filter(),
     ], schedule="seed_003")
 
 
 def _seed003_joint() -> Config:
-    s39 = _seed003().stages[1]
     return Config("seed_003_joint", "seed 003 schedule: time offset against the table, then one "
                   "39-state filter over S202-S204", [
-        _time_offset_stage("S201+S202 table-referenced", r"^(move-)?S20[12]"),
-        Stage("kf", "S202-S204 39-state", parameters=s39.parameters, window=r"^(move-)?S20[234]",
-              settings={"passes": 3}),
+        _s201_s202_time_offset(),
+        _s203_filter("S202-S204 39-state", P39, r"^(move-)?S20[234]"),
     ], schedule="seed_003")
 
 
 def _seed003_external() -> Config:
-    s39, s12 = _seed003().stages[1:]
-    p42 = [p for p in s39.parameters if not p.startswith("acc.lever")] + parameters_of(["acc.lever"])
-    position = {"observe_position": True}
+    p42 = [p for p in P39 if not p.startswith("acc.lever")] + parameters_of(["acc.lever"])
     return Config("seed_003_external", "seed 003 on an external table: time offset against the "
                   "table, the 42-state filter (outer lever arm), the S204 bias filter; position "
                   "observed", [
-        _time_offset_stage("S201+S202 table-referenced", r"^(move-)?S20[12]"),
-        replace(s39, name="S202+S203 42-state", parameters=p42, settings={**s39.settings, **position}),
-        replace(s12, settings={**s12.settings, **position}),
+        _s201_s202_time_offset(),
+        _s203_filter("S202+S203 42-state", p42, r"^(move-)?S20[23]", observe_position=True),
+        _s204_bias_filter(observe_position=True),
     ], schedule="seed_003")
 
 
@@ -111,12 +120,10 @@ def _seed001_single() -> Config:
 
 
 def _psins19() -> Config:
-    p = (parameters_of(["gyro.bias", "acc.bias"]) + GYRO9 + parameters_of(["acc.sf"]) + ACC_MIS3
-         + ACC_LEVER6 + parameters_of(["acc.k2"]))
     return Config("psins19", "19-position PSINS-style sequence: time offset against the table, "
                   "then the 39-state filter", [
         _time_offset_stage("19-position table-referenced", None),
-        Stage("kf", "19-position", parameters=p, window=None, settings={"passes": 3}),
+        Stage("kf", "19-position", parameters=list(P39), window=None, settings={"passes": 3}),
     ], schedule="psins19")
 
 

@@ -159,7 +159,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     sg = np.maximum(sg, SIGMA_GYRO_FLOOR)
     sa = np.maximum(sa, SIGMA_ACC_FLOOR)
     r = settings.r_vel if settings.r_vel is not None else max(3.0 * float(np.max(sa)), 1e-6)
-    kf = KalmanFilter(dim_x=n, dim_z=6 if settings.observe_position else 3)
+    nz = 6 if settings.observe_position else 3   # velocity (+ position)
+    kf = KalmanFilter(dim_x=n, dim_z=nz)
     kf.x = np.zeros((n, 1))
     if prior_mean is not None and m_est:
         kf.x[e, 0] = np.asarray(prior_mean, float) - theta[:m_est]
@@ -177,7 +178,6 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     keep = np.ones((n, 1))
     keep[9 + m_est:] = 0.0  # Schmidt: no gain for the consider states
     schmidt = m > m_est
-    nz = 6 if settings.observe_position else 3
     H = np.zeros((nz, n))
     H[0:3, 3:6] = np.eye(3)
     R = np.eye(nz) * r * r
