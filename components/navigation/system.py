@@ -133,8 +133,8 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     temp = None if data.temperature is None else data.temperature[a:b]
     st = static[a:b]
     if fixed_p:
-        g, ac = Regressors(fixed_p, g, ac, dt, temp, static=st).correct(
-            np.array([fixed[p] for p in fixed_p]))
+        values = np.array([fixed[p] for p in fixed_p])
+        g, ac = Regressors.on_estimated_motion(fixed_p, values, g, ac, dt, temp, st).correct(values)
     s0, s1 = alignment_run(st, max(2, int(round(stage.align_min_s / dt))))
     s1 = min(s1, s0 + max(2, int(round(stage.align_max_s / dt))))
     settings = FilterSettings(parameters=params, **stage.settings)
@@ -158,7 +158,6 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
         setattr(settings, key, np.where(np.isfinite(v), v, 0.0))
     g, ac, st = g[s0:], ac[s0:], st[s0:]
     temp = None if temp is None else temp[s0:]
-    regs = Regressors(params + consider, g, ac, dt, temp, static=st)
     theta = np.array([settings.initial.get(p, 0.0) for p in params], float)
     # every pass keeps the prior where it was (a Gauss–Newton iteration, components.navigation.kf);
     # only the closed-loop mode (effect_feedback, the smoother) re-centres a vague prior
@@ -168,6 +167,9 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     out = None
     n_passes = settings.passes
     for _ in range(n_passes):
+        # the regressors on the motion corrected by this pass's linearisation point
+        regs = Regressors.on_estimated_motion(params + consider, np.concatenate(
+            [theta, np.zeros(len(consider))]), g, ac, dt, temp, static=st)
         n_al = s1 - s0
         if params:
             G, A = regs.block(0, n_al)
@@ -199,8 +201,9 @@ def run_table_stage(data: LogData, stage: Stage, fixed: dict, dt: float) -> Stag
     rests = static_mask(window.angles)
     fixed_p = [p for p, v in fixed.items() if v != 0.0 and effect_of(p).target != "table"]
     if fixed_p:
-        g, ac = Regressors(fixed_p, window.gyro, window.acc, dt, window.temperature,
-                           static=rests).correct(np.array([fixed[p] for p in fixed_p]))
+        values = np.array([fixed[p] for p in fixed_p])
+        g, ac = Regressors.on_estimated_motion(fixed_p, values, window.gyro, window.acc, dt,
+                                               window.temperature, rests).correct(values)
         window = replace(window, gyro=g, acc=ac)
     # per-sample σ from the rests, with the filter's floors: a noise-free log (a check of the
     # model) would otherwise weigh its rows by 1e-13 of a sample and let model error decide
