@@ -14,8 +14,9 @@ The bounds are computed apart from the runs, on the noise-free motion of the sam
 - LS: components.crb.cramer_rao for the same effects with the table angles known (more
   information: the table tells the attitude).
 
-    python benchmarks/kf_vs_lsq.py [--runs 8] [--workers 2]
+    python benchmarks/kf_vs_lsq.py [--runs 8] [--workers 2] [--config seed_003] [--noise-scale 1]
         [--cycles 1 --bias-cycles 6 --exc-dwell 150 --dwell 60]   (the seed_003 schedule, ~62 min)
+        [--outer-arm-m 0.1,-0.05,0.08 --config seed_003_external]  (the external-table mode)
 """
 from __future__ import annotations
 
@@ -63,11 +64,22 @@ TARGET = {"gyro.bias": 0.003 * DEG_H, "gyro.sf": 2e-6, "gyro.mis": 2 * ARCSEC,
           "acc.lever": 2e-3, "imu.time_offset": 1e-4}
 
 
-def scenario(seed: int, overrides: dict, noise: float = 1.0):
+def injected(outer_arm=(0.0, 0.0, 0.0)) -> dict:
+    """TRUTH with the IMU ``outer_arm`` [m] off the rotation centre: every accelerometer's lever
+    arm moves by it (acc.lever.i.k += r_k; the external-table mode)."""
+    effects = dict(TRUTH)
+    for i in "xyz":
+        for k, r in zip("xyz", outer_arm):
+            if r:
+                effects[f"acc.lever.{i}.{k}"] = effects.get(f"acc.lever.{i}.{k}", 0.0) + r
+    return effects
+
+
+def scenario(seed: int, overrides: dict, noise: float = 1.0, outer_arm=(0.0, 0.0, 0.0)):
     """The seed-003 run: ``noise`` scales the navigation-grade white noise (0: noise-free)."""
     from components.scenario import scenario_from_dict
 
-    imu = {"fmu": "builtin:imu", "effects": dict(TRUTH)}
+    imu = {"fmu": "builtin:imu", "effects": injected(outer_arm)}
     if noise:
         imu["noise"] = {"gyro.noise.arw": f"{noise * ARW_DEG_SQRT_H!r} deg/sqrt(h)",
                         "acc.noise.vrw": f"{noise * VRW_UG_SQRT_HZ!r} ug/sqrt(Hz)"}
@@ -94,8 +106,8 @@ def one_run(args):
     from components.lsq import LogData, calibrate
     from components.scenario import run_scenario
 
-    seed, overrides, noise, config = args
-    run = run_scenario(scenario(seed, overrides, noise), progress=False)
+    seed, overrides, noise, config, outer_arm = args
+    run = run_scenario(scenario(seed, overrides, noise, outer_arm), progress=False)
     truth = run.truth["effects"]
     t = time.perf_counter()
     res, outs = calibrate_system(run.log, load_config(config))
@@ -112,8 +124,10 @@ def one_run(args):
             "ls_sigma": {p: float(s) for p, s in zip(fit.parameters, ls_sig)}, "nees": nees}
 
 
-def bounds(overrides: dict, noise: float) -> tuple[dict, dict]:
-    """KF: the filter states' posterior over S202-S204, and the table stage's CRB for its
+def bounds(overrides: dict, noise: float, config: str = "seed_003",
+           outer_arm=(0.0, 0.0, 0.0)) -> tuple[dict, dict]:
+    """KF: the posterior over S202-S204 of the states of the configuration's first filter (with
+    its observation: velocity, or velocity and position), and the table stage's CRB for its
     parameters (the time offset) on its window; LS: the CRB of the whole log."""
     from components.crb import NoiseModel, cramer_rao
     from components.lsq import LogData
@@ -121,13 +135,15 @@ def bounds(overrides: dict, noise: float) -> tuple[dict, dict]:
     from components.scenario import run_scenario
 
     arw, vrw = noise_density(noise)
-    run = run_scenario(scenario(0, overrides, noise=0.0), progress=False)
+    run = run_scenario(scenario(0, overrides, noise=0.0, outer_arm=outer_arm), progress=False)
     data = LogData.from_log(run.log)
     dt = float(run.log.dt)
-    stages = load_config("seed_003").stages
-    params = next(s for s in stages if s.kind == "kf").parameters
+    stages = load_config(config).stages
+    first = next(s for s in stages if s.kind == "kf")
+    observation = {k: v for k, v in first.settings.items() if k in ("observe_position", "r_pos")}
     win = window_of(data.segment, r"^(move-)?S20[234]", len(data.time))
-    out, _ = filter_covariance(data, params, arw * np.sqrt(dt), vrw * np.sqrt(dt), window=win)
+    out, _ = filter_covariance(data, first.parameters, arw * np.sqrt(dt), vrw * np.sqrt(dt),
+                               settings=observation, window=win)
     kf = dict(zip(out.parameters, map(float, out.sigma)))
     for st in (s for s in stages if s.kind == "table"):
         a, b = window_of(data.segment, st.window, len(data.time))
@@ -149,14 +165,20 @@ def main() -> int:
                     help="multiple of the navigation-grade ARW and VRW")
     ap.add_argument("--config", default="seed_003", help="system-level configuration (the bounds "
                     "are for one filter over S202-S204 whatever it is)")
+    ap.add_argument("--outer-arm-m", default="0,0,0",
+                    help="x,y,z [m]: the IMU off the rotation centre (external table; use with "
+                    "--config seed_003_external)")
     ap.add_argument("--out", default=str(HERE / "kf_vs_lsq.json"))
     a = ap.parse_args()
     ov = {"cycles": a.cycles, "bias_cycles": a.bias_cycles, "exc_dwell": a.exc_dwell, "dwell": a.dwell}
-    seeds = [(300 + i, ov, a.noise_scale, a.config) for i in range(a.runs)]
+    outer = tuple(float(x) for x in a.outer_arm_m.split(","))
+    if len(outer) != 3:
+        ap.error(f"--outer-arm-m {a.outer_arm_m!r}: expected three numbers x,y,z in metres")
+    seeds = [(300 + i, ov, a.noise_scale, a.config, outer) for i in range(a.runs)]
     arw, vrw = noise_density(a.noise_scale)
     print(f"white noise ARW {arw * 60 / DEG:.4g} deg/sqrt(h), VRW {vrw / UG:.4g} ug/sqrt(Hz)", flush=True)
     with mp.get_context("fork").Pool(a.workers) as pool:
-        crb_job = pool.apply_async(bounds, (ov, a.noise_scale))
+        crb_job = pool.apply_async(bounds, (ov, a.noise_scale, a.config, outer))
         runs = []
         for r in pool.imap(one_run, seeds):
             runs.append(r)
