@@ -1,7 +1,7 @@
 """Acceptance tests of the diagnosis: for every effect of the vocabulary that the baseline model
 (bias, scale factor, misalignment of both sensors) lacks, data simulated by the built-in FMUs with
 that effect hidden -> calibrate the baseline -> diagnose names it first -> calibrate with it added
--> compare: chi2/dof <= 1.1 and per-sample residual rms within 10 % of the noise floor on every
+-> compare: chi2/dof within white noise's 99.9 % quantile (~1.15) and per-sample residual rms within 10 % of the noise floor on every
 channel. Also: two hidden effects are named in turn by forward selection, and with nothing hidden
 the verdict is null in >= 95 % of 40 noise seeds.
 
@@ -27,6 +27,7 @@ import tomllib
 
 import numpy as np
 import pytest
+from scipy.stats import chi2 as chi2_distribution
 
 from components.compare import compare
 from components.demo import SCENARIO
@@ -138,7 +139,11 @@ def _diagnose(logs, name: str, forward: bool = False):
 
 
 def _assert_fits(comp, what: str):
-    assert comp.chi2_per_dof <= 1.1, f"{what}: chi2/dof {comp.chi2_per_dof:.3f} after adding the effect"
+    # white noise: chi2/dof within its 99.9 % quantile (1.15 at the ~880 dof of these logs; a
+    # fixed 1.1 was 2.1 sigma, which some of the ~20 cases cross by chance when the blocks move)
+    limit = chi2_distribution.ppf(0.999, comp.dof) / comp.dof
+    assert comp.chi2_per_dof <= limit, (f"{what}: chi2/dof {comp.chi2_per_dof:.3f} after adding the "
+                                        f"effect, white noise <= {limit:.3f}")
     for ch, m in comp.channels.items():
         ratio = m["rms"] / m["noise_floor"]
         assert abs(ratio - 1) <= 0.1, f"{what}: {ch} rms/noise floor {ratio:.3f}"

@@ -1,0 +1,49 @@
+"""Observation blocks (components.blocks) on table motions with known shape."""
+from __future__ import annotations
+
+import numpy as np
+
+from components.blocks import observation_blocks
+from components.navigation.system import static_mask
+
+DT = 0.005
+
+
+def _triangle_index(rest: int, half: int, accel: float) -> np.ndarray:
+    """Angles (N, 1) of a rest, a bang-bang index (accelerate for *half* samples, brake for
+    *half*: the angular acceleration jumps from +accel to -accel at the peak), a rest."""
+    t = np.arange(1, 2 * half + 1) * DT
+    T = half * DT
+    up = 0.5 * accel * t ** 2
+    down = accel * T ** 2 - 0.5 * accel * (2 * T - t) ** 2
+    move = np.where(t <= T, up, down)
+    return np.concatenate([np.zeros(rest), move, np.full(rest, move[-1])])[:, None]
+
+
+def test_moving_accelerometer_blocks_are_cut_away_from_the_acceleration_jump():
+    """A 1.35 s index in 1 s chunks: an even split cuts at the peak, where the servo switches
+    from accelerating to braking and an interpolated rate is worst; the cut moves at least
+    three samples away from it (and stays inside the move), the gyro block stays whole."""
+    half = 135
+    angles = _triangle_index(200, half, accel=4.0)
+    static = static_mask(angles)
+    gyro, acc = observation_blocks(static, angles, 200)
+    move = np.nonzero(~static)[0]
+    a, b = move[0], move[-1] + 1
+    peak = a + half                    # boundary at the acceleration jump
+    cuts = [s for s, m in zip(acc.start, acc.moving) if m and a < s < b]
+    assert len(cuts) == 1 and abs(cuts[0] - peak) > 3, (cuts, peak)
+    assert any(m and s == a and e == b for s, e, m in zip(gyro.start, gyro.stop, gyro.moving))
+    # blocks tile the log without gaps or overlaps
+    assert np.array_equal(acc.start[1:], acc.stop[:-1]) and acc.stop[-1] == len(angles)
+
+
+def test_a_log_that_starts_moving_leaves_out_its_first_move():
+    """A window cut out of a schedule during a move: the rate at its first angle is unknown (the
+    interpolation would take the table at rest), so no block covers that move."""
+    angles = _triangle_index(200, 135, accel=4.0)[300:]    # starts inside the move
+    static = static_mask(angles)
+    first_rest = int(np.argmax(static[1:])) + 1
+    gyro, acc = observation_blocks(static, angles, 200)
+    assert gyro.start[0] == acc.start[0] == first_rest
+    assert not acc.moving[0] and not gyro.moving[0]
