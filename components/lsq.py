@@ -18,12 +18,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from components.blocks import Blocks, observation_blocks, white_noise_sigma
-from components.effects import effect_of, parameters_of, regressor_of
+from components.effects import effect_of, parameters_of, regressor_of, time_offset_of_lever
 from components.geometry import TableGeometry
 from components.motion import Motion, interpolate_angles, motion_from_profile
 
 TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
 RCOND = 1e-7  # relative singular value below which a design direction is not resolved
+TIME_OFFSET_STEP_TOL = 1e-9  # s: the time offset × lever-arm linearisation has converged
 # Geometry columns depend only on the angle profile, the blocks and the geometry: logs that
 # share the motion (Monte-Carlo seeds, effects hidden in the IMU only) reuse them.
 _GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
@@ -193,9 +194,13 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
                       else 0.0 for p in params])
     for p in table_params:
         value[params.index(p)] = table_parameter_value(geo, p)
+    # the model's one product of two fitted parameters: the time offset shifts the lever-arm
+    # terms too (effects.time_offset_of_lever); linearised at the last solution (Gauss–Newton)
+    bilinear = "imu.time_offset" in params and any(effect_of(p).name == "acc.lever" for p in params)
+    lin = None
     it = 0
     for it in range(1, iterations + 1):
-        y, H, w, rows = _design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+        y, H, w, rows = _design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
         # residual relative to the current table values (Gauss–Newton on the geometry)
         Hw = H * w[:, None]
         scale = np.linalg.norm(Hw, axis=0)
@@ -209,17 +214,22 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         step = sol / scale
         sensor_idx = [k for k, p in enumerate(params) if p not in table_params]
         value[sensor_idx] = step[sensor_idx]
-        if not table_params:
-            break
-        delta = np.array([step[params.index(p)] for p in table_params])
-        for p, d in zip(table_params, delta):
-            value[params.index(p)] += d
-            geo = apply_table_parameter(geo, p, value[params.index(p)])
-        motion = motion_for(geo)
-        if np.max(np.abs(delta)) < 1e-12:
+        moved = False
+        if bilinear:
+            tau = value[params.index("imu.time_offset")]
+            moved = lin is None or abs(tau - lin[params.index("imu.time_offset")]) > TIME_OFFSET_STEP_TOL
+            lin = value.copy()
+        if table_params:
+            delta = np.array([step[params.index(p)] for p in table_params])
+            for p, d in zip(table_params, delta):
+                value[params.index(p)] += d
+                geo = apply_table_parameter(geo, p, value[params.index(p)])
+            motion = motion_for(geo)
+            moved = moved or np.max(np.abs(delta)) >= 1e-12
+        if not moved:
             break
     # final linearisation at the solution: sensor values and the last (tiny) table correction
-    y, H, w, rows = _design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+    y, H, w, rows = _design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
     Hw = H * w[:, None]
     scale = np.linalg.norm(Hw, axis=0)
     scale[scale == 0] = 1.0
@@ -304,8 +314,10 @@ def _encoder_quantum(angles: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, motion_for):
-    """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info."""
+def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, motion_for,
+            lin=None):
+    """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info.
+    ``lin``: the values (per parameter) the time offset × lever-arm product is linearised at."""
     yg = gb.sum(data.gyro - motion.ideal_gyro)
     ya = ab.sum(data.acc - motion.ideal_acc)
     # block sums column by column: never hold (N, 3, P) regressors for long logs
@@ -317,6 +329,17 @@ def _design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tab
             Hg[:, :, k] = gb.sum(g)
         if a is not None:
             Ha[:, :, k] = ab.sum(a)
+    if lin is not None:
+        # τ D(r) ≈ τ D(r0) + τ0 D(r) − τ0 D(r0), D linear in r: the time-offset column gains
+        # D(r0), each lever column τ0 D(e_k), and τ0 D(r0) moves to the observed side
+        kt = params.index("imu.time_offset")
+        tau0 = lin[kt]
+        for k, p in enumerate(params):
+            if effect_of(p).name == "acc.lever":
+                d = ab.sum(time_offset_of_lever(motion, p.split(".", 2)[2]))
+                Ha[:, :, kt] += lin[k] * d
+                Ha[:, :, k] += tau0 * d
+                ya = ya + tau0 * lin[k] * d
     # geometry columns by forward differences (the prediction is smooth in these small angles:
     # the truncation error is ~1e-6 of the column, far below what the fit can resolve)
     base_g, base_a = (gb.sum(motion.ideal_gyro), ab.sum(motion.ideal_acc)) if table_params else (0, 0)
