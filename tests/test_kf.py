@@ -155,15 +155,10 @@ def test_external_table_mode_recovers_the_outer_lever_arm():
     them 4.5-16 us. Before the regressors were evaluated on the corrected rates, the gyro
     misalignment in the lever-arm correction left gyro bias z 6.7e-3 deg/h and scale factors
     0.28 ppm.
-    The IMU runs 0.2 ms EARLY here: an IMU late by tau samples the motion up to tau past the
-    newest communication point, which the IMU FMU extrapolates (its last cubic); at 10 cm that
-    leaves ~2e-5 m/s per index in the data themselves (S204 innovations, gyro bias y 0.0026
-    deg/h), a floor of the plant's co-simulation, not of the filter (early: interpolated, clean).
     Without the position observation the outer arm is not observable at all (the velocity of a
     rest-to-rest turn about the centre is zero)."""
     r = {"x": 0.10, "y": -0.05, "z": 0.08}
     extra = {f"acc.lever.{i}.{k}": r[k] for i in "xyz" for k in "xyz"}
-    extra["imu.time_offset"] = -2.0 * TRUTH["imu.time_offset"]
     outs, bad = _noise_free_fmu_calibration(
         "seed_003", {"dwell": 10.0, "exc_dwell": 10.0, "cycles": 2}, "seed_003_external", extra)
     assert 9 + len(outs[1].parameters) == 42
