@@ -28,7 +28,10 @@
  *       is piecewise constant at 2 kHz, not a cubic over 5 ms), the others a better interpolant.
  *       alpha inside the interval is the quartic's derivative (its integral is still exactly
  *       omega_b - omega_a). Outside [t_a, t_b] (extrapolation with imu.time_offset) the bump is
- *       left out: the cubic extension continues C1 and does not amplify u^4. The first knot has
+ *       left out: the cubic extension continues C1 and does not amplify u^4. An IMU late by dt
+ *       (input_timing 0) extrapolates the motion over the last dt of each window; the next step
+ *       integrates that piece again on its knot and adds the difference to its sample, so the
+ *       sums of samples are the interpolant's (the error does not pile up over a move). The first knot has
  *       no interval, so no bump. The integrals must cover exactly the IMU's own step: a source
  *       stepping with a different h (multi-rate) must not be connected to them.
  *     input_timing 1: the inputs set before doStep(t, h) are the values at t; beyond the newest
