@@ -170,13 +170,15 @@ def test_external_table_mode_recovers_the_outer_lever_arm():
 def test_psins19_configuration_on_noise_free_fmu_data():
     """The 19-position configuration on a noise-free FMU run of its schedule (8 min, fast
     three-gimbal moves): the table stage's time offset and the 39-state filter within 1 % or the
-    floors, except a floor of this sequence along one weakly observed direction (accelerometer
-    bias against K2, gyro scale factors, gyro.mis.xy against acc.mis.yx): measured 0.62 ug,
-    0.48 ppm, 0.61 ug/g2, 0.28 arcsec, held to 1 ug, 1 ppm, 1 ug/g2, 0.5 arcsec; gyro biases to
-    2e-4 deg/h. Cause not found: the same run with only the gyro scale factors injected leaves
-    0.42-0.75 ppm with the regressors on the raw or on the corrected rates alike. It diverged
-    (77 ug, 60 ppm) while the regressors smeared the first moving sample's rate into the rest
-    before it."""
+    floors, except along the sequence's weak direction: `calbench plan psins19 --observability
+    psins19` finds the common gyro scale factor (with K2.z; accelerometer biases and K2, gyro.mis.xy
+    and acc.mis.yx follow) at a normalised singular value of 3e-5, where the filter keeps 0.27 of
+    its prior. Noise-free, the estimate along it is whatever the prior leaves of tiny model
+    inconsistencies: measured 0.41 ppm, 0.55 ug, 0.54 ug/g2, 0.26 arcsec with the default prior
+    (10x typical); with only the gyro scale factors injected 0.04-0.06 ppm at 3x, 0.3-0.4 at 10x,
+    6-7 ppm at 100x. Held to 1 ppm, 1 ug, 1 ug/g2, 0.5 arcsec;
+    gyro biases to 2e-4 deg/h. It diverged (77 ug, 60 ppm) while the regressors smeared the first
+    moving sample's rate into the rest before it."""
     outs, bad = _noise_free_fmu_calibration("psins19", {}, "psins19")
     assert [so.stage.kind for so in outs] == ["table", "kf"] and 9 + len(outs[1].parameters) == 39
     held = {"gyro.bias": 2e-4 * DEG_H, "acc.bias": 1.0 * UG, "gyro.sf": 1e-6,
