@@ -175,7 +175,7 @@ def test_psins19_configuration_on_noise_free_fmu_data():
     and acc.mis.yx follow) at a normalised singular value of 3e-5, where the filter keeps 0.27 of
     its prior. Noise-free, the estimate along it is whatever the prior leaves of tiny model
     inconsistencies: measured 0.41 ppm, 0.55 ug, 0.54 ug/g2, 0.26 arcsec with the default prior
-    (10x typical); with only the gyro scale factors injected 0.04-0.06 ppm at 3x, 0.3-0.4 at 10x,
+    (10x typical); with only the gyro scale factors injected 0.04-0.06 ppm at 3x, 0.4-0.75 at 10x,
     6-7 ppm at 100x. Held to 1 ppm, 1 ug, 1 ug/g2, 0.5 arcsec;
     gyro biases to 2e-4 deg/h. It diverged (77 ug, 60 ppm) while the regressors smeared the first
     moving sample's rate into the rest before it."""
