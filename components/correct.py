@@ -15,6 +15,7 @@ import copy
 import numpy as np
 
 from components.effects import AX, OFF_DIAG, PAIRS
+from components.motion import lever_acceleration
 from components.result import CalibrationResult
 
 _MIS = {ij: (AX.index(ij[0]), AX.index(ij[1])) for ij in OFF_DIAG}
@@ -73,7 +74,7 @@ def correct_increments(res: CalibrationResult, gyro_inc: np.ndarray, acc_inc: np
             alpha = np.gradient(xg, np.cumsum(dt[:, 0]), axis=0)
             for k in range(3):
                 r = lever[k]
-                fa[:, k] -= (np.cross(alpha, r) + np.cross(xg, np.cross(xg, r)))[:, k]
+                fa[:, k] -= lever_acceleration(xg, alpha, r)[:, k]
         xa = fa - sensor_error(res, "acc", xa, xa, dT, mid)
     return xg * dt, xa * dt
 

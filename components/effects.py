@@ -24,6 +24,8 @@ from typing import Callable
 
 import numpy as np
 
+from components.motion import lever_acceleration
+
 AX = "xyz"
 OFF_DIAG = ("xy", "xz", "yx", "yz", "zx", "zy")
 PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")
@@ -137,8 +139,7 @@ def _lever(m, idx):
     i, k = idx.split(".")
     r = np.zeros(3)
     r[AX.index(k)] = 1.0
-    w, a = m.omega_q, m.alpha_q
-    extra = np.cross(a, r) + np.cross(w, np.cross(w, r))
+    extra = lever_acceleration(m.omega_q, m.alpha_q, r)
     return None, _e(i, _integral(m, extra[:, :, AX.index(i)]))
 
 
@@ -159,10 +160,9 @@ def time_offset_of_lever(m, idx: str) -> np.ndarray:
     r = np.zeros(3)
     r[AX.index(k)] = 1.0
     alpha_start = np.vstack([m.alpha_end[:1], m.alpha_end[:-1]])
-
-    def at(w, a):
-        return (np.cross(a, r) + np.cross(w, np.cross(w, r)))[:, AX.index(i)]
-    return _e(i, at(m.omega_end, m.alpha_end) - at(m.omega_start, alpha_start))
+    change = (lever_acceleration(m.omega_end, m.alpha_end, r)
+              - lever_acceleration(m.omega_start, alpha_start, r))
+    return _e(i, change[:, AX.index(i)])
 
 
 def _vec(name, unit, typical, target, description, signature, display, reg):

@@ -33,6 +33,12 @@ def gauss_legendre(q: int) -> tuple[np.ndarray, np.ndarray]:
     return (x + 1) / 2, w / 2
 
 
+def lever_acceleration(omega: np.ndarray, alpha: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Specific force at offset *r* [m] minus that at the reference point of a rigid body turning
+    at *omega* [rad/s] with *alpha* [rad/s²] (all in body axes, (..., 3)): α × r + ω × (ω × r)."""
+    return np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+
+
 @dataclass
 class Motion:
     time: np.ndarray       # (N,) end of each sample interval
@@ -59,8 +65,7 @@ class Motion:
         r = self.lever["xyz".index(i)]
         if not r.any():
             return self.f_q
-        w = self.omega_q
-        return self.f_q + np.cross(self.alpha_q, r) + np.cross(w, np.cross(w, r))
+        return self.f_q + lever_acceleration(self.omega_q, self.alpha_q, r)
 
     def integral(self, values_q: np.ndarray) -> np.ndarray:
         """∫ over each interval of node values (N, Q, ...) -> (N, ...)."""

@@ -30,7 +30,7 @@ import dataclasses
 
 import numpy as np
 
-from components.effects import regressor_of
+from components.effects import effect_of, regressor_of
 from components.motion import Motion
 
 
@@ -86,7 +86,7 @@ class Regressors:
         self.parameters = list(parameters)
         self.gyro, self.acc, self.dt = gyro, acc, dt
         # the rates the motion is evaluated on (default: the data's): the gyro increments
-        # corrected by the current estimates, see corrected_rates()
+        # corrected by the current estimates, see on_estimated_motion()
         self.motion_gyro = gyro if motion_gyro is None else motion_gyro
         self.temperature = temperature
         self.static = None if static is None else np.asarray(static, bool)
@@ -99,11 +99,15 @@ class Regressors:
                             static: np.ndarray | None = None) -> "Regressors":
         """Regressors of *parameters* on the motion the data show once corrected by *values*
         (the gyro increments corrected to first order: regressors on the raw rates)."""
-        raw = cls(parameters, gyro, acc, dt, temperature, static=static)
-        if not parameters or not np.any(values):
-            return raw
+        values = np.asarray(values, float)
+        # only the rates are re-evaluated: the parameters acting on the gyros (gyro effects, the
+        # IMU's clock) correct them, the accelerometer-only ones would be computed for nothing
+        rate_side = [k for k, p in enumerate(parameters) if effect_of(p).target in ("gyro", "imu")]
+        if not any(values[k] for k in rate_side):
+            return cls(parameters, gyro, acc, dt, temperature, static=static)
+        rates = cls([parameters[k] for k in rate_side], gyro, acc, dt, temperature, static=static)
         return cls(parameters, gyro, acc, dt, temperature, static=static,
-                   motion_gyro=raw.correct(values)[0])
+                   motion_gyro=rates.correct(values[rate_side])[0])
 
     def _compute(self, a: int, b: int):
         n = len(self.gyro)
