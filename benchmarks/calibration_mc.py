@@ -11,9 +11,9 @@ to injected errors, the log is written in memory, the procedure estimates. Per p
     python benchmarks/calibration_mc.py [--seeds 200] [--schedule six_position] [--dwell 10]
                                         [--procedure lsq|cwccw]
 
-The bound is computed for the same motion and noise model (components.crb), white noise only
+The bound is computed for the same motion and noise model (components.estimation.crb), white noise only
 (the IMU's bias instability is off here, as in the procedures' noise model), with the table's
-rest-angle spread as the estimator measures it from the moves (components.lsq).
+rest-angle spread as the estimator measures it from the moves (components.estimation.lsq).
 """
 from __future__ import annotations
 
@@ -22,10 +22,12 @@ import time
 
 import numpy as np
 
-from components.crb import NoiseModel, cramer_rao
-from components.effects import DEFAULT_EFFECTS, DEG, UG, effect_of
-from components.lsq import LogData, calibrate
-from components.scenario import run_scenario, scenario_from_dict
+from components.estimation.crb import NoiseModel, cramer_rao
+from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of
+from components.estimation.lsq import calibrate
+from components.estimation.log_data import LogData
+from components.simulation.scenario import scenario_from_dict
+from components.simulation.run import run_scenario
 
 INJECTED = {
     "gyro.bias.x": "0.01 deg/h", "gyro.bias.y": "-0.02 deg/h", "gyro.bias.z": "0.015 deg/h",

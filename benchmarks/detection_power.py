@@ -1,7 +1,7 @@
 """Detection power of ``diagnose`` per effect, and its wall time on a 1 h log.
 
 For every effect the baseline model (bias, scale factor, misalignment) lacks: the smallest
-magnitude, as a multiple of that parameter's Cramér–Rao σ on the schedule (components.crb, white
+magnitude, as a multiple of that parameter's Cramér–Rao σ on the schedule (components.estimation.crb, white
 noise, baseline + effect), at which the hidden effect is the verdict in >= 95 % of N noise seeds
 (goal: <= 5 σ). A ladder over multiples: start at 5 σ, go down (3, 2) while it holds, up (7, 10,
 14, 20, 30) while it does not; a level stops as soon as more than 5 % of the seeds have failed.
@@ -28,14 +28,15 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from components.crb import NoiseModel, cramer_rao  # noqa: E402
-from components.demo import SCENARIO  # noqa: E402
-from components.diagnose import diagnose  # noqa: E402
-from components.effects import DEFAULT_EFFECTS, DEG, EFFECTS, UG  # noqa: E402
-from components.lsq import LogData, calibrate  # noqa: E402
-from components.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
-from components.result import result_from_fit  # noqa: E402
-from components.scenario import scenario_from_dict  # noqa: E402
+from components.estimation.crb import NoiseModel, cramer_rao  # noqa: E402
+from components.cli.demo import SCENARIO  # noqa: E402
+from components.diagnosis.diagnose import diagnose  # noqa: E402
+from components.model.effects import DEFAULT_EFFECTS, DEG, EFFECTS, UG  # noqa: E402
+from components.estimation.lsq import calibrate  # noqa: E402
+from components.estimation.log_data import LogData
+from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
+from components.model.result import result_from_fit  # noqa: E402
+from components.simulation.scenario import scenario_from_dict  # noqa: E402
 
 BASELINE = list(DEFAULT_EFFECTS)
 PARAM = {  # the hidden parameter per effect

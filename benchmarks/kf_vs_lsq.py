@@ -11,7 +11,7 @@ The bounds are computed apart from the runs, on the noise-free motion of the sam
   configuration uses (S202-S204), all 30 effect states in one filter, with the true noise
   (components.navigation.observability.filter_covariance): what any estimator that sees only
   the IMU data and a stationary base can reach (with the filter's priors);
-- LS: components.crb.cramer_rao for the same effects with the table angles known (more
+- LS: components.estimation.crb.cramer_rao for the same effects with the table angles known (more
   information: the table tells the attitude).
 
     python benchmarks/kf_vs_lsq.py [--runs 8] [--workers 2] [--config seed_003] [--noise-scale 1]
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import chi2
 
-from components.effects import ARCSEC, DEG, DEG_H, G0, UG, effect_of
+from components.model.effects import ARCSEC, DEG, DEG_H, G0, UG, effect_of
 from components.navigation.configs import load_config
 from components.navigation.system import calibrate_system, window_of
 
@@ -77,7 +77,7 @@ def injected(outer_arm=(0.0, 0.0, 0.0)) -> dict:
 
 def scenario(seed: int, overrides: dict, noise: float = 1.0, outer_arm=(0.0, 0.0, 0.0)):
     """The seed-003 run: ``noise`` scales the navigation-grade white noise (0: noise-free)."""
-    from components.scenario import scenario_from_dict
+    from components.simulation.scenario import scenario_from_dict
 
     imu = {"fmu": "builtin:imu", "effects": injected(outer_arm)}
     if noise:
@@ -103,8 +103,9 @@ def stage_nees(outs, truth: dict) -> list[tuple[str, float, int]]:
 
 
 def one_run(args):
-    from components.lsq import LogData, calibrate
-    from components.scenario import run_scenario
+    from components.estimation.lsq import calibrate
+    from components.estimation.log_data import LogData
+    from components.simulation.run import run_scenario
 
     seed, overrides, noise, config, outer_arm = args
     run = run_scenario(scenario(seed, overrides, noise, outer_arm), progress=False)
@@ -129,10 +130,10 @@ def bounds(overrides: dict, noise: float, config: str = "seed_003",
     """KF: the posterior over S202-S204 of the states of the configuration's first filter (with
     its observation: velocity, or velocity and position), and the table stage's CRB for its
     parameters (the time offset) on its window; LS: the CRB of the whole log."""
-    from components.crb import NoiseModel, cramer_rao
-    from components.lsq import LogData
+    from components.estimation.crb import NoiseModel, cramer_rao
+    from components.estimation.log_data import LogData
     from components.navigation.observability import filter_covariance
-    from components.scenario import run_scenario
+    from components.simulation.run import run_scenario
 
     arw, vrw = noise_density(noise)
     run = run_scenario(scenario(0, overrides, noise=0.0, outer_arm=outer_arm), progress=False)

@@ -37,8 +37,8 @@ def sequence(hours: float) -> list:
 
 
 def _system(hours: float, controller: bool):
-    import components.roles  # noqa: F401
-    from components.tumble import IMU_ERRORS, IMU_NOISE
+    import components.simulation.roles  # noqa: F401
+    from components.simulation.tumble import IMU_ERRORS, IMU_NOISE
     from orchestrator.system import Connection, System, UnitSpec
 
     units = [UnitSpec("table", fmu="builtin:turntable", role="turntable",
@@ -50,7 +50,7 @@ def _system(hours: float, controller: bool):
              Connection("table.plate.omega_int", "imu.omega_int"),
              Connection("table.plate.f_int", "imu.f_int")]
     if controller:
-        units.insert(0, UnitSpec("ctrl", component="components.sequencer:AttitudeSequence",
+        units.insert(0, UnitSpec("ctrl", component="components.control.sequencer:AttitudeSequence",
                                  step_multiple=20, config={"sequence": sequence(hours)}))
         conns += [Connection(f"ctrl.{a}.angle_cmd", f"table.{a}.angle_cmd") for a in ("outer", "middle", "inner")]
     return System(name="bench", step=H, stop=hours * 3600, units=units, connections=conns,
@@ -82,8 +82,8 @@ def run_fmpy(hours: float) -> float:
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from components.sequencer import AttitudeSequence
-    from components.tumble import IMU_ERRORS, IMU_NOISE
+    from components.control.sequencer import AttitudeSequence
+    from components.simulation.tumble import IMU_ERRORS, IMU_NOISE
     from fmus.build import fmu_path
 
     def load(model, name):
@@ -149,7 +149,7 @@ def main() -> int:
         os.sched_setaffinity(0, {args.core})
         print(json.dumps({"wall": ENGINES[args.engine](args.hours)}))
         return 0
-    import components.roles  # noqa: F401
+    import components.simulation.roles  # noqa: F401
     from fmus.build import fmu_path
 
     fmu_path("turntable", 2), fmu_path("imu", 2)  # build outside the timed runs

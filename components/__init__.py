@@ -1,5 +1,22 @@
-"""calbench's domain: roles, calibration controller, procedures, estimators, effects, diagnosis,
-campaigns and reports. Importing the package registers the plant roles with the orchestrator."""
+"""calbench's domain, in packages that depend one way, left to right:
+
+    errors → model → logs → estimation → diagnosis → control → simulation
+           → procedures → navigation → campaign → cli
+
+- ``errors``      every error a user may see (a leaf: imports nothing)
+- ``model``       the effect vocabulary, table geometry, plate motion, a calibrated model
+- ``logs``        calbench-log/1 measurement logs: rules, reading, writing, from recordings
+- ``estimation``  observation blocks, the design, least squares, the Cramér–Rao bound
+- ``diagnosis``   model against measurement: compare, diagnose, the ladder, the report
+- ``control``     schedules and the calibration controller that walks them on the table
+- ``simulation``  the plant roles, scenarios (run on the FMUs), replay, tumble
+- ``procedures``  the seeds' classical procedures
+- ``navigation``  system-level calibration: strapdown navigation and the Kalman filter
+- ``campaign``    certification-style test campaigns on Dask
+- ``cli``         the ``calbench`` command: dispatch only
+
+``docs/architecture.md`` says what flows between them and where new work goes.
+"""
 import os as _os
 
 # One BLAS thread: a multi-threaded BLAS sums in an order that depends on the thread count, which
@@ -8,5 +25,3 @@ import os as _os
 # imported before numpy, as the CLI and the campaign workers do.)
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_v, "1")
-
-from components import roles as _roles  # noqa: E402,F401

@@ -2,7 +2,7 @@
 and the check of a unit against its role (with a supplier's name mapping and unit conversion).
 
 The orchestrator knows roles only as data; the domain registers its roles (see
-``components.roles``) with :func:`register_role`.
+``components.simulation.roles``) with :func:`register_role`.
 """
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ The same object comes from a TOML file (:func:`load_system`), from an SSP archiv
     "omega.x" = "AngularRate_X"
 
     [units.ctrl]
-    component = "components.sequencer:AttitudeSequence"   # Python component class
+    component = "components.control.sequencer:AttitudeSequence"   # Python component class
     step_multiple = 20
     [units.ctrl.config]      # keyword arguments of the component's constructor
     sequence = [[0.0, 0.0, 0.0, 0.0], [5.0, 0.0, 1.5707963267948966, 0.0]]

@@ -1,9 +1,9 @@
-"""Observation blocks (components.blocks) on table motions with known shape."""
+"""Observation blocks (components.estimation.blocks) on table motions with known shape."""
 from __future__ import annotations
 
 import numpy as np
 
-from components.blocks import observation_blocks
+from components.estimation.blocks import observation_blocks
 from components.navigation.system import static_mask
 
 DT = 0.005

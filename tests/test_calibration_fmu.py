@@ -8,9 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from components.effects import ARCSEC, DEG_H, UG, G0, effect_of
-from components.lsq import LogData, calibrate
-from components.scenario import run_scenario, scenario_from_dict
+from components.model.effects import ARCSEC, DEG_H, UG, G0, effect_of
+from components.estimation.lsq import calibrate
+from components.estimation.log_data import LogData
+from components.simulation.scenario import scenario_from_dict
+from components.simulation.run import run_scenario
 
 INJECTED = {
     "gyro.bias.x": "0.01 deg/h", "gyro.bias.y": "-0.02 deg/h", "gyro.bias.z": "0.015 deg/h",

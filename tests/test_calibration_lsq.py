@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.effects import ARCSEC, DEFAULT_EFFECTS, DEG_H, UG
-from components.logfile import read_log
-from components.lsq import LogData, calibrate
+from components.model.effects import ARCSEC, DEFAULT_EFFECTS, DEG_H, UG
+from components.logs.logfile import read_log
+from components.estimation.lsq import calibrate
+from components.estimation.log_data import LogData
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
 pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
@@ -69,9 +70,9 @@ def test_ideal_log_gives_zero_errors_below_numerical_floors():
 
 
 def test_apply_then_recalibrate_gives_zero(tmp_path, example_fit):
-    from components.correct import correct_log
-    from components.logfile import write_log
-    from components.result import CalibrationResult, result_from_fit
+    from components.model.correct import correct_log
+    from components.logs.logfile import write_log
+    from components.model.result import CalibrationResult, result_from_fit
 
     log = read_log(EXAMPLES / "example")
     data = LogData.from_log(log)

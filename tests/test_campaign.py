@@ -23,7 +23,8 @@ from xml.etree import ElementTree as ET
 import pytest
 
 from components.campaign.criteria import evaluate
-from components.campaign.spec import CampaignError, load_campaign
+from components.campaign.reader import load_campaign
+from components.errors import CampaignError
 from components.campaign.store import Store
 from components.cli import main as cli_main
 

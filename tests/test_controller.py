@@ -6,9 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from components.controller import CalibrationController
-from components.schedule import COUNTS_PER_REV, DEG, loads_schedule
-from components.scenario import Scenario, load_scenario, run_scenario
+from components.control.controller import CalibrationController
+from components.control.schedule import COUNTS_PER_REV, DEG, loads_schedule
+from components.simulation.scenario import Scenario, load_scenario
+from components.simulation.run import run_scenario
 from orchestrator.master import SimulationFault
 
 Q = 2 * math.pi / COUNTS_PER_REV
@@ -216,7 +217,7 @@ label = "far"
 
 def test_simulate_cli_writes_log_and_truth(tmp_path):
     from components.cli import main
-    from components.logfile import read_log
+    from components.logs.logfile import read_log
 
     src = "examples/scenarios/six_position.toml"
     assert main(["simulate", src, "--out", str(tmp_path / "a"), "--dwell", "0.5"]) == 0
@@ -243,7 +244,7 @@ def test_simulate_cli_writes_log_and_truth(tmp_path):
 def test_tilted_base_table_effect_reaches_the_fmu():
     sc = load_scenario("examples/scenarios/tilted_base_seed000.toml")
     assert sc.table_effects["table.base_tilt.x"] == pytest.approx(DEG / 60)
-    from components.scenario import build_system
+    from components.simulation.run import build_system
 
     _, _, info = build_system(sc)
     assert info["table_parameters"]["base.tilt.x"] == pytest.approx(DEG / 60)

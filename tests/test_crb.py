@@ -7,10 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.crb import FLICKER_FLOOR, GM_PEAK, NoiseModel, cramer_rao
-from components.effects import DEFAULT_EFFECTS, DEG, UG
-from components.logfile import read_log
-from components.lsq import LogData, calibrate
+from components.estimation.crb import FLICKER_FLOOR, GM_PEAK, NoiseModel, cramer_rao
+from components.model.effects import DEFAULT_EFFECTS, DEG, UG
+from components.logs.logfile import read_log
+from components.estimation.lsq import calibrate
+from components.estimation.log_data import LogData
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
 pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")

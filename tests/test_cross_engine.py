@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 from support import Slave
 
-import components.roles  # noqa: F401  (roles and builtin: FMUs)
-from components.sequencer import AttitudeSequence
-from components.tumble import IMU_ERRORS, IMU_NOISE
+import components.simulation.roles  # noqa: F401  (roles and builtin: FMUs)
+from components.control.sequencer import AttitudeSequence
+from components.simulation.tumble import IMU_ERRORS, IMU_NOISE
 from orchestrator.libcosim import LibcosimUnsupported, run_libcosim
 from orchestrator.master import simulate
 from orchestrator.system import Connection, System, UnitSpec
@@ -51,7 +51,7 @@ def system(algorithm: str, imu_extra: dict | None = None, controller: bool = Fal
     conns = [Connection("table.plate.omega", "imu.omega"), Connection("table.plate.f", "imu.f"),
              Connection("table.plate.alpha", "imu.alpha")]
     if controller:
-        units.insert(0, UnitSpec("ctrl", component="components.sequencer:AttitudeSequence",
+        units.insert(0, UnitSpec("ctrl", component="components.control.sequencer:AttitudeSequence",
                                  step_multiple=20, config={"sequence": SEQ}))
         conns += [Connection(f"ctrl.{a}.angle_cmd", f"table.{a}.angle_cmd") for a in ("outer", "middle", "inner")]
     return System(name="cross", step=H, stop=STOP, algorithm=algorithm, units=units,

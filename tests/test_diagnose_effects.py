@@ -8,11 +8,11 @@ the verdict is null in >= 95 % of 40 noise seeds.
 Setup: the diagnosis schedule with 2 s dwells (169 s, 200 Hz), navigation-grade white noise (the
 demo's: ARW 0.002 deg/sqrt(h), VRW 10 ug/sqrt(Hz)), the demo's baseline errors, and an IMU whose
 temperature ramps (temperature.mode 1, 0.05 K/s: 8.4 K over the run) so temperature effects have
-something to follow. Every IMU-only case runs on ONE table run (components.multi_imu: one IMU FMU
+something to follow. Every IMU-only case runs on ONE table run (components.simulation.multi_imu: one IMU FMU
 instance per case, all on the same plate), so they share the gimbal angles and the cached geometry
 columns; the table effects need a table run each.
 
-Magnitudes (components.crb.cramer_rao σ of that parameter on this schedule, baseline + effect,
+Magnitudes (components.estimation.crb.cramer_rao σ of that parameter on this schedule, baseline + effect,
 white noise): about 20 σ where the navigation-grade typical value is smaller than that (a short
 run cannot see it), else the typical value (then far above 20 σ). ``CASES`` lists them; the
 multiples are in the comments. Under the ramp, T − T0 is proportional to the elapsed time, so a
@@ -29,14 +29,16 @@ import numpy as np
 import pytest
 from scipy.stats import chi2 as chi2_distribution
 
-from components.compare import compare
-from components.demo import SCENARIO
-from components.diagnose import diagnose
-from components.effects import DEFAULT_EFFECTS, EFFECTS, effect_of
-from components.lsq import LogData, calibrate
-from components.multi_imu import Variant, heat_cool_cycle, run_variants
-from components.result import result_from_fit
-from components.scenario import _effect_value, scenario_from_dict
+from components.diagnosis.compare import compare
+from components.cli.demo import SCENARIO
+from components.diagnosis.diagnose import diagnose
+from components.model.effects import DEFAULT_EFFECTS, EFFECTS, effect_of
+from components.estimation.lsq import calibrate
+from components.estimation.log_data import LogData
+from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants
+from components.model.result import result_from_fit
+from components.simulation.scenario import scenario_from_dict
+from components.model.quantities import effect_value
 
 BASELINE = list(DEFAULT_EFFECTS)
 DWELL = 2.0
@@ -89,7 +91,7 @@ def _scenario_dict(seed: int = 101, table_effects: dict | None = None) -> dict:
 
 def _si(effect: str) -> tuple[str, float]:
     p, mag = CASES[effect]
-    return p, _effect_value(p, mag, "CASES")
+    return p, effect_value(p, mag, "CASES")
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +111,7 @@ def logs():
     variants += [Variant(f"null:{s}", seed=1000 + s) for s in range(NULL_SEEDS)]
     out = {n: lg for n, (lg, _) in run_variants(sc, variants, heat_cool_cycle(25.0, 5.0, 120.0)).items()}
     for e, (p, v) in [(e, _si(e)) for e in CASES if EFFECTS[e].target == "table"] + \
-            [("wobble-inner", ("table.wobble.inner.c", _effect_value("table.wobble.inner.c", "3 arcsec", "")))]:
+            [("wobble-inner", ("table.wobble.inner.c", effect_value("table.wobble.inner.c", "3 arcsec", "")))]:
         sct = scenario_from_dict(_scenario_dict(table_effects={p: v}), source="test_diagnose_effects")
         out[e] = run_variants(sct, [Variant(e, seed=500)])[e][0]
     return out

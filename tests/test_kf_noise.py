@@ -29,7 +29,7 @@ from components.navigation.kf import _schmidt_update
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from kf_vs_lsq import TARGET, scenario, stage_nees  # noqa: E402
-from components.effects import effect_of  # noqa: E402
+from components.model.effects import effect_of  # noqa: E402
 
 ONE_HOUR = {"cycles": 1, "bias_cycles": 6, "exc_dwell": 150.0, "dwell": 60.0}  # seed_003.toml  (the benchmark's run, 12 min here)
 
@@ -67,7 +67,7 @@ def test_schmidt_update_reports_the_variance_of_its_errors():
 def _one_run(seed: int):
     from components.navigation.configs import load_config
     from components.navigation.system import calibrate_system
-    from components.scenario import run_scenario
+    from components.simulation.run import run_scenario
 
     run = run_scenario(scenario(seed, {}), progress=False)  # the default 12-min seed_003
     res, outs = calibrate_system(run.log, load_config("seed_003"))
@@ -91,7 +91,7 @@ def test_seed003_nees_within_its_band_over_monte_carlo_runs():
 def test_one_hour_seed003_meets_the_accuracy_targets():
     from components.navigation.configs import load_config
     from components.navigation.system import calibrate_system
-    from components.scenario import run_scenario
+    from components.simulation.run import run_scenario
 
     run = run_scenario(scenario(300, ONE_HOUR), progress=False)
     assert run.log.time[-1] > 3600.0

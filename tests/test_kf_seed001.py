@@ -15,7 +15,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from seed001_hybrid_vs_single import TARGET, rms_history, run_config, simulate, steps_below  # noqa: E402
 
-from components.effects import effect_of  # noqa: E402
+from components.model.effects import effect_of  # noqa: E402
 
 
 def test_hybrid_converges_faster_and_closer_than_a_single_filter():

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.logfile import LogFormatError, MeasurementLog, read_log, write_log
+from components.errors import LogFormatError
+from components.logs.logfile import MeasurementLog, read_log, write_log
 
 EXAMPLES = Path("/work/shared/spec/examples")
 pytestmark = pytest.mark.skipif(not (EXAMPLES / "ideal.csv").exists(), reason="shared examples not present")
@@ -150,7 +151,7 @@ def test_large_log_loads_fast(tmp_path):
 # ------------------------------------------------------------------ from an orchestrator run
 def test_log_from_orchestrator_run(tmp_path):
     import components  # noqa: F401
-    from components.log_recording import log_from_recording
+    from components.logs.recording import log_from_recording
     from orchestrator.master import simulate
     from orchestrator.system import system_from_dict
 
@@ -158,7 +159,7 @@ def test_log_from_orchestrator_run(tmp_path):
     sysd = {
         "system": {"name": "short", "step": 0.005, "stop": 1.0},
         "units": {
-            "ctrl": {"component": "components.sequencer:AttitudeSequence",
+            "ctrl": {"component": "components.control.sequencer:AttitudeSequence",
                      "config": {"sequence": [[0.0, 0.0, 0.0, 0.0], [0.3, 0.0, 0.2, 0.0]]}},
             "table": {"fmu": "builtin:turntable", "role": "turntable",
                       "parameters": {"site.latitude": lat, "site.height": 120.0}},

@@ -13,9 +13,9 @@ against facts that do not come from the analysis itself:
 import numpy as np
 import pytest
 
-from components.cli_calibration import schedule_motion_log
-from components.effects import DEG, UG, parameters_of
-from components.lsq import LogData
+from components.simulation.run import schedule_motion_log
+from components.model.effects import DEG, UG, parameters_of
+from components.estimation.log_data import LogData
 from components.navigation.earth import Site
 from components.navigation.observability import analyse, pwcs, static_runs, total_observability
 from components.navigation.sensor import Regressors

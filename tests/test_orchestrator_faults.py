@@ -18,7 +18,7 @@ from orchestrator.system import Connection, System, SystemError_, UnitSpec, load
 from orchestrator.units import FMU2Unit
 from orchestrator.wiring import AlgebraicLoopError
 
-import components.roles  # noqa: F401  (registers role imu)
+import components.simulation.roles  # noqa: F401  (registers role imu)
 
 HERE = Path(__file__).parent / "fmus"
 H = 0.01  # communication step of every system here

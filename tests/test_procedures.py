@@ -12,10 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.effects import ARCSEC, DEG_H, UG, effect_of
-from components.logfile import read_log, write_log
+from components.model.effects import ARCSEC, DEG_H, UG, effect_of
+from components.logs.logfile import read_log, write_log
 from components.procedures import cwccw, latitude, tilt
-from components.scenario import load_scenario, run_scenario, scenario_from_dict
+from components.simulation.scenario import load_scenario, scenario_from_dict
+from components.simulation.run import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "examples" / "scenarios"
@@ -140,7 +141,7 @@ def test_tilt_log_roundtrip(seed000_runs, tmp_path):
 # ----------------------------------------------------------------------------- latitude (seed 002)
 def test_seed002_correction_matches_geometry():
     """The seed's first-order δθ, δψ point the inner axis at d + γ s(k_p), as the generic solve does."""
-    from components.geometry import Stage, TableGeometry
+    from components.model.geometry import Stage, TableGeometry
 
     geo = TableGeometry((Stage("outer", (0, 1, 0)), Stage("middle", (1, 0, 0)), Stage("inner", (0, 0, 1))),
                         latitude=0.7)

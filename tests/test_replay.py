@@ -5,11 +5,13 @@ the table moves, with a different one."""
 import numpy as np
 import pytest
 
-from components.compare import assess
-from components.effects import effect_of
-from components.lsq import LogData, predict
-from components.replay import replay_imu, replay_servo
-from components.scenario import run_scenario, scenario_from_dict
+from components.diagnosis.compare import assess
+from components.model.effects import effect_of
+from components.estimation.log_data import LogData
+from components.estimation.design import predict
+from components.simulation.replay import replay_imu, replay_servo
+from components.simulation.scenario import scenario_from_dict
+from components.simulation.run import run_scenario
 
 EFFECTS = {"gyro.bias.x": "0.02 deg/h", "gyro.sf.z": "30 ppm", "gyro.mis.xy": "20 arcsec",
            "acc.bias.z": "80 ug", "acc.sf.x": "40 ppm", "acc.k2.z": "40 ug/g2"}

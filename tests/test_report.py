@@ -9,9 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from components.effects import DEFAULT_EFFECTS
-from components.logfile import read_log
-from components.lsq import LogData, calibrate
+from components.model.effects import DEFAULT_EFFECTS
+from components.logs.logfile import read_log
+from components.estimation.lsq import calibrate
+from components.estimation.log_data import LogData
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
@@ -31,10 +32,10 @@ def render(page: Path, tmp: Path) -> tuple[str, list[str]]:
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
-    from components.compare import compare
-    from components.diagnose import diagnose
-    from components.report import build_report
-    from components.result import result_from_fit
+    from components.diagnosis.compare import compare
+    from components.diagnosis.diagnose import diagnose
+    from components.diagnosis.report import build_report
+    from components.model.result import result_from_fit
 
     out = tmp_path_factory.mktemp("report")
     log = read_log(EXAMPLES / "example")

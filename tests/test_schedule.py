@@ -3,7 +3,8 @@ import math
 
 import pytest
 
-from components.schedule import (COUNTS_PER_REV, DEG, Dwell, Index, Rate, Rotate, ScheduleError,
+from components.errors import ScheduleError
+from components.control.schedule import (COUNTS_PER_REV, DEG, Dwell, Index, Rate, Rotate,
                                  available_schedules, load_schedule, loads_schedule)
 
 GOOD = """

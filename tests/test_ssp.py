@@ -236,6 +236,6 @@ def test_missing_stop_time(pair, tmp_path):
 def test_python_component_cannot_be_saved(tmp_path):
     from orchestrator.system import System, UnitSpec
 
-    s = System(units=[UnitSpec("ctrl", component="components.sequencer:AttitudeSequence")], stop=1.0)
+    s = System(units=[UnitSpec("ctrl", component="components.control.sequencer:AttitudeSequence")], stop=1.0)
     with pytest.raises(SystemError_, match="ctrl is a Python component"):
         save_ssp(s, tmp_path / "x.ssp")

@@ -3,7 +3,8 @@ each case judged against acceptance criteria that name the requirement they veri
 (a local cluster by default, or an existing one) with every case in a process of its own.
 
 Modules, one idea each:
-  spec      the campaign file, its cases (deterministic ids and seeds) and their tasks
+  reader    the campaign file (TOML) and its checks
+  spec      a campaign, its cases (deterministic ids and seeds) and their tasks
   case      one case in this process (simulate, calibrate, judge); ``python -m`` entry point
   criteria  acceptance criteria on a case's numbers
   isolate   the Dask task: a case in a child process with a timeout (crash/hang -> errored)
@@ -13,5 +14,4 @@ Modules, one idea each:
   manifest  what an auditor needs to trust the record: hashes, versions, seeds, host, times
   junit     JUnit XML; summary: the JSON summary and the regression verdict
   html      the HTML report
-  cli       ``calbench campaign``
 """

@@ -30,8 +30,9 @@ def _mark(task: dict) -> None:
 
 
 def _procedure(proc: dict, log):
-    from components.lsq import LogData, calibrate
-    from components.result import result_from_fit
+    from components.estimation.lsq import calibrate
+    from components.estimation.log_data import LogData
+    from components.model.result import result_from_fit
 
     data = LogData.from_log(log)
     if proc["method"] == "lsq":
@@ -48,8 +49,8 @@ def _procedure(proc: dict, log):
 def _crb(data, model, noise: dict) -> dict:
     import numpy as np
 
-    from components.crb import NoiseModel, cramer_rao
-    from components.effects import EFFECTS
+    from components.estimation.crb import NoiseModel, cramer_rao
+    from components.model.effects import EFFECTS
 
     arw = noise.get("gyro.noise.arw") or float(np.mean(model.noise.get("gyro_arw_rad_per_sqrt_s", [0.0])))
     vrw = noise.get("acc.noise.vrw") or float(np.mean(model.noise.get("acc_vrw_mps_per_sqrt_s", [0.0])))
@@ -66,8 +67,9 @@ def _crb(data, model, noise: dict) -> dict:
 def numbers_of(task: dict) -> tuple[dict, object, object, object]:
     """(numbers, data, model, comparison) of the case: the estimates against the truth and the
     CRB, chi2/dof of the model on its own log, the diagnosis verdict (when a criterion asks)."""
-    from components.compare import compare
-    from components.scenario import run_scenario, scenario_from_dict
+    from components.diagnosis.compare import compare
+    from components.simulation.scenario import scenario_from_dict
+    from components.simulation.run import run_scenario
 
     sc = scenario_from_dict(task["scenario"], task["source"], Path(task["base_dir"]))
     run = run_scenario(sc, progress=False)
@@ -88,7 +90,7 @@ def numbers_of(task: dict) -> tuple[dict, object, object, object]:
         pass
     diag = None
     if task.get("diagnose"):
-        from components.diagnose import diagnose
+        from components.diagnosis.diagnose import diagnose
 
         diag = diagnose(data, model, forward=False).verdict
     numbers = {"estimates": est, "chi2_per_dof": _f(chi2), "diagnosis": diag,

@@ -13,7 +13,7 @@ def _fmt(x: float, unit_scale: tuple) -> str:
 
 
 def _display(p: str) -> tuple:
-    from components.effects import effect_of
+    from components.model.effects import effect_of
 
     e = effect_of(p)
     return e.display if e.display[0] else (e.unit, 1.0)

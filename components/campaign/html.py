@@ -12,7 +12,7 @@ import json
 
 import numpy as np
 
-from components.report import _CSS, _plt, _svg
+from components.diagnosis.report import CSS, pyplot, svg_of
 
 _EXTRA_CSS = ".fail{color:#b00;font-weight:bold}.error{color:#a60;font-weight:bold}" \
              "td.wrap{text-align:left;max-width:30em}details{margin:.5em 0}"
@@ -35,7 +35,7 @@ def _table(header, rows, left=()) -> str:
 
 def histograms(records: list[dict], max_params: int = 24) -> str:
     """One figure: per parameter, the histogram of error / CRB sigma over the group's cases."""
-    from components.effects import effect_of
+    from components.model.effects import effect_of
 
     per: dict = {}
     for r in records:
@@ -45,7 +45,7 @@ def histograms(records: list[dict], max_params: int = 24) -> str:
     if not per:
         return ""
     names = sorted(per)[:max_params]
-    plt = _plt()
+    plt = pyplot()
     ncol = min(6, len(names))
     nrow = int(np.ceil(len(names) / ncol))
     fig, axes = plt.subplots(nrow, ncol, figsize=(2.0 * ncol, 1.7 * nrow), squeeze=False)
@@ -63,13 +63,13 @@ def histograms(records: list[dict], max_params: int = 24) -> str:
         ax.axis("off")
     fig.supxlabel("error / Cramér–Rao σ (curve: standard normal)", fontsize=7)
     fig.tight_layout()
-    return _svg(fig)
+    return svg_of(fig)
 
 
 def render(camp, summary: dict, records: dict, manifest: dict, worst: list[dict], pages: dict) -> str:
     c = summary["counts"]
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>campaign {_e(camp.name)}</title>"
-             f"<style>{_CSS}{_EXTRA_CSS}</style></head><body><h1>Campaign {_e(camp.name)}</h1>"]
+             f"<style>{CSS}{_EXTRA_CSS}</style></head><body><h1>Campaign {_e(camp.name)}</h1>"]
     if camp.description:
         parts.append(f"<p class='note'>{_e(camp.description)}</p>")
     verdict = "pass" if summary["all_passed"] else "fail" if c["fail"] else "error" if c["error"] else "incomplete"

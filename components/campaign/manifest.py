@@ -11,7 +11,8 @@ import socket
 import subprocess
 from pathlib import Path
 
-from components.scenario import _sha256
+from components.control.schedule import schedules_dir
+from components.model.result import file_sha256
 
 LIBRARIES = ("numpy", "scipy", "fmpy", "dask", "distributed", "matplotlib", "tqdm", "pyarrow", "filterpy",
              "control")
@@ -67,14 +68,14 @@ def input_files(camp) -> dict:
         p = Path(sched["path"])
         files["schedule"] = p if p.is_absolute() else camp.scenario_base_dir / p
     elif "name" in sched:
-        p = Path(__file__).resolve().parents[1] / "schedules" / f"{sched['name']}.toml"
+        p = Path(str(schedules_dir())) / f"{sched['name']}.toml"
         if p.exists():
             files["schedule"] = p
     tt = camp.scenario.get("turntable", {}).get("fmu", "builtin:turntable")
     files["fmu:turntable"] = resolve_imu(tt, camp.scenario_base_dir)
     for name, s in camp.systems.items():
         files[f"fmu:{name}"] = s.path
-    return {k: {"path": str(Path(v).resolve()), "sha256": _sha256(v)} for k, v in files.items()}
+    return {k: {"path": str(Path(v).resolve()), "sha256": file_sha256(v)} for k, v in files.items()}
 
 
 def new_manifest(camp) -> dict:

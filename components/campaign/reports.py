@@ -34,10 +34,10 @@ def worst_cases(camp, records: dict, n: int = 5) -> list[dict]:
 
 
 def case_page(camp, case_id: str, out: Path) -> Path:
-    """<out>/pages/<case id>.html: the components.report page of the case (compare + diagnose)."""
+    """<out>/pages/<case id>.html: the components.diagnosis.report page of the case (compare + diagnose)."""
     from components.campaign.case import numbers_of
-    from components.diagnose import diagnose
-    from components.report import build_report
+    from components.diagnosis.diagnose import diagnose
+    from components.diagnosis.report import build_report
 
     case = camp.case(case_id)
     task = task_for(camp, case)

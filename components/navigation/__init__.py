@@ -1,6 +1,6 @@
 """System-level calibration: strapdown navigation in ENU from IMU increments, alignment, and an
 error-state Kalman filter whose states are the 9 navigation errors plus any chosen effects of the
-vocabulary (components.effects), observed through the navigation velocity on a stationary base
+vocabulary (components.model.effects), observed through the navigation velocity on a stationary base
 (domain.md §6 seeds 001/003, §7). One idea per module:
 
 - :mod:`.earth`        site constants (gravity, Earth rate, radii) at a fixed latitude

@@ -25,7 +25,7 @@
   diagonal ``acc.lever.i.i``; ``acc.lever.i.k`` = r_k + the inner arm of axis i), 9 nav + 33 = 42
   states; what rests is the centre, not the IMU, so the filters observe the position too (its
   displacement (C_b^n − C_b^n(0)) r is what shows r).
-- ``psins19``: the 19-position PSINS-style sequence (components/schedules/psins19.toml): the
+- ``psins19``: the 19-position PSINS-style sequence (components/control/schedules/psins19.toml): the
   time offset from the table angles over the whole sequence, then the 39-state filter of seed
   003 on it.
 
@@ -38,7 +38,7 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from components.effects import parameters_of
+from components.model.effects import parameters_of
 from components.navigation.system import Config, Stage
 
 ACC_MIS3 = ["acc.mis.yx", "acc.mis.zx", "acc.mis.zy"]

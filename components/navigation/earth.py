@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from components.geometry import EARTH_RATE, earth_rate_enu, normal_gravity
+from components.model.geometry import EARTH_RATE, earth_rate_enu, normal_gravity
 
 _A = 6378137.0
 _E2 = 0.00669437999013

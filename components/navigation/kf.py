@@ -51,8 +51,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from components.effects import effect_of
-from components.geometry import skew
+from components.model.effects import effect_of
+from components.model.geometry import skew
 from components.navigation.earth import Site
 from components.navigation.strapdown import Strapdown, rot
 

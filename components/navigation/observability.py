@@ -48,9 +48,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import expm
 
-from components.effects import effect_of
-from components.geometry import skew
-from components.lsq import LogData
+from components.model.effects import effect_of
+from components.model.geometry import skew
+from components.estimation.log_data import LogData
 from components.navigation.earth import Site
 from components.navigation.kf import FilterSettings, prior_sigmas
 from components.navigation.sensor import Regressors
@@ -291,7 +291,7 @@ def plan_observability(log, spec: str, gyro_arw: float, acc_vrw: float,
     """``calbench plan --observability SPEC``: SPEC a system-level configuration (each ``kf``
     stage analysed on its window with its states) or ``effects`` (the plan's --effects over the
     whole log). Noise: ARW [rad/√s] and VRW [m/s/√s] as white noise per sample."""
-    from components.effects import parameters_of
+    from components.model.effects import parameters_of
     from components.navigation.configs import READY, load_config
     from components.navigation.system import window_of
 

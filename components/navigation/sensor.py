@@ -1,8 +1,8 @@
 """Effect regressors evaluated on the IMU's own measured motion.
 
 The system-level filter has no table angles: the contribution of one unit of each effect
-parameter to each sample's increment (components.effects, the same regressors the least-squares
-engine uses) is evaluated on a :class:`components.motion.Motion` built from the IMU data:
+parameter to each sample's increment (components.model.effects, the same regressors the least-squares
+engine uses) is evaluated on a :class:`components.model.motion.Motion` built from the IMU data:
 rate and specific force at the sample midpoints from the increments, the interval-end values
 from neighbouring samples (their mean), angular acceleration from the interval-end rates (central
 differences). Errors of this evaluation are products of two small quantities (the parameter
@@ -30,8 +30,8 @@ import dataclasses
 
 import numpy as np
 
-from components.effects import effect_of, regressor_of
-from components.motion import Motion
+from components.model.effects import effect_of, regressor_of
+from components.model.motion import Motion
 
 
 def _interval_ends(x: np.ndarray, static: np.ndarray | None) -> np.ndarray:

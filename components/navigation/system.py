@@ -11,7 +11,7 @@ The alignment run is the window's first rest of at least ``align_min_s`` (a tabl
 an index creeps; data before that rest are not used).
 A ``cwccw`` stage: the CW/CCW closed forms (components.procedures.cwccw) for the listed
 parameters (seed 001's gyro stage).
-A ``table`` stage: the least squares (components.lsq) with the table angles on a window, the
+A ``table`` stage: the least squares (components.estimation.lsq) with the table angles on a window, the
 model's ``effects`` fitted jointly and only ``parameters`` kept (seed 003's table-referenced
 steps S201/S202). It is where the IMU/table time offset comes from: the navigation velocity on
 a stationary base cannot see it (a delayed IMU record is an equally valid trajectory), the
@@ -28,15 +28,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from components.blocks import white_noise_sigma
-from components.effects import effect_of, parameters_of
-from components.lsq import LogData
+from components.estimation.blocks import white_noise_sigma
+from components.model.effects import effect_of, parameters_of
+from components.estimation.log_data import LogData
 from components.navigation.alignment import alignment_run, coarse_align, fine_align
 from components.navigation.earth import Site
 from components.navigation.kf import (SIGMA_ACC_FLOOR, SIGMA_GYRO_FLOOR, FilterOutput,
                                       FilterSettings, run_filter)
 from components.navigation.sensor import Regressors
-from components.result import CalibrationResult, schedule_of
+from components.model.result import CalibrationResult, schedule_of
 
 METHOD = "system-level KF"
 STATIC_TOL = 1e-9  # rad: an angle change per sample below this is "at rest"
@@ -191,7 +191,7 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
 
 
 def run_table_stage(data: LogData, stage: Stage, fixed: dict, dt: float) -> StageOutput:
-    from components.lsq import calibrate
+    from components.estimation.lsq import calibrate
 
     a, b = window_of(data.segment, stage.window, len(data.time))
     # from the sample before the first match: a window's first match is often the start of a

@@ -7,7 +7,7 @@
 - ``latitude``: seed 002, vertical, east, attitude and latitude with one accelerometer and one
   gyro on a three-gimbal device (drives the co-simulation adaptively: ``latitude.drive``)
 
-``run(name, log_or_data, **options)`` -> components.result.CalibrationResult.
+``run(name, log_or_data, **options)`` -> components.model.result.CalibrationResult.
 """
 from __future__ import annotations
 

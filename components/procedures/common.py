@@ -5,9 +5,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from components.blocks import white_noise_sigma
-from components.effects import effect_of
-from components.lsq import LogData
+from components.estimation.blocks import white_noise_sigma
+from components.model.effects import effect_of
+from components.estimation.log_data import LogData
 
 
 def as_data(log_or_data) -> tuple[LogData, object]:

@@ -41,9 +41,9 @@ import re
 
 import numpy as np
 
-from components.effects import AX
-from components.geometry import TableGeometry
-from components.result import CalibrationResult, schedule_of
+from components.model.effects import AX
+from components.model.geometry import TableGeometry
+from components.model.result import CalibrationResult, schedule_of
 
 from components.procedures.common import (angle_quantum, as_data, is_static,
                                           linear_covariance, noise_sigma, sample_interval, segments)

@@ -43,7 +43,7 @@ Steps (seed 002 steps 4-9; labels of the rotate segments ``spinNN-<kind>``):
    L = atan2(cos(k_ω - k_u), sin(k_u - k_ω)).
 
 :func:`drive` runs this adaptively on the co-simulation (one short scenario run per spin
-through components.scenario, each starting where the last ended: ``<axis>.angle0``), and
+through components.simulation.scenario, each starting where the last ended: ``<axis>.angle0``), and
 returns the concatenated log; :func:`run` applies the estimators to a log holding the spins
 (the labels above), so the log alone reproduces the result.
 """
@@ -55,7 +55,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from components.result import CalibrationResult, schedule_of
+from components.model.result import CalibrationResult, schedule_of
 
 from components.procedures.common import angle_quantum, as_data, noise_sigma, sample_interval, segments
 
@@ -192,7 +192,7 @@ def latitude_from_east_spin(fa, fg) -> tuple[float, float]:
 def attitude_angles(up, east) -> dict:
     """Base tilt x/y and azimuth of C_b0^n = R_x(t_x) R_y(t_y) R_z(az) from up and east in base
     axes (azimuth from east, tilts from up)."""
-    from components.geometry import rodrigues
+    from components.model.geometry import rodrigues
 
     north = np.cross(up, east)
     east = np.cross(north, up)
@@ -293,7 +293,7 @@ def run(log_or_data, *, tol_arcsec: float = 1.0) -> CalibrationResult:
 
 # --------------------------------------------------------------------------- driving the co-simulation
 def _spin_schedule(num: int, kind: str, angles, rate_dps: float, turns: int, hold: float):
-    from components.schedule import schedule_from_dict
+    from components.control.schedule import schedule_from_dict
 
     lab = f"spin{num:02d}-{kind}"
     d = {"schedule": {"name": lab},
@@ -324,7 +324,7 @@ def _concat(logs):
 
 def truth_of(sc) -> dict:
     """Truth of a scenario: base tilt, azimuth, latitude, up and east in base axes."""
-    from components.geometry import TableGeometry, Stage
+    from components.model.geometry import TableGeometry, Stage
 
     tx = sc.table_effects.get("table.base_tilt.x", sc.table_parameters.get("base.tilt.x", 0.0))
     ty = sc.table_effects.get("table.base_tilt.y", sc.table_parameters.get("base.tilt.y", 0.0))
@@ -343,8 +343,9 @@ def drive(scenario, *, rate_dps: float = 10.0, acc_turns: int = 1, north_turns: 
     """Run seed 002 adaptively on the co-simulation described by *scenario* (a Scenario or a
     path: its site, turntable (seed-002 axes), IMU and step; its schedule is replaced spin by
     spin). Returns (MeasurementLog of all spins, list of per-run truths, the decisions)."""
-    from components.lsq import LogData
-    from components.scenario import Scenario, load_scenario, run_scenario
+    from components.estimation.log_data import LogData
+    from components.simulation.scenario import Scenario, load_scenario
+    from components.simulation.run import run_scenario
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     logs, truths, decisions = [], [], []

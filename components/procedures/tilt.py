@@ -18,15 +18,15 @@ Stage 2, frame-angle compensation and multi-position estimation. The seed turns 
 that the triad is locally level; here the equivalent: the geometry carries the estimated tilt,
 so every attitude of the multi-position set is computed with the base as it is, and the
 accelerometer scale factor, bias, K2 and misalignment follow from the static time means by
-least squares (components.lsq.calibrate with the tilt fixed). ``tilt_ignored`` runs the same
+least squares (components.estimation.lsq.calibrate with the tilt fixed). ``tilt_ignored`` runs the same
 second stage on the nominal, level geometry, for comparison.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from components.lsq import calibrate
-from components.result import CalibrationResult, result_from_fit
+from components.estimation.lsq import calibrate
+from components.model.result import CalibrationResult, result_from_fit
 
 from components.procedures.common import as_data, is_static, sample_interval, segments
 

@@ -1,0 +1,72 @@
+"""``calbench calibrate`` (general least squares on a log) and ``calbench apply`` (correct a raw
+log with a result)."""
+from __future__ import annotations
+
+import argparse
+
+
+def _print_result(res) -> None:
+    from components.model.effects import effect_of
+
+    print(f"{'parameter':22s} {'value':>14s} {'sigma':>12s}  unit")
+    for p in res.parameters:
+        e = effect_of(p)
+        unit, scale = e.display
+        v, s = res.values[p] / scale, res.sigmas[p] / scale
+        print(f"{p:22s} {v:+14.6g} {s:12.3g}  {unit}")
+    f = res.fit
+    if f:
+        print(f"chi2/dof = {f['chi2_per_dof']:.3f} ({f['dof']} dof), {f['iterations']} iteration(s)")
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from components.model.effects import DEFAULT_EFFECTS, parse_effects
+    from components.logs.logfile import read_log
+    from components.estimation.lsq import calibrate
+    from components.estimation.log_data import LogData
+    from components.model.result import result_from_fit
+
+    from components.errors import UserError
+
+    try:
+        effects = parse_effects(args.effects) if args.effects else list(DEFAULT_EFFECTS)
+    except ValueError as e:
+        raise UserError(f"--effects: {e}") from None
+    log = read_log(args.log)
+    data = LogData.from_log(log)
+    fit = calibrate(data, effects, chunk_s=args.chunk)
+    res = result_from_fit(fit, effects, data, log)
+    res.save(args.out)
+    _print_result(res)
+    print(f"-> {args.out}")
+    return 0
+
+
+def _cmd_apply(args: argparse.Namespace) -> int:
+    from components.model.correct import correct_log
+    from components.logs.logfile import read_log, write_log
+    from components.model.result import CalibrationResult
+
+    res = CalibrationResult.load(args.result)
+    log = read_log(args.log)
+    out = correct_log(log, res)
+    paths = write_log(args.out, out)
+    print(f"corrected {log.n} samples with {args.result} -> {', '.join(map(str, paths))}")
+    return 0
+
+
+def register(sub) -> None:
+    c = sub.add_parser("calibrate", help="least-squares calibration of a calbench-log/1 log "
+                                         "(any effects of the vocabulary, with covariance)")
+    c.add_argument("log", help="the log: either file of the pair, or the stem")
+    c.add_argument("--out", required=True, help="result file (JSON)")
+    c.add_argument("--effects", help="comma list of effects (default: bias, scale factor and "
+                                     "misalignment of gyro and accelerometer)")
+    c.add_argument("--chunk", type=float, default=1.0, help="static block length [s]")
+    c.set_defaults(func=_cmd_calibrate)
+
+    a = sub.add_parser("apply", help="correct a raw log with a calibration result")
+    a.add_argument("log", help="the raw log (either file or the stem)")
+    a.add_argument("--result", required=True, help="calibration result (JSON)")
+    a.add_argument("--out", required=True, help="stem of the corrected log pair")
+    a.set_defaults(func=_cmd_apply)

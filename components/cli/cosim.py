@@ -1,0 +1,135 @@
+"""The co-simulation commands: ``build-fmus``, ``run``, ``check-fmu``, ``verify`` and ``tumble``
+(the plant FMUs, any system file, a supplier FMU against its role, the coupling error)."""
+from __future__ import annotations
+
+import argparse
+
+from components.errors import UserError
+
+
+def _cmd_build_fmus(args: argparse.Namespace) -> int:
+    from fmus.build import FMI_VERSIONS, MODELS, build_fmu
+
+    versions = FMI_VERSIONS if args.fmi is None else (args.fmi,)
+    for model in MODELS:
+        for v in versions:
+            path = build_fmu(model, v, force=True)
+            print(f"built {model:9s} FMI {v}.0  {path}")
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from orchestrator.master import Simulation
+    from orchestrator.system import load_system
+
+    system = load_system(args.system)
+    if args.stop is not None:
+        system.stop = args.stop
+    sim = Simulation(system)
+    sim.load()
+    for chk in sim.role_checks:
+        print(chk.report())
+    from fmpy.validation import validate_fmu
+
+    for name, unit in sim.units.items():
+        path = getattr(unit, "path", None)
+        if path is not None:
+            problems = validate_fmu(str(path))
+            for p in problems:
+                print(f"unit {name}: validation: {p}")
+    out = args.out or f"{system.name}.parquet"
+    rec = sim.run(out)
+    print(f"{system.name}: {rec.rows} rows x {len(rec.signals)} signals, "
+          f"{rec.provenance['wall_time_s']:.2f} s wall -> {out}")
+    return 0
+
+
+def _cmd_verify(args: argparse.Namespace) -> int:
+    from orchestrator.system import load_system
+    from orchestrator.verify import verify
+
+    system = load_system(args.system)
+    if args.stop is not None:
+        system.stop = args.stop
+    agg = {}
+    for it in args.aggregate or []:
+        k, sep, v = it.partition("=")
+        if not sep:
+            raise UserError(f"--aggregate {it!r}: expected SIGNAL=sample|sum")
+        agg[k.strip()] = v.strip()
+    report = verify(system, rel_tol=args.rel_tol, engine_abs=args.engine_tol, engine_rel=args.engine_tol,
+                    aggregate=agg, engine=not args.no_engine)
+    print(report.table())
+    return 0 if report.ok else 1
+
+
+def _parse_mapping(items: list[str]) -> dict:
+    out = {}
+    for it in items or []:
+        if "=" not in it:
+            raise UserError(f"--map {it!r}: expected ROLE_NAME=FMU_NAME")
+        k, v = it.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def _cmd_check_fmu(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from orchestrator.check import check_fmu
+
+    if not Path(args.fmu).exists():
+        raise UserError(f"FMU file {args.fmu} does not exist")
+    options = {}
+    for it in args.option or []:
+        k, _, v = it.partition("=")
+        options[k] = v
+    verdict = check_fmu(args.fmu, args.role, _parse_mapping(args.map), options, args.step)
+    print(verdict.report())
+    return 0 if verdict.ok else 1
+
+
+def _cmd_tumble(args: argparse.Namespace) -> int:
+    from components.simulation.tumble import run_tumble
+
+    return run_tumble(seed=args.seed, dwell=args.dwell, step=args.step)
+
+
+def register(sub) -> None:
+    b = sub.add_parser("build-fmus", help="rebuild the turntable and IMU FMUs from source now")
+    b.add_argument("--fmi", type=int, choices=(2, 3), help="only this FMI version")
+    b.set_defaults(func=_cmd_build_fmus)
+
+    r = sub.add_parser("run", help="run a system file (TOML or SSP) and save its recording (Parquet)")
+    r.add_argument("system", help="system file (.toml or .ssp)")
+    r.add_argument("--out", help="recording file (default: <system name>.parquet)")
+    r.add_argument("--stop", type=float, help="override the stop time [s]")
+    r.set_defaults(func=_cmd_run)
+
+    c = sub.add_parser("check-fmu", help="validate an FMU, check it against a role, smoke-test it")
+    c.add_argument("fmu", help="the .fmu file")
+    c.add_argument("--role", choices=("imu", "turntable"), help="role the FMU should fill")
+    c.add_argument("--map", action="append", metavar="ROLE_NAME=FMU_NAME",
+                   help="map a role variable onto the FMU's own name (repeatable)")
+    c.add_argument("--option", action="append", metavar="KEY=VALUE",
+                   help="role option, e.g. gyro_output=rate (imu) (repeatable)")
+    c.add_argument("--step", type=float, default=0.005, help="step of the smoke test [s]")
+    c.set_defaults(func=_cmd_check_fmu)
+
+    v = sub.add_parser("verify", help="estimate the coupling error of the step (runs at h, h/2, h/4) "
+                                      "and compare with libcosim; exit 1 if out of tolerance")
+    v.add_argument("system", help="system file (.toml or .ssp)")
+    v.add_argument("--rel-tol", type=float, default=1e-6, help="coupling error / signal RMS (1e-6)")
+    v.add_argument("--engine-tol", type=float, default=1e-12, help="engine difference, abs and rel (1e-12)")
+    v.add_argument("--aggregate", action="append", metavar="SIGNAL=sample|sum",
+                   help="how a finer run maps onto the coarse grid (repeatable; adds to record.aggregate)")
+    v.add_argument("--stop", type=float, help="override the stop time [s]")
+    v.add_argument("--no-engine", action="store_true", help="skip the libcosim comparison")
+    v.set_defaults(func=_cmd_verify)
+
+    t = sub.add_parser("tumble", help="co-simulate the table tumbling a navigation-grade IMU "
+                                      "through the six axis-up attitudes and check its outputs")
+    t.add_argument("--seed", type=int, default=1, help="IMU noise seed")
+    t.add_argument("--dwell", type=float, default=10.0, help="static dwell per attitude [s]")
+    t.add_argument("--step", type=float, default=0.005, help="communication step [s]")
+    t.set_defaults(func=_cmd_tumble)

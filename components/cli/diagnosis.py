@@ -1,0 +1,176 @@
+"""The model against the measurement: ``calbench compare`` (residuals, χ²/dof, where it fails),
+``calbench diagnose`` (which effect is missing) and ``calbench add`` (add it, refit, the ladder)."""
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+
+def _load_model(path: str):
+    from components.model.result import CalibrationResult
+
+    return CalibrationResult.load(path)
+
+
+def _print_comparison(c) -> None:
+    print(f"chi2/dof (block sums against the white-noise level) = {c.chi2_per_dof:.3f} "
+          f"({c.dof} dof, 1 ± {(2 / max(c.dof, 1)) ** 0.5:.3f} for a correct model)")
+    print(f"{'channel':8s} {'rms':>11s} {'noise':>11s} {'rms/noise':>9s} {'chi2/dof':>9s} "
+          f"{'fit %':>9s} {'white p':>8s}")
+    for k, v in c.channels.items():
+        print(f"{k:8s} {v['rms']:11.4g} {v['noise_floor']:11.4g} {v['rms'] / v['noise_floor']:9.3f} "
+              f"{v['chi2_per_dof']:9.3f} {v['fit_percent']:9.4f} {v['whiteness_p']:8.3f}")
+    worst = sorted(((max((x for x in vals if x is not None), default=0), s)
+                    for s, vals in c.per_segment.items()), reverse=True)[:5]
+    if worst:
+        print("segments with the largest normalised residual (block RMS, 1 = noise): "
+              + ", ".join(f"{s} {v:.2f}" for v, s in worst))
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    import json
+
+    from components.diagnosis.compare import compare
+    from components.diagnosis.residual_export import write_residuals
+    from components.model.result import fitted_on
+    from components.logs.logfile import read_log
+    from components.estimation.log_data import LogData
+
+    log = read_log(args.log)
+    data = LogData.from_log(log)
+    if args.model.endswith((".toml", ".ssp")):
+        # a system: its IMU unit (ours or a supplier's FMU) replayed on the log's motion
+        from components.diagnosis.compare import assess
+        from components.simulation.replay import replay_imu
+
+        motion = data.motion(data.geometry)
+        c = assess(data, data.geometry, motion, replay_imu(data, args.model, motion))
+        print(f"model: the IMU unit of {args.model}, replayed on the log's motion")
+    else:
+        model = _load_model(args.model)
+        c = compare(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0)
+    _print_comparison(c)
+    if args.servo is not None:
+        _print_servo(log, None if args.servo == "builtin" else args.servo)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(c.summary(), f, indent=1)
+    if args.residuals:
+        write_residuals(args.residuals, log, c)
+    return 0
+
+
+def _print_servo(log, system_file) -> None:
+    from components.simulation.replay import replay_servo
+
+    from components.errors import UserError
+
+    try:
+        res = replay_servo(log, system_file)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    src = system_file or "the built-in turntable FMU"
+    print(f"servo: commanded angles replayed through {src}; measured − simulated encoder angle [arcsec]:")
+    print(f"{'axis':8s} {'rms':>10s} {'max':>10s} {'rms moving':>11s} {'rms rest':>10s}")
+    k = 180 * 3600 / np.pi
+    for a, v in res.items():
+        print(f"{a:8s} {v['rms'] * k:10.4g} {v['max'] * k:10.4g} {v['rms_moving'] * k:11.4g} {v['rms_rest'] * k:10.4g}")
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    import json
+
+    from components.diagnosis.diagnose import diagnose
+    from components.model.effects import EFFECTS, parse_effects
+    from components.logs.logfile import read_log
+    from components.estimation.log_data import LogData
+
+    log = read_log(args.log)
+    data = LogData.from_log(log)
+    model = _load_model(args.model)
+    cands = parse_effects(args.candidates) if args.candidates else None
+    d = diagnose(data, model, candidates=cands, alpha=args.alpha)
+    print(f"model: {', '.join(model.effects)}; chi2/dof = {d.base_chi2_per_dof:.3f} over {d.rows} block rows")
+    print(f"{'rank':4s} {'effect':16s} {'F':>10s} {'p (Holm)':>10s} {'dBIC':>10s} {'explains':>8s}  magnitude")
+    for i, c in enumerate(d.ranking[: args.top], 1):
+        e = EFFECTS[c.effect]
+        unit, scale = e.display
+        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))
+        mag = f"{best[0]} = {best[1][0] / scale:+.4g} ± {best[1][1] / scale:.2g} {unit}"
+        mark = "*" if c.passes else " "
+        print(f"{i:3d}{mark} {c.effect:16s} {c.statistic:10.3g} {c.p_adjusted:10.2g} {c.bic_delta:10.4g} "
+              f"{100 * c.explained_fraction:7.1f}%  {mag}")
+        for other, rho, advice in c.indistinguishable:
+            print(f"       cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+    if d.verdict is None:
+        print("verdict: no significant effect is missing")
+    else:
+        print(f"verdict: {d.verdict} is missing" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(d.to_json(), f, indent=1)
+    return 0
+
+
+def _cmd_add(args: argparse.Namespace) -> int:
+    from components.diagnosis.compare import compare
+    from components.diagnosis.ladder import ladder_entry, ladder_lines
+    from components.model.effects import parse_effects
+    from components.logs.logfile import read_log
+    from components.estimation.lsq import calibrate
+    from components.estimation.log_data import LogData
+    from components.model.result import result_from_fit
+
+    from components.errors import UserError
+
+    log = read_log(args.log)
+    data = LogData.from_log(log)
+    model = _load_model(args.model)
+    try:
+        new = parse_effects(args.effect)
+    except ValueError as e:
+        raise UserError(f"--effect: {e}") from None
+    effects = list(dict.fromkeys(list(model.effects) + new))
+    ladder = list(model.extra.get("ladder", []))
+    if not ladder:
+        ladder.append(ladder_entry(compare(data, model, fitted_parameters=len(model.values)), model.effects))
+    fit = calibrate(data, effects, temperature_ref=model.temperature_ref)
+    res = result_from_fit(fit, effects, data, log)
+    ladder.append(ladder_entry(compare(data, res, fitted_parameters=len(res.values)), effects,
+                               f"+ {', '.join(new)}"))
+    res.extra["ladder"] = ladder
+    res.save(args.out)
+    print("\n".join(ladder_lines(ladder)))
+    print(f"-> {args.out}")
+    return 0
+
+
+def register(sub) -> None:
+    c = sub.add_parser("compare", help="replay a log's motion through a model: residuals, "
+                                       "chi2/dof, fit, whiteness, where it fails")
+    c.add_argument("log")
+    c.add_argument("--model", required=True,
+                   help="calibration result (JSON), or a system (TOML/SSP) whose IMU unit is replayed")
+    c.add_argument("--servo", nargs="?", const="builtin", metavar="SYSTEM",
+                   help="also replay the logged commands through the turntable FMU (the built-in "
+                        "one, or a system's turntable unit) and compare with the logged angles")
+    c.add_argument("--json", help="write the per-channel figures as JSON")
+    c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units)")
+    c.set_defaults(func=_cmd_compare)
+
+    d = sub.add_parser("diagnose", help="which effect of the vocabulary is missing from the model")
+    d.add_argument("log")
+    d.add_argument("--model", required=True)
+    d.add_argument("--json", help="write verdict and ranking as JSON")
+    d.add_argument("--alpha", type=float, default=0.01, help="family-wise error rate (Holm)")
+    d.add_argument("--candidates", help="comma list of effects to test (default: all not in the model)")
+    d.add_argument("--top", type=int, default=10, help="ranking lines to print")
+    d.set_defaults(func=_cmd_diagnose)
+
+    a = sub.add_parser("add", help="add an effect to a model and refit all parameters")
+    a.add_argument("log")
+    a.add_argument("--model", required=True)
+    a.add_argument("--effect", required=True, help="effect name (or comma list)")
+    a.add_argument("--out", required=True, help="the new model (JSON), with the ladder")
+    a.set_defaults(func=_cmd_add)

@@ -1,0 +1,218 @@
+"""Model against measurement: replay the measured motion through a model and measure the misfit.
+
+The motion is the log's gimbal angles through the table geometry (with the model's table
+effects), the model is a calibration result (components.model.result) — the IMU's predicted output is
+ideal + Σ effect regressors × values.
+
+What the numbers mean (docs/compare.md says the same for users):
+
+- ``residual``: per sample and channel, measured − model, in SI increments (and in the log's
+  output units in the ``--residuals`` file).
+- ``noise_floor``: the per-sample white-noise σ of each channel, estimated from the residual's
+  high-frequency content (consecutive differences within static runs, robust scale).
+- ``rms``: RMS of the per-sample residual over the samples the model predicts sample by sample —
+  every accelerometer sample and the static gyro samples; during moves the per-sample gyro
+  prediction is limited by the encoder (domain.md §3) and is reported apart as ``rms_moving``.
+  A correct model has rms ≈ noise_floor.
+- ``chi2_per_dof``: the low-frequency content. Residuals are summed over the estimator's blocks
+  (1 s static chunks and rest-to-rest moves for the gyros, 1 s chunks for the accelerometers);
+  each block sum is divided by its white-noise σ (√n · noise_floor, plus the rest-angle
+  uncertainty of a move); χ²/dof = mean of the squares over the blocks (minus the fitted
+  parameters when the model was fitted to this log). White noise gives 1 ± √(2/dof); a missing
+  systematic effect, which adds coherently within a block, gives clearly more — where a
+  per-sample χ² would stay at 1.00.
+- ``fit_percent``: 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) per channel over all samples (NRMSE fit).
+- ``whiteness_p``: Ljung–Box p-value of the normalised block residuals in time order.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from components.estimation.blocks import observation_blocks, white_noise_sigma
+from components.model.effects import effect_of
+from components.estimation.log_data import LogData
+from components.model.table_parameters import apply_table_parameter
+from components.estimation.rest_angles import rest_sigma, rest_variance
+from components.estimation.design import sensor_columns
+from components.model.result import CalibrationResult
+
+CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
+
+
+def model_geometry(data: LogData, model: CalibrationResult):
+    geo = data.geometry
+    for p, v in model.values.items():
+        if effect_of(p).target == "table":
+            geo = apply_table_parameter(geo, p, v)
+    return geo
+
+
+def ljung_box(z: np.ndarray, lags: int = 10) -> float:
+    """p-value of the Ljung–Box portmanteau test of a normalised series."""
+    n = len(z)
+    if n < lags + 5:
+        return float("nan")
+    z = z - z.mean()
+    d = float(np.dot(z, z))
+    if d == 0:
+        return 1.0
+    r = np.array([np.dot(z[:-k], z[k:]) / d for k in range(1, lags + 1)])
+    q = n * (n + 2) * np.sum(r**2 / (n - np.arange(1, lags + 1)))
+    return float(stats.chi2.sf(q, lags))
+
+
+@dataclass
+class Comparison:
+    time: np.ndarray
+    segment: np.ndarray | None
+    static: np.ndarray
+    residual: np.ndarray           # (N, 6) SI increments
+    predicted: np.ndarray          # (N, 6)
+    noise_floor: np.ndarray        # (6,) per-sample σ
+    channels: dict                 # channel -> metrics
+    chi2: float
+    dof: int
+    rows: dict                     # block rows: z, sensor, axis, start, stop, moving
+    per_segment: dict = field(default_factory=dict)
+    conditions: dict = field(default_factory=dict)
+
+    @property
+    def chi2_per_dof(self) -> float:
+        return self.chi2 / max(self.dof, 1)
+
+    def summary(self) -> dict:
+        return {"chi2_per_dof": self.chi2_per_dof, "dof": self.dof,
+                "channels": self.channels, "segments": self.per_segment,
+                "conditions": self.conditions}
+
+
+def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s):
+    dt = float(np.median(np.diff(data.time)))
+    n_chunk = max(1, int(round(chunk_s / dt)))
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
+    zs, sens, axis, start, stop, moving = [], [], [], [], [], []
+    for blocks, sl, name in ((gb, slice(0, 3), "gyro"), (ab, slice(3, 6), "acc")):
+        s = blocks.sum(residual[:, sl])
+        var = blocks.count[:, None] * sigma[sl][None, :] ** 2
+        if name == "gyro":
+            var = var + rest_variance(data, geo, blocks, rest)
+        z = s / np.sqrt(var)
+        zs.append(z.reshape(-1))
+        sens += [name] * z.size
+        axis.append(np.tile([0, 1, 2], len(blocks)) + (0 if name == "gyro" else 3))
+        start.append(np.repeat(blocks.start, 3))
+        stop.append(np.repeat(blocks.stop, 3))
+        moving.append(np.repeat(blocks.moving, 3))
+    return {"z": np.concatenate(zs), "sensor": np.array(sens), "channel": np.concatenate(axis),
+            "start": np.concatenate(start), "stop": np.concatenate(stop),
+            "moving": np.concatenate(moving)}
+
+
+def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int = 0,
+            chunk_s: float = 1.0, rest_angle_sigma=None) -> Comparison:
+    """Residual of *model* on *data*. ``fitted_parameters``: how many parameters were fitted to
+    this same log (subtracted from the degrees of freedom)."""
+    geo = model_geometry(data, model)
+    motion = data.motion(geo, model.temperature_ref)
+    sensor_params = [p for p in model.values if effect_of(p).target != "table"]
+    values = np.array([model.values[p] for p in sensor_params])
+    G, A = sensor_columns(motion, sensor_params)
+    pred = np.hstack([motion.ideal_gyro + G @ values, motion.ideal_acc + A @ values])
+    if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
+        rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
+    return assess(data, geo, motion, pred, fitted_parameters=fitted_parameters, chunk_s=chunk_s,
+                  rest_angle_sigma=rest_angle_sigma)
+
+
+def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: int = 0,
+           chunk_s: float = 1.0, rest_angle_sigma=None) -> Comparison:
+    """The misfit figures of a prediction (N, 6) of the log's IMU increments, whatever made it
+    (a calibration result, or a supplier's IMU FMU replayed on the log's motion)."""
+    meas = np.hstack([data.gyro, data.acc])
+    resid = meas - pred
+    sigma = white_noise_sigma(resid, motion.static)
+    floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(motion.dt))
+    sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
+    rest = rest_sigma(data.angles, rest_angle_sigma)
+    rows = _blocks_rows(data, geo, motion, resid, sigma, rest, chunk_s)
+    chi2 = float(np.sum(rows["z"] ** 2))
+    dof = max(len(rows["z"]) - fitted_parameters, 1)
+    channels = {}
+    predictable = np.ones_like(resid, dtype=bool)
+    predictable[:, :3] = motion.static[:, None]
+    for k, ch in enumerate(CHANNELS):
+        sel = rows["channel"] == k
+        zk = rows["z"][sel]
+        order = np.argsort(rows["start"][sel], kind="stable")
+        ok = predictable[:, k]
+        dev = meas[:, k] - meas[:, k].mean()
+        channels[ch] = {
+            "rms": float(np.sqrt(np.mean(resid[ok, k] ** 2))) if ok.any() else float("nan"),
+            "rms_moving": float(np.sqrt(np.mean(resid[~ok, k] ** 2))) if (~ok).any() else None,
+            "noise_floor": float(sigma[k]),
+            "chi2_per_dof": float(np.sum(zk**2) / max(len(zk) - fitted_parameters * len(zk) / max(len(rows["z"]), 1), 1)),
+            "fit_percent": float(100 * (1 - np.linalg.norm(resid[:, k]) / np.linalg.norm(dev)))
+            if np.linalg.norm(dev) > 0 else float("nan"),
+            "whiteness_p": ljung_box(zk[order]),
+        }
+    comp = Comparison(data.time, data.segment, motion.static, resid, pred, sigma, channels, chi2,
+                      dof, rows)
+    comp.per_segment = _per_segment(data, rows)
+    comp.conditions = _conditions(data, motion, rows)
+    return comp
+
+
+def _per_segment(data: LogData, rows: dict) -> dict:
+    """Per segment label and channel: RMS of the normalised block residuals (1 = noise)."""
+    if data.segment is None:
+        return {}
+    seg = np.asarray(data.segment).astype(str)
+    label = seg[rows["start"]]
+    out: dict = {}
+    for s in dict.fromkeys(label):
+        sel = label == s
+        out[s] = [float(np.sqrt(np.mean(rows["z"][sel & (rows["channel"] == k)] ** 2)))
+                  if np.any(sel & (rows["channel"] == k)) else None for k in range(6)]
+    return out
+
+
+def _conditions(data: LogData, motion, rows: dict) -> dict:
+    """Normalised block-residual RMS split by condition."""
+    mid = (rows["start"] + rows["stop"] - 1) // 2
+    z = rows["z"]
+    f = motion.f_q[mid, 0, :]
+    w = motion.omega_q[mid, 0, :]
+    cond: dict[str, np.ndarray] = {}
+    cond["static"] = ~rows["moving"]
+    cond["rotating"] = rows["moving"]
+    up = np.argmax(np.abs(f), axis=1)
+    sign = np.sign(f[np.arange(len(f)), up])
+    for k, c in enumerate("xyz"):
+        for s, name in ((1, "up"), (-1, "down")):
+            cond[f"static, {c} {name}"] = (~rows["moving"]) & (up == k) & (sign == s)
+    rate = np.linalg.norm(w, axis=1)
+    cond["rate < 5 deg/s"] = rows["moving"] & (rate < np.radians(5))
+    cond["rate 5-20 deg/s"] = rows["moving"] & (rate >= np.radians(5)) & (rate < np.radians(20))
+    cond["rate > 20 deg/s"] = rows["moving"] & (rate >= np.radians(20))
+    dom = np.argmax(np.abs(w), axis=1)
+    wsign = np.sign(w[np.arange(len(w)), dom])
+    cond["rate sign +"] = rows["moving"] & (wsign > 0)
+    cond["rate sign -"] = rows["moving"] & (wsign < 0)
+    if data.temperature is not None:
+        T = np.asarray(data.temperature)[mid]
+        lo, hi = np.quantile(data.temperature, [1 / 3, 2 / 3])
+        cond["temperature low"] = T <= lo
+        cond["temperature mid"] = (T > lo) & (T <= hi)
+        cond["temperature high"] = T > hi
+    out = {}
+    for name, sel in cond.items():
+        vals = []
+        for k in range(6):
+            m = sel & (rows["channel"] == k)
+            vals.append(float(np.sqrt(np.mean(z[m] ** 2))) if m.any() else None)
+        if any(v is not None for v in vals):
+            out[name] = vals
+    return out

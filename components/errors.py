@@ -1,0 +1,42 @@
+"""Every error calbench raises for a user's mistake or a run that cannot go on, in one leaf
+module that any part of ``components`` may import (it imports nothing of the project).
+
+Each class keeps the built-in parent it resembles (a bad file is a ``ValueError``, a run that
+went wrong a ``RuntimeError``) and shares :class:`CalbenchError`, so the command line catches
+one base class and prints one line instead of a traceback. Messages name what, where (file,
+row, key, step) and what was expected.
+"""
+from __future__ import annotations
+
+
+class CalbenchError(Exception):
+    """Base of every error calbench reports to a user as one line."""
+
+
+class UserError(CalbenchError, ValueError):
+    """A mistake in what the user gave on the command line."""
+
+
+class LogFormatError(CalbenchError, ValueError):
+    """A measurement log breaks the ``calbench-log/1`` rules; the message names the file, the
+    row or key, and what was expected."""
+
+
+class ResultFormatError(CalbenchError, ValueError):
+    """A calibration result file (``calbench-result/1``) is not what the format says."""
+
+
+class ScheduleError(CalbenchError, ValueError):
+    """A schedule is wrong: the message names the file, step, key and what was expected."""
+
+
+class ScenarioError(CalbenchError, ValueError):
+    """A scenario file is wrong: names the file, the key and what was expected."""
+
+
+class CampaignError(CalbenchError, ValueError):
+    """A campaign file is wrong: names the file, the key and what was expected."""
+
+
+class ScheduleFault(CalbenchError, RuntimeError):
+    """The table did not do what the schedule asked (e.g. never settled): names the step."""

@@ -1,0 +1,104 @@
+"""The observation model of the least squares, the Cramér–Rao bound and the diagnosis, built
+once: per observation block (components.estimation.blocks), measured sum − ideal sum = H θ + v,
+the columns of H the effects' regressors (components.model.effects) summed over the block, and
+for table effects the derivative of the ideal prediction with respect to the geometry parameter
+(forward differences). Rows are weighted by the block's white-noise variance (n σ², plus the
+encoder's count variance at the ends of a moving gyro block)."""
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+
+import numpy as np
+
+from components.estimation.blocks import Blocks
+from components.estimation.rest_angles import rest_variance
+from components.model.effects import effect_of, regressor_of, time_offset_of_lever
+from components.model.motion import Motion
+from components.model.table_parameters import apply_table_parameter, table_parameter_value
+
+TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
+# Geometry columns depend only on the angle profile, the blocks and the geometry: logs that
+# share the motion (Monte-Carlo seeds, effects hidden in the IMU only) reuse them.
+_GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
+
+
+def sensor_columns(motion: Motion, params: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample regressors: gyro (N, 3, P) and acc (N, 3, P) increments per unit parameter."""
+    n = len(motion.dt)
+    G = np.zeros((n, 3, len(params)))
+    A = np.zeros((n, 3, len(params)))
+    for k, p in enumerate(params):
+        g, a = regressor_of(motion, p)
+        if g is not None:
+            G[:, :, k] = g
+        if a is not None:
+            A[:, :, k] = a
+    return G, A
+
+
+def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Model output increments (N, 3) gyro and acc for sensor-effect values on this motion."""
+    G, A = sensor_columns(motion, params)
+    return motion.ideal_gyro + G @ values, motion.ideal_acc + A @ values
+
+
+def noise_floor(sig: np.ndarray, scale: float) -> np.ndarray:
+    # a noise-free log (a conformance vector) still needs finite weights
+    return np.where(np.isfinite(sig) & (sig > 0), sig, 0.0) + 1e-13 * scale
+
+
+def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, motion_for,
+            lin=None):
+    """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info.
+    ``lin``: the values (per parameter) the time offset × lever-arm product is linearised at."""
+    yg = gb.sum(data.gyro - motion.ideal_gyro)
+    ya = ab.sum(data.acc - motion.ideal_acc)
+    # block sums column by column: never hold (N, 3, P) regressors for long logs
+    Hg = np.zeros((len(gb), 3, len(params)))
+    Ha = np.zeros((len(ab), 3, len(params)))
+    for k, p in enumerate(params):
+        g, a = regressor_of(motion, p)
+        if g is not None:
+            Hg[:, :, k] = gb.sum(g)
+        if a is not None:
+            Ha[:, :, k] = ab.sum(a)
+    if lin is not None:
+        # τ D(r) ≈ τ D(r0) + τ0 D(r) − τ0 D(r0), D linear in r: the time-offset column gains
+        # D(r0), each lever column τ0 D(e_k), and τ0 D(r0) moves to the observed side
+        kt = params.index("imu.time_offset")
+        tau0 = lin[kt]
+        for k, p in enumerate(params):
+            if effect_of(p).name == "acc.lever":
+                d = ab.sum(time_offset_of_lever(motion, p.split(".", 2)[2]))
+                Ha[:, :, kt] += lin[k] * d
+                Ha[:, :, k] += tau0 * d
+                ya = ya + tau0 * lin[k] * d
+    # geometry columns by forward differences (the prediction is smooth in these small angles:
+    # the truncation error is ~1e-6 of the column, far below what the fit can resolve)
+    base_g, base_a = (gb.sum(motion.ideal_gyro), ab.sum(motion.ideal_acc)) if table_params else (0, 0)
+    blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
+                                + ab.stop.tobytes()).hexdigest() if table_params else ""
+    for p in table_params:
+        k = params.index(p)
+        key = (motion.profile_key, blocks_key, geo, p)
+        if key not in _GEOMETRY_COLUMNS:
+            v = table_parameter_value(geo, p)
+            mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
+            _GEOMETRY_COLUMNS[key] = ((gb.sum(mp.ideal_gyro) - base_g) / TABLE_STEP,
+                                      (ab.sum(mp.ideal_acc) - base_a) / TABLE_STEP)
+            while len(_GEOMETRY_COLUMNS) > 256:
+                _GEOMETRY_COLUMNS.popitem(last=False)
+        Hg[:, :, k], Ha[:, :, k] = _GEOMETRY_COLUMNS[key]
+    var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)
+    var_a = ab.count[:, None] * sa[None, :] ** 2
+    y = np.concatenate([yg.reshape(-1), ya.reshape(-1)])
+    H = np.concatenate([Hg.reshape(-1, len(params)), Ha.reshape(-1, len(params))])
+    w = 1.0 / np.sqrt(np.concatenate([var_g.reshape(-1), var_a.reshape(-1)]))
+    rows = {"sensor": np.array(["gyro"] * yg.size + ["acc"] * ya.size),
+            "axis": np.concatenate([np.tile([0, 1, 2], len(gb)), np.tile([0, 1, 2], len(ab))]),
+            "start": np.concatenate([np.repeat(gb.start, 3), np.repeat(ab.start, 3)]),
+            "stop": np.concatenate([np.repeat(gb.stop, 3), np.repeat(ab.stop, 3)]),
+            "moving": np.concatenate([np.repeat(gb.moving, 3), np.repeat(ab.moving, 3)]),
+            "y": y, "H": H, "weight": w}
+    return y, H, w, rows

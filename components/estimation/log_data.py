@@ -1,0 +1,54 @@
+"""What the estimators need from a measurement log: time, measured angles, increments in SI,
+the table geometry of its metadata, and the plate motion interpolated from the angles."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from components.model.geometry import Stage, TableGeometry
+from components.model.motion import Motion, interpolate_angles, motion_from_profile
+
+
+@dataclass
+class LogData:
+    """What the estimators need from a measurement log, in SI (increments per interval)."""
+
+    time: np.ndarray
+    angles: np.ndarray  # (N, n_axes) measured
+    gyro: np.ndarray    # (N, 3) increments [rad]
+    acc: np.ndarray     # (N, 3) increments [m/s]
+    geometry: TableGeometry
+    temperature: np.ndarray | None = None
+    segment: np.ndarray | None = None
+    dt0: float | None = None
+    source: dict = field(default_factory=dict)
+    _profiles: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def angle_profile(self, quadrature: int = 3):
+        """The interpolated gimbal angles (cached: they do not depend on the geometry)."""
+        if quadrature not in self._profiles:
+            self._profiles[quadrature] = interpolate_angles(self.time, self.angles, quadrature, self.dt0)
+        return self._profiles[quadrature]
+
+    def motion(self, geometry: TableGeometry, t0_temperature: float | None = None,
+               quadrature: int = 3) -> Motion:
+        return motion_from_profile(self.angle_profile(quadrature), geometry, self.temperature,
+                                   t0_temperature)
+
+    def window(self, a: int, b: int) -> "LogData":
+        """Samples a..b-1 (a stage of a schedule), the same site, table and sample interval."""
+        cut = lambda x: None if x is None else x[a:b]  # noqa: E731
+        return replace(self, time=self.time[a:b], angles=self.angles[a:b], gyro=self.gyro[a:b],
+                       acc=self.acc[a:b], temperature=cut(self.temperature),
+                       segment=cut(self.segment), _profiles={})
+
+    @classmethod
+    def from_log(cls, log) -> "LogData":
+        """From a components.logs.logfile.MeasurementLog."""
+        geo = TableGeometry(tuple(Stage(n, tuple(float(x) for x in v))
+                                  for n, v in zip(log.axis_names, log.axis_vectors)),
+                            latitude=log.latitude, height=log.height_m, gravity=log.gravity)
+        return cls(time=log.time, angles=log.angles, gyro=log.gyro_increment(),
+                   acc=log.acc_increment(), geometry=geo, temperature=log.temperature,
+                   segment=log.segment, dt0=log.dt, source={"log": log.source})

@@ -1,0 +1,171 @@
+"""General least-squares calibration on any log: predict the IMU output from the measured gimbal
+angles through the table geometry and a chosen effect set, fit all their parameters jointly.
+
+Model per observation block (components.estimation.blocks): measured sum − ideal sum = H θ + v, with the
+columns of H the effects' regressors (components.model.effects) summed over the block, and for table
+effects the derivative of the ideal prediction with respect to the geometry parameter (central
+differences; Gauss–Newton iterations re-linearise). Weighted least squares with the per-sample
+white-noise σ estimated from the log's static data (block variance n σ², plus the encoder's
+count variance at the ends of a moving gyro block). With white noise this is the efficient
+estimator and its covariance (Hᵀ R⁻¹ H)⁻¹ the Cramér–Rao bound (domain.md §7).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from components.estimation.blocks import observation_blocks, white_noise_sigma
+from components.estimation.design import design, noise_floor
+from components.estimation.log_data import LogData
+from components.estimation.rest_angles import rest_sigma, rest_variance
+from components.model.effects import effect_of, parameters_of
+from components.model.geometry import TableGeometry
+from components.model.motion import Motion
+from components.model.table_parameters import apply_table_parameter, table_parameter_value
+
+RCOND = 1e-7  # relative singular value below which a design direction is not resolved
+TIME_OFFSET_STEP_TOL = 1e-9  # s: the time offset × lever-arm linearisation has converged
+
+
+@dataclass
+class Fit:
+    parameters: list[str]
+    value: np.ndarray
+    covariance: np.ndarray
+    chi2: float
+    dof: int
+    sigma_gyro: np.ndarray  # per-sample white-noise σ used [rad]
+    sigma_acc: np.ndarray   # [m/s]
+    geometry: TableGeometry
+    motion: Motion
+    iterations: int
+    rows: dict = field(default_factory=dict)  # design of the last iteration, for diagnostics
+    rest_sigma: np.ndarray | None = None  # σ of the rest angles used (estimated or given) [rad]
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance))
+
+    def correlation(self) -> np.ndarray:
+        s = self.sigma
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.covariance / np.outer(s, s)
+
+    def values(self) -> dict[str, float]:
+        return dict(zip(self.parameters, self.value))
+
+
+def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
+              iterations: int = 3, sigma_gyro=None, sigma_acc=None,
+              temperature_ref: float | None = None, fixed: dict | None = None,
+              rest_angle_sigma=None) -> Fit:
+    """Fit the parameters of *effects* jointly to *data*.
+
+    ``fixed``: parameter values held (not fitted), e.g. a geometry known from elsewhere.
+    ``rest_angle_sigma`` [rad, per axis]: uncertainty of the true angle at rest around the
+    encoder reading, which bounds a rest-to-rest gyro block; default: one count uniform
+    (q/√12, q = the smallest logged angle step), 0 for logs whose rest angles are exact."""
+    params = parameters_of(effects)
+    if not params:
+        raise ValueError("no effect to fit")
+    table_params = [p for p in params if effect_of(p).target == "table"]
+    geo = data.geometry
+    for name, v in (fixed or {}).items():
+        if effect_of(name).target == "table":
+            geo = apply_table_parameter(geo, name, v)
+    dt_mean = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 1.0
+    n_chunk = max(1, int(round(chunk_s / dt_mean)))
+
+    def motion_for(g: TableGeometry) -> Motion:
+        return data.motion(g, temperature_ref, quadrature)
+
+    motion = motion_for(geo)
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
+    sg = noise_floor(np.asarray(sigma_gyro if sigma_gyro is not None
+                                 else white_noise_sigma(data.gyro, motion.static), float),
+                      7.3e-5 * dt_mean)
+    sa = noise_floor(np.asarray(sigma_acc if sigma_acc is not None
+                                 else white_noise_sigma(data.acc, motion.static), float),
+                      9.8 * dt_mean)
+    q = rest_sigma(data.angles, rest_angle_sigma)
+    if rest_angle_sigma is None and np.any(q):
+        q = _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+    value = np.array([(fixed or {}).get(p, 0.0) if effect_of(p).target == "table"
+                      else 0.0 for p in params])
+    for p in table_params:
+        value[params.index(p)] = table_parameter_value(geo, p)
+    # the model's one product of two fitted parameters: the time offset shifts the lever-arm
+    # terms too (effects.time_offset_of_lever); linearised at the last solution (Gauss–Newton)
+    bilinear = "imu.time_offset" in params and any(effect_of(p).name == "acc.lever" for p in params)
+    lin = None
+    it = 0
+    for it in range(1, iterations + 1):
+        y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
+        # residual relative to the current table values (Gauss–Newton on the geometry)
+        Hw = H * w[:, None]
+        scale = np.linalg.norm(Hw, axis=0)
+        scale[scale == 0] = 1.0
+        # rcond: a direction of the column-normalised design below 1e-7 of the largest is a
+        # parameter combination the data cannot see (e.g. a wobble of an inner stage, which is a
+        # constant rotation of the plate = IMU misalignment, left only with the forward-
+        # difference error of its column); resolving it would amplify noise into a huge step
+        # of the geometry and wreck the next linearisation
+        sol, *_ = np.linalg.lstsq(Hw / scale, y * w, rcond=RCOND)
+        step = sol / scale
+        sensor_idx = [k for k, p in enumerate(params) if p not in table_params]
+        value[sensor_idx] = step[sensor_idx]
+        moved = False
+        if bilinear:
+            tau = value[params.index("imu.time_offset")]
+            moved = lin is None or abs(tau - lin[params.index("imu.time_offset")]) > TIME_OFFSET_STEP_TOL
+            lin = value.copy()
+        if table_params:
+            delta = np.array([step[params.index(p)] for p in table_params])
+            for p, d in zip(table_params, delta):
+                value[params.index(p)] += d
+                geo = apply_table_parameter(geo, p, value[params.index(p)])
+            motion = motion_for(geo)
+            moved = moved or np.max(np.abs(delta)) >= 1e-12
+        if not moved:
+            break
+    # final linearisation at the solution: sensor values and the last (tiny) table correction
+    y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
+    Hw = H * w[:, None]
+    scale = np.linalg.norm(Hw, axis=0)
+    scale[scale == 0] = 1.0
+    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=RCOND)[0] / scale
+    for k, p in enumerate(params):
+        value[k] = value[k] + sol[k] if p in table_params else sol[k]
+    resid_vec = y - H @ sol
+    chi2 = float(np.sum((resid_vec * w) ** 2))
+    info = (Hw / scale).T @ (Hw / scale)
+    cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
+    rows["residual"] = resid_vec
+    fit = Fit(params, value, cov, chi2, max(len(y) - len(params), 1), sg, sa, geo, motion, it, rows)
+    fit.rest_sigma = q
+    return fit
+
+
+def _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for):
+    """How far the table really rests from its encoder readings, from the data: the moving gyro
+    blocks' residual variance beyond their white noise, against the geometric factor of the
+    rest angles (a method-of-moments variance component). Starts from one count uniform (the
+    prior q/√12) and stays within [0, 2 q/√12]; the estimator's σ then matches its spread."""
+    y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+    Hw = H * w[:, None]
+    scale = np.linalg.norm(Hw, axis=0)
+    scale[scale == 0] = 1.0
+    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=None)[0] / scale
+    r = y - H @ sol
+    n_g = 3 * len(gb)
+    mv = np.repeat(gb.moving, 3)
+    unit = rest_variance(data, geo, gb, np.ones_like(q)).reshape(-1)[mv]
+    white = (gb.count[:, None] * sg[None, :] ** 2).reshape(-1)[mv]
+    if unit.sum() <= 0:
+        return q
+    # residuals shrink by the fitted parameters' share (leverage ~ p / rows on average)
+    shrink = max(1.0 - len(params) / max(len(y), 1), 0.5)
+    s2 = float(np.sum(r[:n_g][mv] ** 2 / shrink - white) / np.sum(unit))
+    s = np.sqrt(min(max(s2, 0.0), (2 * q.max()) ** 2))
+    return np.full_like(q, s)

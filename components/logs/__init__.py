@@ -1,0 +1,7 @@
+"""Measurement logs in the ``calbench-log/1`` format (docs/measurement-log.md). One idea per
+module:
+
+- :mod:`.rules`      the format's rules: metadata keys, columns, time, checked with clear errors
+- :mod:`.logfile`    reading and writing a log (CSV or Parquet plus JSON metadata)
+- :mod:`.recording`  a log from an orchestrator recording of the turntable and IMU units
+"""

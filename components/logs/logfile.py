@@ -1,0 +1,416 @@
+"""Measurement logs, format ``calbench-log/1`` (docs: /work/shared/spec/measurement-log.md).
+
+:func:`read_log` reads the pair ``<stem>.csv`` (or ``<stem>.parquet``) + ``<stem>.json`` into a
+:class:`MeasurementLog`, enforcing every rule of the spec; :func:`write_log` writes one;
+:func:`components.logs.recording.log_from_recording` makes one from an orchestrator recording of a
+turntable + IMU run; the rules themselves are in components/logs/rules.py.
+
+Every broken rule raises :class:`LogFormatError` naming the file, the key or the data row
+("data row 17 (line 18)": 1-based, the header is line 1) and what was expected.
+
+Choices the spec leaves open, stated here:
+
+* **Gaps.** A sample interval ``t[k] - t[k-1]`` is refused when it differs from
+  ``1 / sample_rate_hz`` by more than ``max(1 % of the interval, 1e-6 s)``. One missing sample is a
+  100 % deviation, so any dropped sample is caught, while timestamp jitter and rounding of a
+  logger (a µs clock is 0.1 % of a 1 kHz interval; times written with a few decimals) pass. The
+  1e-6 s floor keeps very fast loggers with µs timestamps usable.
+* **Required keys.** Every key of the spec's example is required, including
+  ``site.gravity_mps2`` (``null`` has a meaning: normal gravity, so a missing key is not taken
+  as ``null``), except ``description`` (free text, default "") and the count weights, which are
+  required (non-null, positive) only for an output of kind ``counts``; other keys are kept.
+* **Counts** must be whole numbers. Axis vectors must have unit length within 1e-9.
+  ``latitude_deg`` must be in [-90, 90], ``sample_rate_hz`` and ``gravity_mps2`` positive.
+* **CSV.** Empty cells in numeric columns, and blank lines, are refused; surrounding blanks in
+  a number are tolerated (pyarrow's parser). A file with both ``<stem>.csv`` and
+  ``<stem>.parquet`` read by its stem reads the CSV; give the file name to read the other.
+* **Increments.** ``rate`` and ``specific_force`` outputs are means over the sample interval,
+  converted to increments with the nominal interval ``1 / sample_rate_hz``.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+
+from components.errors import LogFormatError
+from components.logs.rules import (FORMAT, NONFINITE, NUMBER, XYZ,  # noqa: F401  (FORMAT: re-exported)
+                                   check_columns, check_samples, numeric_columns, parse_metadata)
+
+
+@dataclass
+class MeasurementLog:
+    time: np.ndarray                       # s, end of each sample interval
+    gimbal: dict[str, np.ndarray]          # axis name -> measured angle [rad], base-to-plate order
+    gyro: np.ndarray                       # (N, 3) as in the file (see gyro_output)
+    acc: np.ndarray                        # (N, 3) as in the file (see acc_output)
+    axis_names: list[str]
+    axis_vectors: np.ndarray               # (n_axes, 3), unit vectors
+    sample_rate_hz: float
+    gyro_output: str = "increment"
+    acc_output: str = "increment"
+    gyro_count_rad: float | None = None
+    acc_count_mps: float | None = None
+    latitude_deg: float = 0.0
+    height_m: float = 0.0
+    gravity_mps2: float | None = None      # None: normal gravity at latitude and height
+    description: str = ""
+    command: dict[str, np.ndarray] = field(default_factory=dict)
+    temperature: np.ndarray | None = None  # °C
+    segment: np.ndarray | None = None      # object array of str
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    extra_metadata: dict = field(default_factory=dict)  # unknown keys of the JSON, kept
+    source: str | None = None
+
+    # ----------------------------------------------------------------- derived
+    @property
+    def latitude(self) -> float:
+        """Latitude [rad]."""
+        return math.radians(self.latitude_deg)
+
+    @property
+    def dt(self) -> float:
+        """Nominal sample interval [s]."""
+        return 1.0 / self.sample_rate_hz
+
+    @property
+    def n(self) -> int:
+        return len(self.time)
+
+    @property
+    def gravity(self) -> float:
+        """Gravity magnitude [m/s²]: the logged value, else WGS-84 normal gravity."""
+        if self.gravity_mps2 is not None:
+            return self.gravity_mps2
+        from components.model.geometry import normal_gravity
+
+        return normal_gravity(self.latitude, self.height_m)
+
+    @property
+    def angles(self) -> np.ndarray:
+        """(N, n_axes) gimbal angles [rad] in base-to-plate order."""
+        return np.column_stack([self.gimbal[a] for a in self.axis_names])
+
+    def gyro_increment(self) -> np.ndarray:
+        """(N, 3) angle increments [rad] over each sample interval."""
+        return _to_increment(self.gyro, self.gyro_output, self.dt, self.gyro_count_rad)
+
+    def acc_increment(self) -> np.ndarray:
+        """(N, 3) velocity increments [m/s] over each sample interval."""
+        return _to_increment(self.acc, self.acc_output, self.dt, self.acc_count_mps)
+
+    def gyro_rate(self) -> np.ndarray:
+        """(N, 3) mean angular rate [rad/s] over each interval."""
+        return self.gyro_increment() / self.dt
+
+    def specific_force(self) -> np.ndarray:
+        """(N, 3) mean specific force [m/s²] over each interval."""
+        return self.acc_increment() / self.dt
+
+    def metadata(self) -> dict:
+        """The JSON metadata of this log."""
+        meta = {
+            "format": FORMAT,
+            "site": {"latitude_deg": self.latitude_deg, "height_m": self.height_m,
+                     "gravity_mps2": self.gravity_mps2},
+            "table": {"axes": [{"name": n, "axis": [float(x) for x in v]}
+                               for n, v in zip(self.axis_names, self.axis_vectors)]},
+            "imu": {"sample_rate_hz": self.sample_rate_hz, "gyro_output": self.gyro_output,
+                    "acc_output": self.acc_output, "gyro_count_rad": self.gyro_count_rad,
+                    "acc_count_mps": self.acc_count_mps},
+            "description": self.description,
+        }
+        for k, v in self.extra_metadata.items():
+            meta.setdefault(k, v)
+        return meta
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The sample columns in the spec's order."""
+        cols: dict[str, np.ndarray] = {"time": self.time}
+        for a in self.axis_names:
+            cols[f"gimbal_{a}"] = self.gimbal[a]
+        for a in self.axis_names:
+            if a in self.command:
+                cols[f"command_{a}"] = self.command[a]
+        for j, c in enumerate(XYZ):
+            cols[f"gyro_{c}"] = self.gyro[:, j]
+        for j, c in enumerate(XYZ):
+            cols[f"acc_{c}"] = self.acc[:, j]
+        if self.temperature is not None:
+            cols["temperature"] = self.temperature
+        if self.segment is not None:
+            cols["segment"] = self.segment
+        cols.update(self.extra)
+        return cols
+
+    def validate(self, where: str = "measurement log") -> None:
+        """Check this log against the rules (what :func:`read_log` enforces on files)."""
+        meta = parse_metadata(self.metadata(), where)
+        cols = self.columns()
+        check_columns(list(cols), meta, where)
+        check_samples(cols, meta, where, lambda i: f"sample {i + 1}", labels=True)
+
+
+def _to_increment(x: np.ndarray, kind: str, dt: float, weight: float | None) -> np.ndarray:
+    if kind == "increment":
+        return x
+    if kind == "counts":
+        return x * weight
+    return x * dt  # rate or specific_force
+
+
+# ---------------------------------------------------------------------------- metadata
+
+# ---------------------------------------------------------------------------- reading
+def _pair(path: str | Path) -> tuple[Path, Path]:
+    p = Path(path)
+    if p.suffix.lower() in (".csv", ".parquet"):
+        data, meta = p, p.with_suffix(".json")
+    elif p.suffix.lower() == ".json":
+        meta = p
+        cands = [p.with_suffix(".csv"), p.with_suffix(".parquet")]
+        data = next((c for c in cands if c.exists()), cands[0])
+    else:
+        meta = Path(str(p) + ".json")
+        cands = [Path(str(p) + ".csv"), Path(str(p) + ".parquet")]
+        data = next((c for c in cands if c.exists()), cands[0])
+    if not data.exists():
+        other = " or .parquet" if data.suffix == ".csv" else ""
+        raise LogFormatError(f"{data}: sample file does not exist (expected {data.name}{other} next to "
+                             f"{meta.name})")
+    if not meta.exists():
+        raise LogFormatError(f"{meta}: metadata file does not exist (expected next to {data.name})")
+    return data, meta
+
+
+def _read_meta(path: Path) -> dict:
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise LogFormatError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+    return parse_metadata(raw, str(path))
+
+
+def _csv_row(i: int) -> str:
+    return f"data row {i + 1} (line {i + 2})"
+
+
+def _read_header(path: Path) -> list[str]:
+    with open(path, newline="", encoding="utf-8-sig") as f:
+        first = f.readline()
+    if not first.strip():
+        raise LogFormatError(f"{path}: line 1: empty; expected the header row (time, gimbal_<axis>, ...)")
+    return next(csv.reader([first]))
+
+
+def _read_csv(path: Path, meta: dict) -> dict[str, np.ndarray]:
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    header = _read_header(path)
+    check_columns(header, meta, str(path))
+    numeric = numeric_columns(header, meta)
+    types = {c: pa.float64() for c in numeric}
+    if "segment" in header:
+        types["segment"] = pa.dictionary(pa.int32(), pa.string())
+    try:
+        table = pcsv.read_csv(
+            path,
+            read_options=pcsv.ReadOptions(block_size=1 << 22),
+            parse_options=pcsv.ParseOptions(ignore_empty_lines=False),
+            convert_options=pcsv.ConvertOptions(column_types=types, null_values=[""], strings_can_be_null=False,
+                                                quoted_strings_can_be_null=False))
+    except (pa.ArrowInvalid, pa.ArrowTypeError) as e:
+        _diagnose_csv(path, header, numeric, e)
+        raise  # not reached
+    cols: dict[str, np.ndarray] = {}
+    for name in table.column_names:
+        col = table.column(name)
+        if name in types and name != "segment":
+            if col.null_count:
+                i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
+                if all(table.column(c)[i].as_py() is None for c in numeric):
+                    raise LogFormatError(f"{path}: {_csv_row(i)}: blank line; expected {len(header)} fields "
+                                         "(blank lines are not allowed between samples)")
+                raise LogFormatError(f"{path}: {_csv_row(i)}, column {name!r}: empty value; expected a number")
+            cols[name] = col.to_numpy()
+        elif name == "segment":
+            cols[name] = _labels(col)
+        else:
+            cols[name] = col.to_numpy(zero_copy_only=False)
+    return cols
+
+
+def _labels(col) -> np.ndarray:
+    """Object array of str from a (chunked) dictionary or string column."""
+    import pyarrow as pa
+
+    parts = []
+    for ch in col.chunks:
+        if pa.types.is_dictionary(ch.type):
+            d = np.array(ch.dictionary.to_pylist() + [None], dtype=object)
+            idx = ch.indices.fill_null(len(ch.dictionary)).to_numpy()
+            parts.append(d[idx])
+        else:
+            parts.append(np.array(ch.to_pylist(), dtype=object))
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=object)
+
+
+def _diagnose_csv(path: Path, header: list[str], numeric: list[str], err: Exception) -> None:
+    """The fast parser refused the file: find the first bad row the slow way, for the message."""
+    idx = {c: header.index(c) for c in numeric}
+    with open(path, newline="", encoding="utf-8-sig") as f:
+        r = csv.reader(f)
+        next(r)
+        for k, fields in enumerate(r):
+            line = r.line_num
+            if len(fields) != len(header):
+                raise LogFormatError(f"{path}: data row {k + 1} (line {line}): {len(fields)} field(s); expected "
+                                     f"{len(header)} (the header's columns), comma-separated with '.' as the "
+                                     "decimal point")
+            for c, j in idx.items():
+                s = fields[j]
+                if NONFINITE.match(s):
+                    raise LogFormatError(f"{path}: data row {k + 1} (line {line}), column {c!r}: value {s!r} is "
+                                         "not finite; expected a finite number")
+                if not NUMBER.match(s):
+                    raise LogFormatError(f"{path}: data row {k + 1} (line {line}), column {c!r}: {s!r} is not a "
+                                         "number; expected a decimal number with '.' as the decimal point")
+    raise LogFormatError(f"{path}: cannot be read as CSV ({err})")
+
+
+def _read_parquet(path: Path, meta: dict) -> dict[str, np.ndarray]:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(path, read_dictionary=["segment"])
+    except (pa.ArrowInvalid, OSError) as e:
+        raise LogFormatError(f"{path}: not a readable Parquet file ({e})") from None
+    header = table.column_names
+    check_columns(header, meta, str(path))
+    numeric = set(numeric_columns(header, meta))
+    cols: dict[str, np.ndarray] = {}
+    for name in header:
+        col = table.column(name)
+        if name in numeric:
+            if not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)):
+                raise LogFormatError(f"{path}: column {name!r} has type {col.type}; expected numbers")
+            if col.null_count:
+                i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
+                raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected a number")
+            cols[name] = col.cast(pa.float64()).to_numpy()
+        elif name == "segment":
+            t = col.type.value_type if pa.types.is_dictionary(col.type) else col.type
+            if not (pa.types.is_string(t) or pa.types.is_large_string(t)):
+                raise LogFormatError(f"{path}: column 'segment' has type {col.type}; expected text")
+            if col.null_count:
+                i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
+                raise LogFormatError(f"{path}: row {i + 1}, column 'segment': empty value; expected text")
+            cols[name] = _labels(col)
+        else:
+            cols[name] = col.to_numpy()
+    return cols
+
+
+def read_log(path: str | Path) -> MeasurementLog:
+    """Read a ``calbench-log/1`` pair; *path* is either file of the pair or the common stem."""
+    data, meta_path = _pair(path)
+    meta = _read_meta(meta_path)
+    if data.suffix.lower() == ".parquet":
+        cols = _read_parquet(data, meta)
+        row = lambda i: f"row {i + 1}"  # noqa: E731
+    else:
+        cols = _read_csv(data, meta)
+        row = _csv_row
+    check_samples(cols, meta, str(data), row)
+    axes = meta["axis_names"]
+    known = {"time", "temperature", "segment"} | {f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ} | \
+        {f"{p}_{a}" for p in ("gimbal", "command") for a in axes}
+    return MeasurementLog(
+        time=cols["time"],
+        gimbal={a: cols[f"gimbal_{a}"] for a in axes},
+        command={a: cols[f"command_{a}"] for a in axes if f"command_{a}" in cols},
+        gyro=np.column_stack([cols[f"gyro_{c}"] for c in XYZ]),
+        acc=np.column_stack([cols[f"acc_{c}"] for c in XYZ]),
+        temperature=cols.get("temperature"),
+        segment=cols.get("segment"),
+        extra={k: v for k, v in cols.items() if k not in known},
+        source=str(data),
+        **{k: meta[k] for k in ("axis_names", "axis_vectors", "sample_rate_hz", "gyro_output", "acc_output",
+                                "gyro_count_rad", "acc_count_mps", "latitude_deg", "height_m", "gravity_mps2",
+                                "description", "extra_metadata")},
+    )
+
+
+# ---------------------------------------------------------------------------- writing
+def write_log(stem: str | Path, log: MeasurementLog, fmt: str = "csv") -> list[Path]:
+    """Write ``<stem>.json`` and ``<stem>.csv`` (``fmt="csv"``), ``<stem>.parquet``
+    (``"parquet"``) or both (``"both"``). Numbers are written in the shortest form that reads
+    back to the same double (bit-exact round trip). The log is validated first."""
+    import pyarrow as pa
+
+    if fmt not in ("csv", "parquet", "both"):
+        raise ValueError(f"fmt {fmt!r}: expected 'csv', 'parquet' or 'both'")
+    stem = Path(stem)
+    if stem.suffix.lower() in (".csv", ".parquet", ".json"):
+        stem = stem.with_suffix("")
+    log.validate(f"log for {stem}")
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    cols = log.columns()
+    arrays = {}
+    for k, v in cols.items():
+        if k == "segment" or (isinstance(v, np.ndarray) and v.dtype == object):
+            uniq, inv = np.unique(np.asarray(v, dtype=object).astype(str), return_inverse=True)
+            arrays[k] = pa.DictionaryArray.from_arrays(pa.array(inv.astype(np.int32)),
+                                                       pa.array(uniq.tolist(), type=pa.string()))
+        else:
+            arrays[k] = pa.array(np.asarray(v))
+    table = pa.table(arrays)
+    out = []
+    meta_path = Path(str(stem) + ".json")
+    meta_path.write_text(json.dumps(log.metadata(), indent=1) + "\n", encoding="utf-8")
+    out.append(meta_path)
+    if fmt in ("csv", "both"):
+        out.append(_write_csv(Path(str(stem) + ".csv"), table))
+    if fmt in ("parquet", "both"):
+        import pyarrow.parquet as pq
+
+        p = Path(str(stem) + ".parquet")
+        pq.write_table(table, p)
+        out.append(p)
+    return out
+
+
+def _write_csv(path: Path, table) -> Path:
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    special = re.compile(r'[,"\r\n]')
+
+    def needs_quote(s: str) -> bool:
+        return bool(special.search(s)) or s != s.strip()
+
+    quote = False
+    for name in table.column_names:
+        col = table.column(name)
+        if pa.types.is_dictionary(col.type):
+            quote |= any(needs_quote(s) for c in col.chunks for s in c.dictionary.to_pylist())
+        elif pa.types.is_string(col.type):
+            quote |= any(needs_quote(s) for s in set(col.to_pylist()))
+    header = ",".join(f'"{n}"' if needs_quote(n) else n for n in table.column_names) + "\n"
+    tmp = path.with_name(path.name + ".tmp")
+    with pa.OSFile(str(tmp), "wb") as f:
+        f.write(header.encode())
+        pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False, batch_size=1 << 16,
+                                                   quoting_style="needed" if quote else "none"))
+    tmp.replace(path)
+    return path
+
+

@@ -1,0 +1,200 @@
+"""The rules of the ``calbench-log/1`` format (../shared/spec/measurement-log.md), checked on
+metadata and sample columns; every broken rule raises :class:`LogFormatError` naming the file,
+the key or the data row and what was expected. Choices the spec leaves open are stated in
+components/logs/logfile.py."""
+from __future__ import annotations
+
+from components.errors import LogFormatError
+import math
+import re
+
+import numpy as np
+
+
+FORMAT = "calbench-log/1"
+GYRO_OUTPUTS = {"rate": "rad/s", "increment": "rad", "counts": "counts of gyro_count_rad"}
+ACC_OUTPUTS = {"specific_force": "m/s²", "increment": "m/s", "counts": "counts of acc_count_mps"}
+GAP_REL_TOL = 0.01
+GAP_ABS_TOL = 1e-6
+AXIS_NORM_TOL = 1e-9
+XYZ = ("x", "y", "z")
+NUMBER = re.compile(r"^\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*$")
+NONFINITE = re.compile(r"^\s*[+-]?(nan|inf|infinity)\s*$", re.IGNORECASE)
+
+
+def _key(meta: dict, path: str, where: str, expected: str, required: bool = True):
+    node = meta
+    parts = path.split(".")
+    for i, p in enumerate(parts):
+        if not isinstance(node, dict):
+            raise LogFormatError(f"{where}: key {'.'.join(parts[:i])!r}: expected an object")
+        if p not in node:
+            if not required:
+                return None
+            raise LogFormatError(f"{where}: missing key {path!r}; expected {expected}")
+        node = node[p]
+    return node
+
+
+def _number(v, path: str, where: str, expected: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise LogFormatError(f"{where}: key {path!r} = {v!r}: expected {expected}")
+    return float(v)
+
+
+def parse_metadata(meta, where: str) -> dict:
+    if not isinstance(meta, dict):
+        raise LogFormatError(f"{where}: expected a JSON object at the top level")
+    fmt = _key(meta, "format", where, f'"{FORMAT}"')
+    if fmt != FORMAT:
+        hint = " (a newer version of the format: update calbench)" if isinstance(fmt, str) and \
+            fmt.startswith("calbench-log/") else ""
+        raise LogFormatError(f"{where}: key 'format' = {fmt!r}: expected {FORMAT!r}{hint}")
+    out: dict = {}
+    lat = _number(_key(meta, "site.latitude_deg", where, "a latitude in degrees"), "site.latitude_deg",
+                  where, "a latitude in degrees")
+    if not -90.0 <= lat <= 90.0:
+        raise LogFormatError(f"{where}: key 'site.latitude_deg' = {lat!r}: expected a latitude in [-90, 90] degrees")
+    out["latitude_deg"] = lat
+    out["height_m"] = _number(_key(meta, "site.height_m", where, "a height [m]"), "site.height_m", where,
+                              "a height [m]")
+    g = _key(meta, "site.gravity_mps2", where, "a gravity [m/s²] or null (normal gravity)")
+    if g is not None:
+        g = _number(g, "site.gravity_mps2", where, "a positive gravity [m/s²] or null (normal gravity)")
+        if g <= 0:
+            raise LogFormatError(f"{where}: key 'site.gravity_mps2' = {g!r}: expected a positive gravity "
+                                 "[m/s²] or null (normal gravity)")
+    out["gravity_mps2"] = g
+    axes = _key(meta, "table.axes", where, "a list of {name, axis}")
+    if not isinstance(axes, list) or not axes:
+        raise LogFormatError(f"{where}: key 'table.axes' = {axes!r}: expected a non-empty list of {{name, axis}}")
+    names, vecs = [], []
+    for i, a in enumerate(axes):
+        k = f"table.axes[{i}]"
+        if not isinstance(a, dict):
+            raise LogFormatError(f"{where}: key {k!r}: expected an object with 'name' and 'axis'")
+        if "name" not in a:
+            raise LogFormatError(f"{where}: missing key '{k}.name'; expected the axis name")
+        if "axis" not in a:
+            raise LogFormatError(f"{where}: missing key '{k}.axis'; expected a unit vector [x, y, z]")
+        n = a["name"]
+        if not isinstance(n, str) or not re.fullmatch(r"[A-Za-z0-9_]+", n):
+            raise LogFormatError(f"{where}: key '{k}.name' = {n!r}: expected a name of letters, digits, '_'")
+        if n in names:
+            raise LogFormatError(f"{where}: key '{k}.name' = {n!r}: axis named twice")
+        v = a["axis"]
+        if not (isinstance(v, list) and len(v) == 3 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+            raise LogFormatError(f"{where}: key '{k}.axis' = {v!r}: expected a unit vector of 3 numbers")
+        vec = np.array(v, dtype=float)
+        norm = float(np.linalg.norm(vec))
+        if norm == 0.0:
+            raise LogFormatError(f"{where}: key '{k}.axis' = {v!r}: zero vector; expected a unit vector")
+        if abs(norm - 1.0) > AXIS_NORM_TOL:
+            raise LogFormatError(f"{where}: key '{k}.axis' = {v!r}: length {norm:.15g}; expected a unit "
+                                 f"vector (length 1 within {AXIS_NORM_TOL:g})")
+        names.append(n)
+        vecs.append(vec)
+    out["axis_names"], out["axis_vectors"] = names, np.array(vecs)
+    fs = _number(_key(meta, "imu.sample_rate_hz", where, "a positive sample rate [Hz]"), "imu.sample_rate_hz",
+                 where, "a positive sample rate [Hz]")
+    if fs <= 0:
+        raise LogFormatError(f"{where}: key 'imu.sample_rate_hz' = {fs!r}: expected a positive sample rate [Hz]")
+    out["sample_rate_hz"] = fs
+    for sensor, kinds, wkey, wunit in (("gyro", GYRO_OUTPUTS, "gyro_count_rad", "rad"),
+                                       ("acc", ACC_OUTPUTS, "acc_count_mps", "m/s")):
+        kind = _key(meta, f"imu.{sensor}_output", where, f"one of {', '.join(kinds)}")
+        if kind not in kinds:
+            raise LogFormatError(f"{where}: key 'imu.{sensor}_output' = {kind!r}: unknown output kind; "
+                                 f"expected one of {', '.join(kinds)}")
+        out[f"{sensor}_output"] = kind
+        w = _key(meta, f"imu.{wkey}", where, "", required=False)
+        if kind == "counts":
+            if w is None:
+                raise LogFormatError(f"{where}: key 'imu.{wkey}' is {'null' if 'imu' in meta and wkey in meta['imu'] else 'missing'}"
+                                     f" but imu.{sensor}_output is 'counts'; expected the weight of one count [{wunit}]")
+            w = _number(w, f"imu.{wkey}", where, f"a positive count weight [{wunit}]")
+            if w <= 0:
+                raise LogFormatError(f"{where}: key 'imu.{wkey}' = {w!r}: expected a positive count weight [{wunit}]")
+        elif w is not None:
+            w = _number(w, f"imu.{wkey}", where, f"a count weight [{wunit}] or null")
+        out[wkey] = w
+    d = meta.get("description", "")
+    if not isinstance(d, str):
+        raise LogFormatError(f"{where}: key 'description' = {d!r}: expected text")
+    out["description"] = d
+    out["extra_metadata"] = {k: v for k, v in meta.items()
+                             if k not in ("format", "site", "table", "imu", "description")}
+    return out
+
+
+# ---------------------------------------------------------------------------- columns / samples
+def numeric_columns(header: list[str], meta: dict) -> list[str]:
+    known = ["time"] + [c for c in header if c.startswith(("gimbal_", "command_"))]
+    known += [f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ] + ["temperature"]
+    return [c for c in header if c in known]
+
+
+def check_columns(header: list[str], meta: dict, where: str) -> None:
+    seen = set()
+    for c in header:
+        if c in seen:
+            raise LogFormatError(f"{where}: column {c!r} appears twice in the header")
+        seen.add(c)
+    axes = meta["axis_names"]
+    required = ["time"] + [f"gimbal_{a}" for a in axes] + [f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ]
+    for c in required:
+        if c not in seen:
+            why = f" (table.axes names axis {c[7:]!r})" if c.startswith("gimbal_") else ""
+            raise LogFormatError(f"{where}: missing column {c!r}{why}; the header has: {', '.join(header)}")
+    for c in header:
+        for prefix in ("gimbal_", "command_"):
+            if c.startswith(prefix) and c[len(prefix):] not in axes:
+                raise LogFormatError(f"{where}: column {c!r} is for axis {c[len(prefix):]!r}, which the "
+                                     f"metadata's table.axes does not name (axes: {', '.join(axes)})")
+
+
+def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labels: bool = False) -> None:
+    """Rules on the values; ``row(i)`` labels the 0-based sample i. ``labels``: check that the
+    segment labels are str (the readers make them so; a log built in Python may not)."""
+    t = cols["time"]
+    if len(t) == 0:
+        raise LogFormatError(f"{where}: no samples; expected one row per IMU sample after the header")
+    for name, a in cols.items():
+        if name == "segment" or name not in numeric_columns(list(cols), meta):
+            continue
+        bad = ~np.isfinite(a)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise LogFormatError(f"{where}: {row(i)}, column {name!r}: value {float(a[i])!r} is not finite; "
+                                 "expected a finite number")
+    dt = np.diff(t)
+    if len(dt) and not (dt > 0).all():
+        i = int(np.argmax(~(dt > 0))) + 1
+        raise LogFormatError(f"{where}: {row(i)}, column 'time': {float(t[i])!r} s after {float(t[i - 1])!r} s; expected "
+                             "strictly increasing times")
+    h = 1.0 / meta["sample_rate_hz"]
+    tol = max(GAP_REL_TOL * h, GAP_ABS_TOL)
+    off = np.abs(dt - h) > tol
+    if off.any():
+        i = int(np.argmax(off)) + 1
+        raise LogFormatError(
+            f"{where}: {row(i)}, column 'time': interval {float(dt[i - 1])!r} s from the previous sample (t = {float(t[i - 1])!r} s"
+            f" to {float(t[i])!r} s); expected 1/sample_rate_hz = {h!r} s within {tol:g} s (a gap or a wrong sample rate)")
+    for sensor in ("gyro", "acc"):
+        if meta[f"{sensor}_output"] != "counts":
+            continue
+        for c in XYZ:
+            a = cols[f"{sensor}_{c}"]
+            frac = a != np.round(a)
+            if frac.any():
+                i = int(np.argmax(frac))
+                raise LogFormatError(f"{where}: {row(i)}, column '{sensor}_{c}': {float(a[i])!r} is not a whole number; "
+                                     f"expected integer counts (imu.{sensor}_output is 'counts')")
+    seg = cols.get("segment")
+    if labels and seg is not None:
+        bad = np.array([not isinstance(s, str) for s in seg]) if seg.dtype == object else None
+        if bad is not None and bad.any():
+            i = int(np.argmax(bad))
+            raise LogFormatError(f"{where}: {row(i)}, column 'segment': {seg[i]!r}; expected text")
+

@@ -1,0 +1,243 @@
+"""The plate's motion over every sample interval of a log, reconstructed from the measured gimbal
+angles through the table geometry: angular rate, angular acceleration and specific force at
+Gauss–Legendre nodes inside each interval, from which the forward model integrates the ideal
+increments and every effect's regressor.
+
+Angles are interpolated per moving run (a maximal run of intervals in which some angle changes)
+by a cubic spline through the logged angles, clamped to zero rate at rest ends. Encoder
+quantisation makes per-sample rates of this interpolant noisy (domain.md §3); what stays exact
+is the integral of the gimbal rate between two rest samples, so estimators compare gyro output
+with the table over whole rest-to-rest moves (see components.estimation.blocks).
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from components.model.geometry import TableGeometry
+
+_GL = {
+    2: (np.array([-1, 1]) / np.sqrt(3), np.array([1.0, 1.0])),
+    3: (np.array([-np.sqrt(3 / 5), 0.0, np.sqrt(3 / 5)]), np.array([5, 8, 5]) / 9),
+    4: (np.array([-0.8611363115940526, -0.3399810435848563, 0.3399810435848563, 0.8611363115940526]),
+        np.array([0.3478548451374538, 0.6521451548625461, 0.6521451548625461, 0.3478548451374538])),
+}
+
+
+def gauss_legendre(q: int) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes on [0, 1] and weights summing to 1."""
+    x, w = _GL[q]
+    return (x + 1) / 2, w / 2
+
+
+def lever_acceleration(omega: np.ndarray, alpha: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Specific force at offset *r* [m] minus that at the reference point of a rigid body turning
+    at *omega* [rad/s] with *alpha* [rad/s²] (all in body axes, (..., 3)): α × r + ω × (ω × r)."""
+    return np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+
+
+@dataclass
+class Motion:
+    time: np.ndarray       # (N,) end of each sample interval
+    dt: np.ndarray         # (N,) interval lengths
+    static: np.ndarray     # (N,) bool: no gimbal angle changed over the interval
+    nodes: np.ndarray      # (Q,) node positions in [0, 1]
+    weights: np.ndarray    # (Q,) weights, sum 1
+    omega_q: np.ndarray    # (N, Q, 3) inertial rate of the plate, plate axes
+    alpha_q: np.ndarray    # (N, Q, 3)
+    f_q: np.ndarray        # (N, Q, 3) specific force at the plate reference point
+    omega_start: np.ndarray  # (N, 3) at the start / end of each interval
+    omega_end: np.ndarray
+    f_start: np.ndarray
+    f_end: np.ndarray
+    alpha_end: np.ndarray  # (N, 3) angular acceleration at the sample times
+    dtemp_q: np.ndarray    # (N, Q) temperature - T0
+    elapsed_q: np.ndarray  # (N, Q) time since the start of the log
+    t0_temperature: float
+    lever: np.ndarray      # (3, 3) row i: offset of accelerometer i used by f_at
+    profile_key: str = ""  # the angle profile it was computed from
+
+    def f_at(self, i: str) -> np.ndarray:
+        """Specific force (N, Q, 3) at accelerometer i's location (size effect)."""
+        r = self.lever["xyz".index(i)]
+        if not r.any():
+            return self.f_q
+        return self.f_q + lever_acceleration(self.omega_q, self.alpha_q, r)
+
+    def integral(self, values_q: np.ndarray) -> np.ndarray:
+        """∫ over each interval of node values (N, Q, ...) -> (N, ...)."""
+        return self.dt.reshape((-1,) + (1,) * (values_q.ndim - 2)) * np.tensordot(
+            values_q, self.weights, axes=([1], [0]))
+
+    @property
+    def ideal_gyro(self) -> np.ndarray:
+        return self.integral(self.omega_q)
+
+    @property
+    def ideal_acc(self) -> np.ndarray:
+        """Ideal accelerometer increments, each axis at its own location (lever arms)."""
+        out = np.empty((len(self.dt), 3))
+        for k, i in enumerate("xyz"):
+            out[:, k] = self.integral(self.f_at(i)[:, :, k])
+        return out
+
+
+def moving_runs(static: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of consecutive non-static intervals."""
+    moving = ~static
+    edges = np.diff(np.concatenate([[0], moving.astype(np.int8), [0]]))
+    return list(zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]))
+
+
+@dataclass
+class AngleProfile:
+    """The measured gimbal angles interpolated inside every sample interval; independent of the
+    geometry, so one profile serves every geometry a fit tries."""
+
+    time: np.ndarray
+    t_prev: np.ndarray
+    dt: np.ndarray
+    static: np.ndarray
+    nodes: np.ndarray
+    weights: np.ndarray
+    th_q: np.ndarray    # (N, Q, n_axes) measured angle at the nodes
+    rate_q: np.ndarray
+    acc_q: np.ndarray
+    th_end: np.ndarray  # (N, n_axes) at the sample times
+    rate_end: np.ndarray
+    acc_end: np.ndarray
+    attitudes: np.ndarray | None = None  # distinct angles of the static intervals
+    attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
+    key: str = ""  # digest of time, angles and quadrature: equal profiles give equal motions
+
+
+def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
+                       dt0: float | None = None) -> AngleProfile:
+    """Interpolate measured angles (N, n_axes) at t_k over each interval (t_{k-1}, t_k].
+
+    The interval before the first sample is taken as static at the first angles; its length is
+    ``dt0`` (default: the first sample spacing)."""
+    time = np.asarray(time, float)
+    n = len(time)
+    measured = np.atleast_2d(np.asarray(angles, float))
+    if dt0 is None:
+        dt0 = time[1] - time[0] if n > 1 else 0.0
+    t_prev = np.concatenate([[time[0] - dt0], time[:-1]])
+    dt = time - t_prev
+    prev = np.vstack([measured[:1], measured[:-1]])
+    static = np.all(prev == measured, axis=1)
+    x, w = gauss_legendre(quadrature)
+    q = len(x)
+    n_ax = measured.shape[1]
+    th_q = np.repeat(measured[:, None, :], q, axis=1)  # static: angle held
+    rate_q = np.zeros_like(th_q)
+    acc_q = np.zeros_like(th_q)
+    rate_end = np.zeros((n, n_ax))
+    acc_end = np.zeros((n, n_ax))
+    for a, b in moving_runs(static):
+        # knots: the rest sample before the run (index a-1, or the virtual one) to sample b-1,
+        # plus the rest sample after it when there is one
+        lo = a - 1
+        hi = b if b < n else b - 1
+        kt = np.concatenate([[t_prev[a]], time[a:hi + 1]])
+        kth = np.vstack([measured[lo] if lo >= 0 else measured[0], measured[a:hi + 1]])
+        rest_lo = lo < 0 or static[lo]
+        rest_hi = b < n and static[b]
+        zero = (1, np.zeros(n_ax))
+        bc = (zero if rest_lo else "not-a-knot", zero if rest_hi else "not-a-knot")
+        if len(kt) < 4 and not (rest_lo and rest_hi):
+            bc = (zero, zero)
+        spl = CubicSpline(kt, kth, axis=0, bc_type=bc)
+        tq = t_prev[a:b, None] + dt[a:b, None] * x[None, :]
+        th_q[a:b] = spl(tq)
+        rate_q[a:b] = spl(tq, 1)
+        acc_q[a:b] = spl(tq, 2)
+        rate_end[a:b] = spl(time[a:b], 1)
+        acc_end[a:b] = spl(time[a:b], 2)
+    att, inv = (np.unique(measured[static], axis=0, return_inverse=True) if static.any()
+                else (np.zeros((0, n_ax)), np.zeros(0, int)))
+    digest = hashlib.sha256(time.tobytes() + measured.tobytes() + bytes([quadrature, n_ax])).hexdigest()
+    return AngleProfile(time, t_prev, dt, static, x, w, th_q, rate_q, acc_q, measured,
+                        rate_end, acc_end, att, inv.ravel(), digest)
+
+
+def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
+    """Measured angle derivatives -> true ones through the encoder error e(θ):
+    θ_m = θ + e(θ) gives θ̇ = θ̇_m / (1 + e'), θ̈ = (θ̈_m - e'' θ̇²) / (1 + e')."""
+    t = geometry.true_angles(th)
+    if np.array_equal(t, th):
+        return th, rate, acc
+    r, a = rate.copy(), acc.copy()
+    for k, s in enumerate(geometry.stages):
+        if not (s.enc_s1 or s.enc_c1 or s.enc_s2 or s.enc_c2):
+            continue
+        u = t[:, k]
+        e1 = s.enc_s1 * np.cos(u) - s.enc_c1 * np.sin(u) + 2 * (s.enc_s2 * np.cos(2 * u) - s.enc_c2 * np.sin(2 * u))
+        e2 = -s.enc_s1 * np.sin(u) - s.enc_c1 * np.cos(u) - 4 * (s.enc_s2 * np.sin(2 * u) + s.enc_c2 * np.cos(2 * u))
+        r[:, k] = rate[:, k] / (1 + e1)
+        a[:, k] = (acc[:, k] - e2 * r[:, k] ** 2) / (1 + e1)
+    return t, r, a
+
+
+def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
+                        temperature: np.ndarray | None = None, t0_temperature: float | None = None,
+                        lever: np.ndarray | None = None) -> Motion:
+    """Plate motion at the profile's nodes for one geometry."""
+    p = profile
+    n, q, n_ax = p.th_q.shape
+    om = np.empty((n, q, 3))
+    al = np.zeros((n, q, 3))
+    f = np.empty((n, q, 3))
+    # static intervals: one kinematics evaluation per distinct attitude (a schedule has few)
+    st = p.static
+    if st.any():
+        att, inv = p.attitudes, p.attitude_of
+        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
+        _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
+        om[st] = om_u[inv][:, None, :]
+        f[st] = f_u[inv][:, None, :]
+    mv = ~st
+    if mv.any():
+        th, rate, acc = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax),
+                                     p.rate_q[mv].reshape(-1, n_ax), p.acc_q[mv].reshape(-1, n_ax))
+        _, om_m, al_m, f_m = geometry.kinematics(th, rate, acc)
+        om[mv], al[mv], f[mv] = (x.reshape(-1, q, 3) for x in (om_m, al_m, f_m))
+    # values at the sample times: static ends share the attitudes above; moving ends computed
+    om_e = np.empty((n, 3))
+    f_e = np.empty((n, 3))
+    al_e = np.zeros((n, 3))
+    om_e[st], f_e[st] = om[st, 0], f[st, 0]
+    if mv.any():
+        the, re, ae = _true_motion(geometry, p.th_end[mv], p.rate_end[mv], p.acc_end[mv])
+        _, om_e[mv], al_e[mv], f_e[mv] = geometry.kinematics(the, re, ae)
+    omega_start = np.vstack([om_e[:1], om_e[:-1]])
+    f_start = np.vstack([f_e[:1], f_e[:-1]])
+    tq_all = p.t_prev[:, None] + p.dt[:, None] * p.nodes[None, :]
+    if temperature is not None:
+        T = np.asarray(temperature, float)
+        T_prev = np.concatenate([[T[0]], T[:-1]])
+        T_q = T_prev[:, None] + (T - T_prev)[:, None] * p.nodes[None, :]
+        T0 = float(T[0]) if t0_temperature is None else float(t0_temperature)
+        dtemp_q = T_q - T0
+    else:
+        T0 = float(t0_temperature or 0.0)
+        dtemp_q = np.zeros((n, q))
+    return Motion(
+        time=p.time, dt=p.dt, static=p.static, nodes=p.nodes, weights=p.weights,
+        omega_q=om, alpha_q=al, f_q=f,
+        omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e, alpha_end=al_e,
+        dtemp_q=dtemp_q, elapsed_q=tq_all - p.t_prev[0], t0_temperature=T0,
+        lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
+        profile_key=p.key,
+    )
+
+
+def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
+                temperature: np.ndarray | None = None, t0_temperature: float | None = None,
+                quadrature: int = 3, lever: np.ndarray | None = None, dt0: float | None = None) -> Motion:
+    """Motion over each interval (t_{k-1}, t_k] from measured angles (N, n_axes) at t_k."""
+    return motion_from_profile(interpolate_angles(time, angles, quadrature, dt0), geometry,
+                               temperature, t0_temperature, lever)

@@ -1,0 +1,193 @@
+"""The calibration result file (JSON): parameters with σ and unit, correlations, noise model,
+fit statistics, the schedule and the data it came from. SI units; ratios as plain numbers.
+
+No wall-clock time is written: the same log and options give a byte-identical file."""
+from __future__ import annotations
+
+from components.errors import ResultFormatError
+import hashlib
+import json
+import platform
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from components.model.effects import EFFECTS, effect_of
+
+FORMAT = "calbench-result/1"
+
+
+@dataclass
+class CalibrationResult:
+    effects: list[str]
+    values: dict[str, float]
+    sigmas: dict[str, float]
+    correlation: np.ndarray | None = None  # in the order of `values`
+    noise: dict = field(default_factory=dict)
+    fit: dict = field(default_factory=dict)
+    temperature_ref: float | None = None
+    schedule: list = field(default_factory=list)
+    data: dict = field(default_factory=dict)
+    method: str = "least-squares"
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def parameters(self) -> list[str]:
+        return list(self.values)
+
+    def value(self, name: str, default: float = 0.0) -> float:
+        return self.values.get(name, default)
+
+    def to_dict(self) -> dict:
+        out = {
+            "format": FORMAT,
+            "method": self.method,
+            "effects": list(self.effects),
+            "parameters": {p: {"value": float(v), "sigma": float(self.sigmas.get(p, float("nan"))),
+                               "unit": effect_of(p).unit} for p, v in self.values.items()},
+        }
+        if self.correlation is not None:
+            c = np.where(np.isfinite(self.correlation), self.correlation, 0.0)
+            out["correlations"] = {"parameters": list(self.values),
+                                   "matrix": [[round(float(x), 12) for x in row] for row in c]}
+        out["noise"] = self.noise
+        out["fit"] = self.fit
+        out["temperature_ref_degC"] = self.temperature_ref
+        out["schedule"] = self.schedule
+        out["data"] = self.data
+        out["software"] = _software()
+        out.update(self.extra)
+        return out
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        tmp.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=True) + "\n")
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "CalibrationResult":
+        p = Path(path)
+        try:
+            d = json.loads(p.read_text())
+        except FileNotFoundError:
+            raise ResultFormatError(f"result file {p} does not exist") from None
+        except json.JSONDecodeError as e:
+            raise ResultFormatError(f"{p}: not JSON ({e})") from None
+        if d.get("format") != FORMAT:
+            raise ResultFormatError(f"{p}: key 'format' = {d.get('format')!r}, expected {FORMAT!r}")
+        params = d.get("parameters")
+        if not isinstance(params, dict):
+            raise ResultFormatError(f"{p}: key 'parameters' missing or not an object")
+        values, sigmas = {}, {}
+        for name, entry in params.items():
+            try:
+                e = effect_of(name)
+            except KeyError as err:
+                raise ResultFormatError(f"{p}: parameters.{name}: {err}") from None
+            if not isinstance(entry, dict) or "value" not in entry:
+                raise ResultFormatError(f"{p}: parameters.{name}: expected {{'value', 'sigma', 'unit'}}")
+            if entry.get("unit", e.unit) != e.unit:
+                raise ResultFormatError(f"{p}: parameters.{name}.unit = {entry.get('unit')!r}, "
+                                        f"expected {e.unit!r} (SI)")
+            values[name] = float(entry["value"])
+            sigmas[name] = float(entry.get("sigma", float("nan")))
+        effects = d.get("effects", [])
+        unknown = [x for x in effects if x not in EFFECTS]
+        if unknown:
+            raise ResultFormatError(f"{p}: effects {unknown} are not in the vocabulary")
+        corr = None
+        if "correlations" in d:
+            corr = np.array(d["correlations"]["matrix"], float)
+        known = {"format", "method", "effects", "parameters", "correlations", "noise", "fit",
+                 "temperature_ref_degC", "schedule", "data", "software"}
+        return cls(effects, values, sigmas, corr, d.get("noise", {}), d.get("fit", {}),
+                   d.get("temperature_ref_degC"), d.get("schedule", []), d.get("data", {}),
+                   d.get("method", "least-squares"), {k: v for k, v in d.items() if k not in known})
+
+
+def _software() -> dict:
+    import numpy
+    import scipy
+
+    try:
+        from importlib.metadata import version
+
+        cb = version("calbench")
+    except Exception:
+        cb = "unknown"
+    return {"calbench": cb, "python": platform.python_version(), "numpy": numpy.__version__,
+            "scipy": scipy.__version__}
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes, read in 1 MiB pieces (logs and FMUs can be large)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def schedule_of(time: np.ndarray, segment: np.ndarray | None) -> list:
+    """[(label, t_start, t_end)] runs of equal segment labels (t_start = start of the first
+    sample's interval)."""
+    if segment is None or len(segment) == 0:
+        return []
+    seg = np.asarray(segment).astype(str)
+    dt0 = time[1] - time[0] if len(time) > 1 else 0.0
+    change = np.nonzero(seg[1:] != seg[:-1])[0] + 1
+    starts = np.concatenate([[0], change])
+    stops = np.concatenate([change, [len(seg)]])
+    return [[seg[a], float(time[a] - (time[a] - time[a - 1] if a else dt0)), float(time[b - 1])]
+            for a, b in zip(starts, stops)]
+
+
+def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResult:
+    """Package an lsq.Fit as a result."""
+    dt = float(np.median(fit.motion.dt))
+    noise = {
+        "model": "white noise per sample (estimated from static data)",
+        "sample_interval_s": dt,
+        "gyro_sigma_rad": [float(x) for x in fit.sigma_gyro],
+        "acc_sigma_mps": [float(x) for x in fit.sigma_acc],
+        "gyro_arw_rad_per_sqrt_s": [float(x / np.sqrt(dt)) for x in fit.sigma_gyro],
+        "acc_vrw_mps_per_sqrt_s": [float(x / np.sqrt(dt)) for x in fit.sigma_acc],
+    }
+    if getattr(fit, "rest_sigma", None) is not None:
+        # how far the table rests from its encoder readings (estimated from the moves)
+        noise["rest_angle_sigma_rad"] = [float(x) for x in fit.rest_sigma]
+    fitd = {"chi2": fit.chi2, "dof": fit.dof, "chi2_per_dof": fit.chi2 / fit.dof,
+            "iterations": fit.iterations,
+            "observations": "block sums: rest-to-rest gyro moves and static chunks, accelerometer chunks"}
+    data_d = {"samples": int(len(data.time)), "duration_s": float(data.time[-1] - data.time[0] + dt)}
+    if log is not None and log.source:
+        src = Path(log.source)
+        stem = src.with_suffix("")
+        data_d["log"] = str(stem)
+        for suffix in (".csv", ".parquet", ".json"):
+            f = stem.with_suffix(suffix)
+            if f.exists():
+                data_d[f"{suffix[1:]}_sha256"] = file_sha256(f)
+    return CalibrationResult(
+        effects=list(effects), values=dict(zip(fit.parameters, map(float, fit.value))),
+        sigmas=dict(zip(fit.parameters, map(float, fit.sigma))), correlation=fit.correlation(),
+        noise=noise, fit=fitd, temperature_ref=float(fit.motion.t0_temperature)
+        if data.temperature is not None else None,
+        schedule=schedule_of(data.time, data.segment), data=data_d)
+
+
+def fitted_on(model: CalibrationResult, log) -> bool:
+    """Was *model* fitted to this very log (same file contents)? Then its parameters count
+    against the degrees of freedom of a comparison on it."""
+    if not log.source:
+        return False
+    stem = Path(log.source).with_suffix("")
+    for suffix in ("csv", "parquet"):
+        f = stem.with_suffix("." + suffix)
+        if f.exists() and model.data.get(f"{suffix}_sha256") == file_sha256(f):
+            return True
+    return False

@@ -1,0 +1,292 @@
+"""Build and run a scenario: the system (calibration controller -> turntable FMU -> IMU FMU,
+connected per role) through the orchestrator's Python API, run until the controller reports
+done; the recording becomes a calbench-log/1 log, and :func:`write_outputs` writes
+``<stem>.csv`` + ``<stem>.json`` and ``<stem>.truth.json`` (everything injected: nonzero effect
+parameters in SI, noise, seed, geometry, site, schedule, segment times, FMU SHA-256s).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from components.control.controller import CalibrationController
+from components.control.schedule import DEG
+from components.errors import ScenarioError
+from components.model.result import file_sha256
+from components.simulation.scenario import TRUTH_FORMAT, Scenario, scenario_from_dict
+
+def _fmu_path(spec: str, base_dir: Path) -> Path:
+    from orchestrator.master import resolve_fmu
+
+    return resolve_fmu(spec, base_dir)
+
+
+def _starts(path: Path) -> dict:
+    from fmpy import read_model_description
+
+    out = {}
+    for v in read_model_description(str(path)).modelVariables:
+        if v.start is not None:
+            try:
+                out[v.name] = float(v.start)
+            except ValueError:
+                pass
+    return out
+
+
+def table_fmu_parameters(sc: Scenario, fmu_axis: dict) -> dict:
+    """FMU parameters (the FMU's names, SI) for the table: site, the table effects mapped onto
+    the FMU's parameters, then the explicit parameters."""
+    from components.model.geometry import perpendicular_pair
+    import numpy as np
+
+    out = {"site.latitude": math.radians(sc.site["latitude_deg"]), "site.height": sc.site["height_m"],
+           "site.gravity": sc.site["gravity_mps2"]}
+    nonorth: dict = {}
+    pairs: dict = {}
+    for k, v in sc.table_effects.items():
+        parts = k.split(".")
+        if parts[1] == "base_tilt":
+            out[f"base.tilt.{parts[2]}"] = v
+            continue
+        ax, comp = fmu_axis[parts[2]], parts[3]
+        if parts[1] == "nonorth":
+            nonorth.setdefault(parts[2], {})[comp] = v
+        elif parts[1] == "wobble":
+            pairs.setdefault((f"{ax}.wobble", "cs"), {})[comp] = v
+        elif parts[1] == "encoder":
+            h = comp[1]
+            pairs.setdefault((f"{ax}.encoder.h{h}", "sc"), {})[comp[0]] = v
+    for (prefix, kind), d in pairs.items():
+        if kind == "cs":    # A cos(phi), A sin(phi)
+            c, s = d.get("c", 0.0), d.get("s", 0.0)
+            out[f"{prefix}.amp"], out[f"{prefix}.phase"] = math.hypot(c, s), math.atan2(s, c)
+        else:               # s sin(th) + c cos(th) = A sin(th + phi)
+            s, c = d.get("s", 0.0), d.get("c", 0.0)
+            out[f"{prefix}.amp"], out[f"{prefix}.phase"] = math.hypot(s, c), math.atan2(c, s)
+    for axis, d in nonorth.items():
+        a = np.asarray(sc.geometry_axes[axis], float)
+        u, v = perpendicular_pair(a / np.linalg.norm(a))
+        vec = d.get("u", 0.0) * u + d.get("v", 0.0) * v
+        for i, c in enumerate("xyz"):
+            out[f"{fmu_axis[axis]}.nonorth.{c}"] = float(vec[i])
+    out.update(sc.table_parameters)
+    return out
+
+
+def build_system(sc: Scenario, record: list[str] | None = None):
+    """(System, controller, info) for the scenario; ``record`` adds signals to record."""
+    from orchestrator.system import Connection, System, UnitSpec
+
+    table_path = _fmu_path(sc.table_fmu, sc.base_dir)
+    imu_path = _fmu_path(sc.imu_fmu, sc.base_dir)
+    for what, p in (("turntable", table_path), ("imu", imu_path)):
+        if not p.exists():
+            raise ScenarioError(f"{sc.source}: [{what}] fmu: file {p} does not exist")
+    tstart, istart = _starts(table_path), _starts(imu_path)
+    axes = sc.table_axes
+    fmu_axis = {a: sc.table_mapping.get(f"{a}.angle", f"{a}.angle").rsplit(".", 1)[0] for a in axes}
+    # geometry: axis vectors from the parameters or the FMU's start values
+    geo = {}
+    for a in axes:
+        names = [f"{fmu_axis[a]}.axis.{c}" for c in "xyz"]
+        vals = [sc.table_parameters.get(n, tstart.get(n)) for n in names]
+        if any(v is None for v in vals):
+            raise ScenarioError(f"{sc.source}: [turntable]: the FMU has no parameters {names} for the "
+                                f"rotation axis of {a!r}: expected the builtin turntable's geometry parameters")
+        geo[a] = [float(v) for v in vals]
+    sc.geometry_axes = geo
+    tparams = table_fmu_parameters(sc, fmu_axis)
+    if "n_axes" in tstart and "n_axes" not in tparams:
+        tparams["n_axes"] = len(axes)
+    # encoder resolution and acceleration limit the controller assumes
+    cpr = sc.counts_per_rev
+    if cpr is None:
+        bits = {int(tparams.get(f"{fmu_axis[a]}.encoder.bits", tstart.get(f"{fmu_axis[a]}.encoder.bits", 24)))
+                for a in axes}
+        if len(bits) > 1:
+            raise ScenarioError(f"{sc.source}: [turntable]: the axes have different encoder resolutions {bits}: "
+                                "give counts_per_rev")
+        b = bits.pop()
+        cpr = 2 ** b if b > 0 else 0
+    acc = [sc.acc_max if sc.acc_max is not None else
+           float(tparams.get(f"{fmu_axis[a]}.acc_max", tstart.get(f"{fmu_axis[a]}.acc_max", 200 * DEG)))
+           for a in axes]
+    imu_names = set(istart) | _names(imu_path)
+    iparams = {**sc.imu_effects, **sc.imu_noise, **sc.imu_parameters}
+    if sc.imu_mapping.get("seed", "seed") in imu_names:
+        iparams["seed"] = sc.seed  # a supplier's IMU may have no noise seed
+    multiple = int(round(1.0 / (sc.controller_rate_hz * sc.step)))
+    ctrl = CalibrationController("ctrl", sc.schedule, axes=axes, counts_per_rev=cpr, acc_max=acc)
+    conns = []
+    for a in axes:
+        for v in ("mode", "angle_cmd", "rate_cmd"):
+            conns.append(Connection(f"ctrl.{a}.{v}", f"table.{a}.{v}"))
+        for v in ("angle", "rate"):
+            conns.append(Connection(f"table.{a}.{v}", f"ctrl.{a}.{v}"))
+    conns += [Connection("table.plate.omega", "imu.omega"), Connection("table.plate.f", "imu.f")]
+    if sc.imu_mapping.get("alpha.x", "alpha.x") in imu_names:
+        conns.append(Connection("table.plate.alpha", "imu.alpha"))
+    # exact step integrals of the plate motion, when the table gives them and the IMU takes
+    # them: without them the IMU's interpolation between samples misses the servo's transients
+    # (a stop inside a step costs ~7e-6 rad, two orders above a navigation-grade gyro's noise)
+    table_names = set(tstart) | _names(table_path)
+    integrals = [(src, dst) for src, dst in (("plate.omega_int", "omega_int"), ("plate.f_int", "f_int"))
+                 if sc.table_mapping.get(f"{src}.x", f"{src}.x") in table_names
+                 and sc.imu_mapping.get(f"{dst}.x", f"{dst}.x") in imu_names]
+    if len(integrals) == 2 and "input_integrals" in imu_names and "input_integrals" not in iparams:
+        conns += [Connection(f"table.{src}", f"imu.{dst}") for src, dst in integrals]
+        iparams["input_integrals"] = 1
+    rec = ["imu.gyro", "imu.acc", "ctrl.segment", "ctrl.done"]
+    if sc.imu_mapping.get("temperature", "temperature") in imu_names:
+        rec.append("imu.temperature")
+    rec += [f"table.{a}.angle" for a in axes] + [f"table.{a}.angle_cmd" for a in axes]
+    # the full command (mode and rate too): extra log columns a servo replay can use
+    rec += [f"table.{a}.mode" for a in axes] + [f"table.{a}.rate_cmd" for a in axes]
+    rec += [r for r in (record or []) if r not in rec]
+    period = multiple * sc.step
+    bound = sc.schedule.time_bound(min(acc))
+    n_steps = int(math.ceil(bound / period)) * multiple
+    system = System(
+        name=sc.name, step=sc.step, start=0.0, stop=n_steps * sc.step, order=["ctrl", "table", "imu"],
+        units=[UnitSpec("ctrl", component=ctrl, step_multiple=multiple),
+               UnitSpec("table", fmu=str(table_path), role="turntable", role_options={"axes": list(axes)},
+                        parameters=tparams, mapping=dict(sc.table_mapping)),
+               UnitSpec("imu", fmu=str(imu_path), role="imu",
+                        role_options={"gyro_output": sc.gyro_output, "acc_output": sc.acc_output},
+                        parameters=iparams, mapping=dict(sc.imu_mapping))],
+        connections=conns, record=rec, source=sc.source, base_dir=sc.base_dir)
+    info = {"table_path": table_path, "imu_path": imu_path, "geometry": geo, "table_parameters": tparams,
+            "imu_parameters": iparams, "counts_per_rev": cpr, "acc_max": acc, "controller_multiple": multiple}
+    return system, ctrl, info
+
+
+def _names(path: Path) -> set:
+    from fmpy import read_model_description
+
+    return {v.name for v in read_model_description(str(path)).modelVariables}
+
+
+@dataclass
+class RunResult:
+    scenario: Scenario
+    recording: object
+    controller: CalibrationController
+    log: object
+    truth: dict
+    info: dict
+
+
+def run_scenario(sc: Scenario, record: list[str] | None = None, progress: bool | None = None) -> RunResult:
+    """Run the scenario until the controller is done; the log and the truth in memory."""
+    from components.logs.recording import log_from_recording
+
+    system, ctrl, info = build_system(sc, record)
+    from orchestrator.master import Simulation
+
+    ctrl.stop_when_done = True
+    sim = Simulation(system, progress=progress)
+    sim.load()
+    rec = sim.run()
+    if not ctrl.finished:
+        raise ScenarioError(f"{sc.source}: the schedule did not finish by t = {system.stop:g} s "
+                            f"(step {ctrl.schedule.steps[ctrl._i].origin})")
+    rec.provenance.setdefault("system", {})["stopped_at"] = sim.stopped_at
+    meta = {
+        "site": {"latitude_deg": sc.site["latitude_deg"], "height_m": sc.site["height_m"],
+                 "gravity_mps2": sc.site["gravity_mps2"] or None},
+        "table": {"axes": [{"name": a, "axis": info["geometry"][a]} for a in sc.table_axes]},
+        "imu": {"gyro_output": sc.gyro_output, "acc_output": sc.acc_output},
+    }
+    for sensor, key, wpar, wdef in (("gyro", "gyro_count_rad", "gyro.count_weight", 1e-6),
+                                    ("acc", "acc_count_mps", "acc.count_weight", 1e-5)):
+        meta["imu"][key] = float(info["imu_parameters"].get(wpar, wdef)) \
+            if meta["imu"][f"{sensor}_output"] == "counts" else None
+    desc = sc.description or f"simulated run of scenario {sc.name}"
+    log = log_from_recording(rec, metadata=meta, table="table", imu="imu", axes=sc.table_axes,
+                             segment_signal="ctrl.segment", segment_labels=ctrl.labels, description=desc)
+    for a in sc.table_axes:
+        # kept as extra columns (the spec keeps unknown columns): the servo replay of
+        # components.simulation.replay drives a turntable FMU with the same mode and rate commands
+        log.extra[f"servo_mode_{a}"] = np.asarray(rec[f"table.{a}.mode"][1:], dtype=float)
+        log.extra[f"servo_rate_{a}"] = np.asarray(rec[f"table.{a}.rate_cmd"][1:], dtype=float)
+    truth = truth_of(sc, ctrl, info, rec)
+    return RunResult(sc, rec, ctrl, log, truth, info)
+
+
+def _step_dict(s) -> dict:
+    d = {"kind": s.kind, "label": s.label, "origin": s.origin}
+    if s.kind == "index":
+        d.update(angles_rad=list(s.angles), absolute=s.absolute)
+    elif s.kind == "dwell":
+        d.update(duration_s=s.duration)
+    elif s.kind == "rotate":
+        d.update(axis=s.axis, rate_rps=s.rate, turns=s.turns)
+    else:
+        d.update(axis=s.axis, rate_rps=s.rate, duration_s=s.duration)
+    return d
+
+
+def truth_of(sc: Scenario, ctrl: CalibrationController, info: dict, rec) -> dict:
+    sched = sc.schedule
+    st = sched.settings
+    effects = {k: v for k, v in {**sc.imu_effects, **sc.table_effects}.items() if v != 0.0}
+
+    return {
+        "format": TRUTH_FORMAT,
+        "scenario": {"name": sc.name, "description": sc.description, "source": sc.source,
+                     "sha256": file_sha256(sc.source) if sc.source and Path(sc.source).exists() else None},
+        "seed": sc.seed,
+        "effects": effects,
+        "noise": dict(sc.imu_noise),
+        "imu": {"fmu": str(info["imu_path"]), "sha256": file_sha256(info["imu_path"]),
+                "parameters": {k: v for k, v in info["imu_parameters"].items() if v != 0 or k == "seed"},
+                "gyro_output": sc.gyro_output, "acc_output": sc.acc_output, "sample_interval_s": sc.step},
+        "turntable": {"fmu": str(info["table_path"]), "sha256": file_sha256(info["table_path"]),
+                      "parameters": info["table_parameters"], "counts_per_rev": info["counts_per_rev"],
+                      "acc_max_rps2": info["acc_max"]},
+        "site": dict(sc.site),
+        "geometry": {"axes": [{"name": a, "axis": info["geometry"][a]} for a in sc.table_axes],
+                     "base_tilt_rad": [info["table_parameters"].get("base.tilt.x", 0.0),
+                                       info["table_parameters"].get("base.tilt.y", 0.0)],
+                     "base_azimuth_rad": info["table_parameters"].get("base.azimuth", 0.0)},
+        "schedule": {"name": sched.name, "spec": sc.schedule_spec, "source": sched.source,
+                     "parameters": sched.parameters, "overrides": sc.schedule_overrides,
+                     "settings": {"settle_tol_rad": st.settle_tol, "settle_rate_tol_rps": st.settle_rate_tol,
+                                  "settle_hold_s": st.settle_hold, "index_timeout_s": st.index_timeout},
+                     "steps": [_step_dict(s) for s in sched.steps], "labels": ctrl.labels},
+        "segments": ctrl.events,
+        "controller": {"rate_hz": sc.controller_rate_hz, "step_multiple": info["controller_multiple"]},
+        "run": {"step_s": sc.step, "stopped_at_s": rec.provenance.get("system", {}).get("stopped_at"),
+                "versions": rec.provenance.get("versions", {})},
+    }
+
+
+def write_outputs(result: RunResult, stem: str | Path, fmt: str = "csv") -> list[Path]:
+    """``<stem>.csv``/``.parquet`` + ``<stem>.json`` (calbench-log/1) and ``<stem>.truth.json``."""
+    from components.logs.logfile import write_log
+
+    stem = Path(stem)
+    if stem.suffix.lower() in (".csv", ".parquet", ".json"):
+        stem = stem.with_suffix("")
+    paths = write_log(stem, result.log, fmt)
+    tp = Path(str(stem) + ".truth.json")
+    tp.write_text(json.dumps(result.truth, indent=1) + "\n", encoding="utf-8")
+    return paths + [tp]
+
+
+def schedule_motion_log(schedule: str, dwell: float | None = None, step: float = 0.005):
+    """Noise- and error-free simulated log of a schedule (name or path) on the built-in FMUs:
+    the motion a plan is judged on."""
+    sched = {"path": str(Path(schedule).resolve())} if schedule.endswith(".toml") else {"name": schedule}
+    if dwell is not None:
+        sched["overrides"] = {"dwell": dwell}
+    sc = scenario_from_dict({"scenario": {"name": f"plan-{Path(schedule).stem}", "step": step},
+                             "schedule": sched, "site": {"latitude_deg": 39.9, "height_m": 50.0},
+                             "turntable": {"fmu": "builtin:turntable"}, "imu": {"fmu": "builtin:imu"}},
+                            source=f"plan {schedule}")
+    return run_scenario(sc, progress=False).log

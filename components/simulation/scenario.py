@@ -1,0 +1,249 @@
+"""Scenario files: a schedule to run on a turntable FMU with an IMU FMU, the effects and noise
+to inject, the site and the step.
+
+A scenario file (TOML)::
+
+    [scenario]
+    name = "six-position-nav"
+    description = "free text"
+    step = 0.005                 # communication step = IMU sample interval [s]
+    controller_rate_hz = 10      # the calibration controller's rate (a divisor of 1/step)
+    seed = 1                     # IMU noise seed
+
+    [schedule]
+    name = "six_position"        # a ready-made schedule (components/control/schedules), or
+    # path = "my_schedule.toml"  # a schedule file (relative to this file)
+    [schedule.overrides]         # values of the schedule's [parameters]
+    dwell = 30.0
+
+    [site]
+    latitude_deg = 39.9
+    height_m = 50.0
+    gravity_mps2 = 0.0           # 0: WGS-84 normal gravity
+
+    [turntable]
+    fmu = "builtin:turntable"    # or a path (relative to this file)
+    axes = ["outer", "middle", "inner"]     # role axis names, base to plate
+    mapping = {}                 # role variable -> the FMU's name
+    # counts_per_rev = 16777216  # default: from <axis>.encoder.bits of the FMU
+    # acc_max_dps2 = 200.0       # default: from <axis>.acc_max of the FMU
+    [turntable.effects]          # vocabulary names (components.model.effects), SI or "number unit"
+    "table.base_tilt.x" = "1 arcmin"
+    [turntable.parameters]       # any other FMU parameter, the FMU's names, SI
+    "outer.rate_max" = 1.0
+
+    [imu]
+    fmu = "builtin:imu"
+    mapping = {}
+    gyro_output = "increment"    # the unit's output kind (role option)
+    acc_output = "increment"
+    [imu.effects]                # vocabulary names = the IMU FMU's parameter names
+    "gyro.bias.x" = "0.01 deg/h"
+    "acc.sf.y" = "30 ppm"
+    [imu.noise]
+    "gyro.noise.arw" = "0.001 deg/sqrt(h)"
+    "acc.noise.vrw" = "5 ug/sqrt(Hz)"
+    [imu.parameters]             # any other FMU parameter
+
+Values are SI numbers or strings "<number> <unit>" with a unit of the parameter's dimension
+(rad: rad, deg, arcmin, arcsec, urad; rad/s: deg/h, deg/s; m/s2: ug, mg, g; 1: ppm; m: mm, cm;
+s: ms, us; and each effect's display unit from components.model.effects).
+
+This module reads the file into a :class:`Scenario`; ``components.simulation.run`` builds and
+runs it.
+"""
+from __future__ import annotations
+
+from components.errors import ScenarioError
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+from components.model.quantities import QuantityError, effect_value, noise_value
+from components.control.schedule import DEG, Schedule, load_schedule
+from components.errors import ScheduleError
+from orchestrator.tomlfile import read_toml
+
+TRUTH_FORMAT = "calbench-truth/1"
+
+
+@dataclass
+class Scenario:
+    name: str
+    schedule: Schedule
+    step: float = 0.005
+    controller_rate_hz: float = 10.0
+    seed: int = 1
+    description: str = ""
+    site: dict = field(default_factory=lambda: {"latitude_deg": 39.9, "height_m": 50.0, "gravity_mps2": 0.0})
+    table_fmu: str = "builtin:turntable"
+    table_axes: list = field(default_factory=lambda: ["outer", "middle", "inner"])
+    table_mapping: dict = field(default_factory=dict)
+    table_effects: dict = field(default_factory=dict)     # vocabulary name -> SI
+    table_parameters: dict = field(default_factory=dict)  # FMU name -> SI
+    counts_per_rev: int | None = None
+    acc_max: float | None = None                          # rad/s^2
+    imu_fmu: str = "builtin:imu"
+    imu_mapping: dict = field(default_factory=dict)
+    gyro_output: str = "increment"
+    acc_output: str = "increment"
+    imu_effects: dict = field(default_factory=dict)
+    imu_noise: dict = field(default_factory=dict)
+    imu_parameters: dict = field(default_factory=dict)
+    schedule_spec: str = ""
+    schedule_overrides: dict = field(default_factory=dict)
+    geometry_axes: dict = field(default_factory=dict)   # role axis -> rotation axis (filled by build_system)
+    source: str | None = None
+    base_dir: Path = field(default_factory=Path.cwd)
+
+
+# ----------------------------------------------------------------------------- parsing
+def _effect_value(name: str, v, where: str) -> float:
+    try:
+        return effect_value(name, v, where)
+    except QuantityError as e:
+        raise ScenarioError(str(e)) from None
+
+
+def _table(d: dict, key: str, where: str) -> dict:
+    v = d.get(key, {})
+    if not isinstance(v, dict):
+        raise ScenarioError(f"{where}: {key}: expected a table")
+    return v
+
+
+def _keys(d: dict, allowed: set, where: str) -> None:
+    extra = set(d) - allowed
+    if extra:
+        raise ScenarioError(f"{where}: unknown key(s) {sorted(extra)}; expected some of {sorted(allowed)}")
+
+
+def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | None = None,
+                       overrides: dict | None = None) -> Scenario:
+    """``overrides``: schedule parameter values that replace the file's (e.g. from ``--dwell``)."""
+    base_dir = base_dir or Path.cwd()
+    _keys(data, {"scenario", "schedule", "site", "turntable", "imu"}, source)
+    sc = _table(data, "scenario", source)
+    w = f"{source}: [scenario]"
+    _keys(sc, {"name", "description", "step", "controller_rate_hz", "seed"}, w)
+    step = sc.get("step", 0.005)
+    if isinstance(step, bool) or not isinstance(step, (int, float)) or not step > 0:
+        raise ScenarioError(f"{w}: step = {step!r}: expected a positive step [s]")
+    rate = sc.get("controller_rate_hz", 10.0)
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0:
+        raise ScenarioError(f"{w}: controller_rate_hz = {rate!r}: expected a positive rate [Hz]")
+    m = 1.0 / (rate * step)
+    if abs(m - round(m)) > 1e-9 or round(m) < 1:
+        raise ScenarioError(f"{w}: controller_rate_hz = {rate!r}: expected a rate whose period is a whole "
+                            f"number of steps of {step} s")
+    seed = sc.get("seed", 1)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise ScenarioError(f"{w}: seed = {seed!r}: expected an integer")
+
+    sd = _table(data, "schedule", source)
+    w = f"{source}: [schedule]"
+    _keys(sd, {"name", "path", "overrides"}, w)
+    if ("name" in sd) == ("path" in sd):
+        raise ScenarioError(f"{w}: expected exactly one of 'name' (a ready-made schedule) or 'path' (a file)")
+    spec = sd.get("name", sd.get("path"))
+    if not isinstance(spec, str):
+        raise ScenarioError(f"{w}: {'name' if 'name' in sd else 'path'} = {spec!r}: expected text")
+    ov = dict(_table(sd, "overrides", w))
+    ov.update(overrides or {})
+    try:
+        if "path" in sd:
+            p = Path(spec)
+            schedule = load_schedule(p if p.is_absolute() else base_dir / p, ov)
+            if not spec.endswith(".toml"):
+                raise ScenarioError(f"{w}: path = {spec!r}: expected a .toml file")
+        else:
+            schedule = load_schedule(spec, ov)
+    except ScheduleError as e:
+        raise ScenarioError(f"{source}: {e}") from None
+
+    site = _table(data, "site", source)
+    w = f"{source}: [site]"
+    _keys(site, {"latitude_deg", "height_m", "gravity_mps2"}, w)
+    site_out = {"latitude_deg": 39.9, "height_m": 50.0, "gravity_mps2": 0.0}
+    for k, v in site.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ScenarioError(f"{w}: {k} = {v!r}: expected a number")
+        site_out[k] = float(v)
+    if not -90 <= site_out["latitude_deg"] <= 90:
+        raise ScenarioError(f"{w}: latitude_deg = {site_out['latitude_deg']}: expected [-90, 90]")
+
+    tt = _table(data, "turntable", source)
+    w = f"{source}: [turntable]"
+    _keys(tt, {"fmu", "axes", "mapping", "counts_per_rev", "acc_max_dps2", "effects", "parameters"}, w)
+    axes = tt.get("axes", ["outer", "middle", "inner"])
+    if not isinstance(axes, list) or not 1 <= len(axes) <= 3 or not all(isinstance(a, str) and a for a in axes):
+        raise ScenarioError(f"{w}: axes = {axes!r}: expected a list of 1 to 3 axis names, base to plate")
+    cpr = tt.get("counts_per_rev")
+    if cpr is not None and (isinstance(cpr, bool) or not isinstance(cpr, int) or cpr < 0):
+        raise ScenarioError(f"{w}: counts_per_rev = {cpr!r}: expected an integer >= 0 (0: no rounding)")
+    acc = tt.get("acc_max_dps2")
+    if acc is not None and (isinstance(acc, bool) or not isinstance(acc, (int, float)) or not acc > 0):
+        raise ScenarioError(f"{w}: acc_max_dps2 = {acc!r}: expected a positive acceleration [deg/s^2]")
+    table_effects = {}
+    for k, v in _table(tt, "effects", w).items():
+        if not k.startswith("table."):
+            raise ScenarioError(f"{w}.effects: {k!r}: expected a table effect (table.base_tilt, table.nonorth, "
+                                "table.wobble, table.encoder); IMU effects go in [imu.effects]")
+        table_effects[k] = _effect_value(k, v, f"{w}.effects")
+    for k in table_effects:
+        parts = k.split(".")
+        if len(parts) == 4 and parts[2] not in axes:
+            raise ScenarioError(f"{w}.effects: {k!r}: the table has no axis {parts[2]!r} (axes: {axes})")
+    table_params = {k: _param(v, k, f"{w}.parameters") for k, v in _table(tt, "parameters", w).items()}
+
+    im = _table(data, "imu", source)
+    w = f"{source}: [imu]"
+    _keys(im, {"fmu", "mapping", "gyro_output", "acc_output", "effects", "noise", "parameters"}, w)
+    imu_effects = {}
+    for k, v in _table(im, "effects", w).items():
+        if k.startswith("table."):
+            raise ScenarioError(f"{w}.effects: {k!r} is a table effect: expected it in [turntable.effects]")
+        imu_effects[k] = _effect_value(k, v, f"{w}.effects")
+    imu_noise = {}
+    for k, v in _table(im, "noise", w).items():
+        try:
+            imu_noise[k] = noise_value(k, v, f"{w}.noise")
+        except QuantityError as e:
+            raise ScenarioError(str(e)) from None
+    imu_params = {k: _param(v, k, f"{w}.parameters") for k, v in _table(im, "parameters", w).items()}
+    if "seed" in imu_params:
+        raise ScenarioError(f"{w}.parameters: seed: give the seed as [scenario] seed")
+    for k in ("gyro_output", "acc_output"):
+        if k in im and not isinstance(im[k], str):
+            raise ScenarioError(f"{w}: {k} = {im[k]!r}: expected text")
+    for k in ("fmu",):
+        for d, ww in ((tt, "[turntable]"), (im, "[imu]")):
+            if k in d and not isinstance(d[k], str):
+                raise ScenarioError(f"{source}: {ww}: fmu = {d[k]!r}: expected 'builtin:<name>' or a path")
+    for d, ww in ((tt, "[turntable]"), (im, "[imu]")):
+        mp = d.get("mapping", {})
+        if not isinstance(mp, dict) or not all(isinstance(v, str) for v in mp.values()):
+            raise ScenarioError(f"{source}: {ww}: mapping = {mp!r}: expected a table of role name = FMU name")
+
+    return Scenario(
+        name=sc.get("name", Path(source).stem), description=sc.get("description", ""), schedule=schedule,
+        step=float(step), controller_rate_hz=float(rate), seed=seed, site=site_out,
+        table_fmu=tt.get("fmu", "builtin:turntable"), table_axes=list(axes), table_mapping=dict(tt.get("mapping", {})),
+        table_effects=table_effects, table_parameters=table_params, counts_per_rev=cpr,
+        acc_max=None if acc is None else float(acc) * DEG,
+        imu_fmu=im.get("fmu", "builtin:imu"), imu_mapping=dict(im.get("mapping", {})),
+        gyro_output=im.get("gyro_output", "increment"), acc_output=im.get("acc_output", "increment"),
+        imu_effects=imu_effects, imu_noise=imu_noise, imu_parameters=imu_params,
+        schedule_spec=spec, schedule_overrides=ov, source=source, base_dir=base_dir)
+
+
+def _param(v, key: str, where: str):
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ScenarioError(f"{where}: {key} = {v!r}: expected a number (SI)")
+    return v
+
+
+def load_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
+    p = Path(path)
+    data = read_toml(p, ScenarioError, "scenario")
+    return scenario_from_dict(data, str(p), p.parent.resolve(), overrides)
