@@ -190,9 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from fmus.build import BuildError
-    from orchestrator.master import RoleError, SimulationFault
-    from orchestrator.system import SystemError_
-    from orchestrator.wiring import AlgebraicLoopError
+    from orchestrator.errors import AlgebraicLoopError, RoleError, SimulationFault, SystemError_
     from components.logfile import LogFormatError
     from components.result import ResultFormatError
     from components.scenario import ScenarioError

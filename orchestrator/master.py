@@ -22,11 +22,11 @@ import numpy as np
 
 from orchestrator import native
 from orchestrator.component import Component
+from orchestrator.errors import NativeSpanFault, RoleError, SimulationFault, SystemError_, UnitError
 from orchestrator.recording import Recording
 from orchestrator.roles import RoleCheck, check_unit, get_role
-from orchestrator.system import System, SystemError_
-from orchestrator.units import (STATUS, ComponentUnit, FMU2Unit, Unit, UnitError, load_fmu_unit,
-                                sha256_file)
+from orchestrator.system import System
+from orchestrator.units import STATUS, ComponentUnit, FMU2Unit, Unit, load_fmu_unit, sha256_file
 from orchestrator.wiring import (Endpoint, ScalarConnection, check_algebraic_loops,
                                  expand_connections, fmu_feedthrough, resolve, stepping_order)
 
@@ -36,23 +36,6 @@ _FMU_RESOLVERS: dict[str, Callable[[str], Path]] = {}
 def register_fmu_resolver(scheme: str, resolver: Callable[[str], Path]) -> None:
     """``fmu = "<scheme>:<name>"`` in a system file resolves through ``resolver(name)``."""
     _FMU_RESOLVERS[scheme] = resolver
-
-
-class RoleError(Exception):
-    """One or more units do not conform to their roles; the message lists every problem."""
-
-    def __init__(self, checks: list[RoleCheck]):
-        self.checks = checks
-        super().__init__("\n".join(c.report() for c in checks if not c.ok))
-
-
-class SimulationFault(Exception):
-    """A unit failed during the run. ``recording`` holds everything recorded before it."""
-
-    def __init__(self, message: str, recording: Recording | None, saved: Path | None = None):
-        self.recording = recording
-        self.saved = saved
-        super().__init__(message + (f"\n(partial results saved to {saved})" if saved else ""))
 
 
 def _import_component(spec, name: str, config: dict) -> Component:
@@ -213,7 +196,7 @@ class Simulation:
             rec.data[0] = values[rec_slots] if rec_slots else rec.data[0]
             rec.rows = 1
             self._loop(values, slots, conv, rec, rec_slots, n_steps)
-        except (UnitError, _NativeFault) as e:
+        except (UnitError, NativeSpanFault) as e:
             rec.complete, rec.fault = False, str(e)
             rec.provenance["wall_time_s"] = _time.time() - started
             saved = rec.save(output) if output else None
@@ -304,7 +287,7 @@ class Simulation:
             if st:
                 # the rows of the steps completed inside this span are in rec_arr already
                 rec.rows = err.step // every + 1
-                raise _NativeFault(self._native_message(err, fmi2, plan, keep, t0, h))
+                raise NativeSpanFault(self._native_message(err, fmi2, plan, keep, t0, h))
 
         step = 0
         slow = sorted(set(multiples[n] for n in ports)) if ports else []
@@ -517,10 +500,6 @@ class Simulation:
         if sysm.source and Path(sysm.source).exists():
             prov["system"]["sha256"] = sha256_file(sysm.source)
         return prov
-
-
-class _NativeFault(Exception):
-    pass
 
 
 def _calbench_version() -> str:

@@ -59,7 +59,8 @@ import zipfile
 from pathlib import Path, PurePosixPath
 from xml.etree import ElementTree as ET
 
-from orchestrator.system import ALGORITHMS, Connection, System, SystemError_, UnitSpec
+from orchestrator.errors import SystemError_
+from orchestrator.system import ALGORITHMS, Connection, System, UnitSpec
 
 SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"

@@ -49,14 +49,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from orchestrator.errors import SystemError_
 from orchestrator.tomlfile import read_toml
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 AGGREGATIONS = ("sample", "sum")
-
-
-class SystemError_(Exception):
-    """A system description is wrong: the message names the file, the key and what was expected."""
 
 
 @dataclass

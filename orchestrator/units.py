@@ -11,12 +11,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from orchestrator.component import Component
+from orchestrator.errors import UnitError
 
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
-
-
-class UnitError(Exception):
-    """A unit failed: the message names the unit, what it was doing and its last log lines."""
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ import pytest
 from components.controller import CalibrationController
 from components.schedule import COUNTS_PER_REV, DEG, loads_schedule
 from components.scenario import Scenario, load_scenario, run_scenario
-from orchestrator.master import SimulationFault
+from orchestrator.errors import SimulationFault
 
 Q = 2 * math.pi / COUNTS_PER_REV
 G = 9.8          # site gravity set explicitly, so the check needs no gravity model

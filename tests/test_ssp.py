@@ -13,7 +13,8 @@ import components  # noqa: F401  (registers builtin: and the roles)
 from fmus.build import fmu_path
 from orchestrator.master import simulate
 from orchestrator.ssp import SSD_NS, SSV_NS, load_ssp, save_ssp
-from orchestrator.system import SystemError_, load_system
+from orchestrator.errors import SystemError_
+from orchestrator.system import load_system
 
 TOML = """
 [system]
