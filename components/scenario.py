@@ -306,7 +306,7 @@ def load_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
 
 # ----------------------------------------------------------------------------- building
 def _fmu_path(spec: str, base_dir: Path) -> Path:
-    from orchestrator.master import resolve_fmu
+    from orchestrator.fmu_resolver import resolve_fmu
 
     return resolve_fmu(spec, base_dir)
 

@@ -16,26 +16,19 @@ import sys
 import time as _time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from orchestrator import native
 from orchestrator.component import Component
 from orchestrator.errors import NativeSpanFault, RoleError, SimulationFault, SystemError_, UnitError
+from orchestrator.fmu_resolver import resolve_fmu
 from orchestrator.recording import Recording
 from orchestrator.roles import RoleCheck, check_unit, get_role
 from orchestrator.system import System
 from orchestrator.units import STATUS, ComponentUnit, FMU2Unit, Unit, load_fmu_unit, sha256_file
 from orchestrator.wiring import (Endpoint, ScalarConnection, check_algebraic_loops,
                                  expand_connections, fmu_feedthrough, resolve, stepping_order)
-
-_FMU_RESOLVERS: dict[str, Callable[[str], Path]] = {}
-
-
-def register_fmu_resolver(scheme: str, resolver: Callable[[str], Path]) -> None:
-    """``fmu = "<scheme>:<name>"`` in a system file resolves through ``resolver(name)``."""
-    _FMU_RESOLVERS[scheme] = resolver
 
 
 def _import_component(spec, name: str, config: dict) -> Component:
@@ -60,17 +53,6 @@ def _construct(cls: type, name: str, config: dict) -> Component:
         return cls(name, **config)
     except TypeError as e:
         raise SystemError_(f"units.{name}.config: {cls.__name__} does not accept {sorted(config)} ({e})") from None
-
-
-def resolve_fmu(spec: str, base_dir: Path) -> Path:
-    """The FMU file a system names: ``<scheme>:<name>`` through a registered resolver, else a
-    path (relative to *base_dir*)."""
-    scheme, _, rest = spec.partition(":")
-    if rest and scheme in _FMU_RESOLVERS:
-        return Path(_FMU_RESOLVERS[scheme](rest))
-    p = Path(spec)
-    return p if p.is_absolute() else base_dir / p
-
 
 
 @dataclass

@@ -60,6 +60,7 @@ from pathlib import Path, PurePosixPath
 from xml.etree import ElementTree as ET
 
 from orchestrator.errors import SystemError_
+from orchestrator.fmu_resolver import resolve_fmu
 from orchestrator.system import ALGORITHMS, Connection, System, UnitSpec
 
 SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -399,8 +400,6 @@ def _parameter_value(par: ET.Element, where: str):
 # ---------------------------------------------------------------------------------------- save
 def _fmu_variables(system: System, spec: UnitSpec) -> tuple[Path, dict]:
     from fmpy import read_model_description
-
-    from orchestrator.master import resolve_fmu
 
     path = resolve_fmu(spec.fmu, system.base_dir)
     if not Path(path).exists():
