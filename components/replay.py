@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from orchestrator.component import Component, Var
-from orchestrator.system import Connection, System, UnitSpec, load_system
+from orchestrator.loader import load_system
+from orchestrator.system import Connection, System, UnitSpec
 
 XYZ = "xyz"
 

@@ -15,7 +15,8 @@ from orchestrator.component import Component, Var
 from orchestrator.errors import AlgebraicLoopError, RoleError, SimulationFault, SystemError_
 from orchestrator.master import Simulation, simulate
 from orchestrator.recording import Recording
-from orchestrator.system import Connection, System, UnitSpec, load_system
+from orchestrator.loader import load_system
+from orchestrator.system import Connection, System, UnitSpec
 from orchestrator.units import FMU2Unit
 
 import components.roles  # noqa: F401  (registers role imu)

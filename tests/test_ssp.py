@@ -14,7 +14,7 @@ from fmus.build import fmu_path
 from orchestrator.master import simulate
 from orchestrator.ssp import SSD_NS, SSV_NS, load_ssp, save_ssp
 from orchestrator.errors import SystemError_
-from orchestrator.system import load_system
+from orchestrator.loader import load_system
 
 TOML = """
 [system]
