@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from orchestrator.ssp import load_ssp
+from orchestrator.ssp_load import load_ssp
 from orchestrator.system import System, load_toml_system
 
 

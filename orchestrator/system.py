@@ -1,7 +1,7 @@
 """The system description: units, roles, parameters, connections, steps, recording.
 
 The same object comes from a TOML file (:func:`load_toml_system`, here, because the TOML layout
-mirrors these classes), from an SSP archive (:mod:`orchestrator.ssp`) or is built in Python;
+mirrors these classes), from an SSP archive (:mod:`orchestrator.ssp_load`) or is built in Python;
 :func:`orchestrator.loader.load_system` picks the reader by the file's suffix. TOML layout::
 
     [system]
