@@ -93,6 +93,12 @@ class Unit:
         return False
 
 
+def log_suffix(u: Unit) -> str:
+    """The unit's last log lines, to end a fault message with (nothing when it logged none)."""
+    tail = u.log_tail()
+    return ("\n  FMU log:\n  " + "\n  ".join(tail)) if tail else ""
+
+
 class FMU2Unit(Unit):
     """An FMI 2.0 co-simulation FMU, loaded with fmpy; the hot loop uses its raw entry points."""
 
