@@ -62,7 +62,7 @@ def replay_imu(data, system_file: str | Path, motion=None) -> np.ndarray:
     """Predicted increments (N, 6) [rad, m/s] of the system's IMU unit on the log's motion."""
     from orchestrator.fmu_resolver import resolve_fmu
     from orchestrator.master import Simulation
-    from orchestrator.units import load_fmu_unit
+    from orchestrator.fmu_units import load_fmu_unit
 
     system = load_system(system_file)
     spec = _unit_of_role(system, "imu")

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orchestrator.errors import UnitError
+from orchestrator.fmu_units import FMU2Unit, load_fmu_unit
 from orchestrator.roles import RoleCheck, check_unit, get_role
-from orchestrator.units import FMU2Unit, load_fmu_unit
 
 
 @dataclass

@@ -36,10 +36,10 @@ import time as _time
 import numpy as np
 
 from orchestrator.errors import LibcosimError, LibcosimUnsupported
+from orchestrator.fmu_units import FMU2Unit
 from orchestrator.master import Simulation
 from orchestrator.recording import Recording
 from orchestrator.system import System
-from orchestrator.units import FMU2Unit
 
 _TYPES = {"Real": 0, "Integer": 1, "String": 2, "Boolean": 3}  # CosimVariableType values
 

@@ -19,13 +19,15 @@ from pathlib import Path
 import numpy as np
 
 from orchestrator.component import Component
+from orchestrator.component_unit import ComponentUnit
 from orchestrator.errors import NativeSpanFault, RoleError, SimulationFault, SystemError_, UnitError
 from orchestrator.fmu_resolver import resolve_fmu
+from orchestrator.fmu_units import FMU2Unit, load_fmu_unit
 from orchestrator.native.plan import SpanPlan
 from orchestrator.recording import Recording
 from orchestrator.roles import RoleCheck, check_unit, get_role
 from orchestrator.system import System
-from orchestrator.units import ComponentUnit, FMU2Unit, Unit, load_fmu_unit, log_suffix, sha256_file
+from orchestrator.units import Unit, log_suffix, sha256_file
 from orchestrator.wiring import (Endpoint, ScalarConnection, check_algebraic_loops,
                                  expand_connections, fmu_feedthrough, resolve, stepping_order)
 

@@ -13,11 +13,11 @@ import pytest
 from fmus.build import fmu_path
 from orchestrator.component import Component, Var
 from orchestrator.errors import AlgebraicLoopError, RoleError, SimulationFault, SystemError_
+from orchestrator.fmu_units import FMU2Unit
+from orchestrator.loader import load_system
 from orchestrator.master import Simulation, simulate
 from orchestrator.recording import Recording
-from orchestrator.loader import load_system
 from orchestrator.system import Connection, System, UnitSpec
-from orchestrator.units import FMU2Unit
 
 import components.roles  # noqa: F401  (registers role imu)
 

@@ -13,7 +13,8 @@ import ctypes
 import numpy as np
 
 from orchestrator import native
-from orchestrator.units import STATUS, FMU2Unit, Unit, log_suffix
+from orchestrator.fmu_units import FMU2Unit
+from orchestrator.units import STATUS, Unit, log_suffix
 from orchestrator.wiring import ScalarConnection
 
 
