@@ -1,0 +1,16 @@
+"""The domain-free co-simulation engine: it steps FMUs and Python components on a fixed grid and
+knows nothing of IMUs (roles, FMU schemes and components are registered from outside).
+
+Modules, each importing only modules listed before it (so there is no import circle):
+
+* the base, importing at most ``errors``: ``errors`` (every exception, one base class),
+  ``fmu_resolver``, ``tomlfile``, ``si``, ``component`` (the Python component API),
+  ``recording``, ``ssp_common``, ``native`` (the C span loop and its build)
+* the model: ``system`` (System, TOML layout), ``units`` (the Unit interface)
+* units: ``fmu_units`` (FMI 2.0 / 3.0 through fmpy), ``component_unit``
+* binding: ``roles``, ``wiring``
+* system files: ``ssp_load``, ``ssp_save``, ``loader`` (``load_system``: TOML or SSP by suffix)
+* running: ``native.plan`` (FMI 2 units resolved for the C loop), ``master`` (Simulation,
+  ``simulate``)
+* checking: ``check`` (``check-fmu``), ``libcosim`` (the independent engine), ``verify``
+"""

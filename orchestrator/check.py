@@ -7,8 +7,9 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from orchestrator.errors import UnitError
+from orchestrator.fmu_units import FMU2Unit, load_fmu_unit
 from orchestrator.roles import RoleCheck, check_unit, get_role
-from orchestrator.units import FMU2Unit, UnitError, load_fmu_unit
 
 
 @dataclass

@@ -35,24 +35,13 @@ import time as _time
 
 import numpy as np
 
+from orchestrator.errors import LibcosimError, LibcosimUnsupported
+from orchestrator.fmu_units import FMU2Unit
 from orchestrator.master import Simulation
 from orchestrator.recording import Recording
 from orchestrator.system import System
-from orchestrator.units import FMU2Unit
 
 _TYPES = {"Real": 0, "Integer": 1, "String": 2, "Boolean": 3}  # CosimVariableType values
-
-
-class LibcosimUnsupported(Exception):
-    """The system uses something libcosim cannot run; the message says what and where."""
-
-
-class LibcosimError(Exception):
-    """libcosim reported an error while running. ``recording`` holds the rows completed."""
-
-    def __init__(self, message: str, recording: Recording | None = None):
-        self.recording = recording
-        super().__init__(message)
 
 
 def _conversion(c) -> tuple[float, float]:

@@ -2,13 +2,12 @@
 record, and report faults with what was recorded so far.
 
 FMI 2.0 units are stepped by the native span loop (orchestrator/native/span.c): value
-references, slots and conversions are resolved once; between two steps of a slower Python or
-FMI 3.0 unit the whole span runs in C. Python components and FMI 3.0 units step in Python at
-their own multiple of the communication step.
+references, slots and conversions are resolved once (:class:`~orchestrator.native.plan.SpanPlan`);
+between two steps of a slower Python or FMI 3.0 unit the whole span runs in C. Python components
+and FMI 3.0 units step in Python, here, at their own multiple of the communication step.
 """
 from __future__ import annotations
 
-import ctypes
 import importlib
 import math
 import platform
@@ -16,43 +15,21 @@ import sys
 import time as _time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from orchestrator import native
 from orchestrator.component import Component
+from orchestrator.component_unit import ComponentUnit
+from orchestrator.errors import NativeSpanFault, RoleError, SimulationFault, SystemError_, UnitError
+from orchestrator.fmu_resolver import resolve_fmu
+from orchestrator.fmu_units import FMU2Unit, load_fmu_unit
+from orchestrator.native.plan import SpanPlan
 from orchestrator.recording import Recording
 from orchestrator.roles import RoleCheck, check_unit, get_role
-from orchestrator.system import System, SystemError_
-from orchestrator.units import (STATUS, ComponentUnit, FMU2Unit, Unit, UnitError, load_fmu_unit,
-                                sha256_file)
+from orchestrator.system import System
+from orchestrator.units import Unit, log_suffix, sha256_file
 from orchestrator.wiring import (Endpoint, ScalarConnection, check_algebraic_loops,
                                  expand_connections, fmu_feedthrough, resolve, stepping_order)
-
-_FMU_RESOLVERS: dict[str, Callable[[str], Path]] = {}
-
-
-def register_fmu_resolver(scheme: str, resolver: Callable[[str], Path]) -> None:
-    """``fmu = "<scheme>:<name>"`` in a system file resolves through ``resolver(name)``."""
-    _FMU_RESOLVERS[scheme] = resolver
-
-
-class RoleError(Exception):
-    """One or more units do not conform to their roles; the message lists every problem."""
-
-    def __init__(self, checks: list[RoleCheck]):
-        self.checks = checks
-        super().__init__("\n".join(c.report() for c in checks if not c.ok))
-
-
-class SimulationFault(Exception):
-    """A unit failed during the run. ``recording`` holds everything recorded before it."""
-
-    def __init__(self, message: str, recording: Recording | None, saved: Path | None = None):
-        self.recording = recording
-        self.saved = saved
-        super().__init__(message + (f"\n(partial results saved to {saved})" if saved else ""))
 
 
 def _import_component(spec, name: str, config: dict) -> Component:
@@ -77,17 +54,6 @@ def _construct(cls: type, name: str, config: dict) -> Component:
         return cls(name, **config)
     except TypeError as e:
         raise SystemError_(f"units.{name}.config: {cls.__name__} does not accept {sorted(config)} ({e})") from None
-
-
-def resolve_fmu(spec: str, base_dir: Path) -> Path:
-    """The FMU file a system names: ``<scheme>:<name>`` through a registered resolver, else a
-    path (relative to *base_dir*)."""
-    scheme, _, rest = spec.partition(":")
-    if rest and scheme in _FMU_RESOLVERS:
-        return Path(_FMU_RESOLVERS[scheme](rest))
-    p = Path(spec)
-    return p if p.is_absolute() else base_dir / p
-
 
 
 @dataclass
@@ -201,7 +167,7 @@ class Simulation:
                 rec_slots.append(slot(unit, e.var, e.factor, e.offset))
                 rec_names.append(f"{unit}.{e.name}")
         values = np.zeros(max(len(slots), 1))
-        self._slots, self._convs = slots, conv
+        self._slots = slots
 
         every = sysm.record_every
         n_rows = n_steps // every + 1
@@ -213,7 +179,7 @@ class Simulation:
             rec.data[0] = values[rec_slots] if rec_slots else rec.data[0]
             rec.rows = 1
             self._loop(values, slots, conv, rec, rec_slots, n_steps)
-        except (UnitError, _NativeFault) as e:
+        except (UnitError, NativeSpanFault) as e:
             rec.complete, rec.fault = False, str(e)
             rec.provenance["wall_time_s"] = _time.time() - started
             saved = rec.save(output) if output else None
@@ -263,14 +229,9 @@ class Simulation:
             x = float(x)
             if not math.isfinite(x):
                 raise UnitError(f"unit {u.name}: output {var} = {x} at t = {time:.9g} s"
-                                + self._log_suffix(u))
+                                + log_suffix(u))
             f, o = conv[(u.name, var)]
             values[slots[(u.name, var)]] = f * x + o
-
-    @staticmethod
-    def _log_suffix(u: Unit) -> str:
-        tail = u.log_tail()
-        return ("\n  FMU log:\n  " + "\n  ".join(tail)) if tail else ""
 
     # ------------------------------------------------------------------ stepping
     def _loop(self, values, slots, conv, rec: Recording, rec_slots: list[int], n_steps: int) -> None:
@@ -280,31 +241,21 @@ class Simulation:
         multiples = {s.name: s.step_multiple for s in sysm.units}
         # native plan for FMI 2 units, in stepping order; Python-stepped units as ports
         fmi2 = [n for n in self.order if isinstance(self.units[n], FMU2Unit)]
-        plan, keep = self._native_plan(fmi2, slots, multiples)
+        spans = SpanPlan(self.units, fmi2, self.connections, slots, conv, multiples)
         plan_index = {n: i for i, n in enumerate(fmi2)}
         ports = {n: self._py_port(n, slots, conv, multiples[n]) for n in self.order if n not in plan_index}
         segments = self._segments(plan_index)
-        lib = native.library()
-        err = native.SpanError()
-        vals_p = values.ctypes.data_as(native.c_double_p)
         rec_arr = np.ascontiguousarray(rec.data)
         rec.data = rec_arr
         rslots = np.asarray(rec_slots, dtype=np.int_)
-        rec_p = rec_arr.ctypes.data_as(native.c_double_p) if len(rslots) else None
-        rslots_p = rslots.ctypes.data_as(native.c_long_p)
-        plan_p = plan if len(fmi2) else None
+        spans.attach(values, rec_arr, rslots, every, t0, h, jacobi)
         progress = self._progress(n_steps)
 
         def span(first: int, last: int, step: int, count: int, record: bool) -> None:
-            if first == last:
-                return
-            st = lib.calbench_run_span(plan_p, first, last, vals_p, t0, h, step, count,
-                                       1 if jacobi else 0, rec_p if record else None, len(rslots),
-                                       rslots_p, every, 0, rec_arr.shape[0], ctypes.byref(err))
-            if st:
+            if not spans.run(first, last, step, count, record):
                 # the rows of the steps completed inside this span are in rec_arr already
-                rec.rows = err.step // every + 1
-                raise _NativeFault(self._native_message(err, fmi2, plan, keep, t0, h))
+                rec.rows = spans.err.step // every + 1
+                raise NativeSpanFault(spans.fault_message())
 
         step = 0
         slow = sorted(set(multiples[n] for n in ports)) if ports else []
@@ -411,91 +362,8 @@ class Simulation:
             x = float(x)
             if not math.isfinite(x):
                 raise UnitError(f"unit {p.unit.name}: output {var} = {x} at t = {time:.9g} s"
-                                + self._log_suffix(p.unit))
+                                + log_suffix(p.unit))
             values[s] = f * x + o
-
-    def _native_plan(self, names: list[str], slots: dict, multiples: dict):
-        plan = (native.UnitPlan * max(len(names), 1))()
-        keep: list = []  # numpy buffers the C structs point into
-
-        def arr(values, dtype):
-            a = np.ascontiguousarray(np.asarray(values, dtype=dtype))
-            if a.size == 0:
-                a = np.zeros(1, dtype=dtype)
-            keep.append(a)
-            ctype = {np.uintc: native.c_uint_p, np.int_: native.c_long_p, np.float64: native.c_double_p,
-                     np.intc: native.c_int_p}[dtype]
-            return a.ctypes.data_as(ctype)
-
-        meta = []
-        for i, name in enumerate(names):
-            u: FMU2Unit = self.units[name]  # type: ignore[assignment]
-            ep = u.entry_points()
-            p = plan[i]
-            p.component = ep["component"]
-            p.do_step, p.set_real, p.get_real = ep["DoStep"], ep["SetReal"], ep["GetReal"]
-            p.set_int, p.get_int, p.set_der = ep["SetInteger"], ep["GetInteger"], ep["SetRealInputDerivatives"]
-            p.multiple = multiples[name]
-            rin, iin, der = [], [], []
-            for c in self.connections:
-                if c.target.unit != name:
-                    continue
-                v = u.variables[c.target.var]
-                s = slots[(c.source.unit, c.source.var)]
-                if c.derivative_order:
-                    der.append((v.vr, s, 1.0 / c.target.factor, c.derivative_order))
-                elif v.type == "Integer":
-                    iin.append((v.vr, s))
-                else:
-                    rin.append((v.vr, s, 1.0 / c.target.factor, -c.target.offset / c.target.factor, v.name))
-            p.n_rin = len(rin)
-            p.rin_vr = arr([r[0] for r in rin], np.uintc)
-            p.rin_slot = arr([r[1] for r in rin], np.int_)
-            p.rin_scale = arr([r[2] for r in rin], np.float64)
-            p.rin_shift = arr([r[3] for r in rin], np.float64)
-            p.rin_buf = arr(np.zeros(len(rin)), np.float64)
-            p.n_iin = len(iin)
-            p.iin_vr = arr([r[0] for r in iin], np.uintc)
-            p.iin_slot = arr([r[1] for r in iin], np.int_)
-            p.iin_buf = arr(np.zeros(len(iin)), np.intc)
-            p.n_der = len(der)
-            p.der_vr = arr([r[0] for r in der], np.uintc)
-            p.der_slot = arr([r[1] for r in der], np.int_)
-            p.der_scale = arr([r[2] for r in der], np.float64)
-            p.der_order = arr([r[3] for r in der], np.intc)
-            p.der_buf = arr(np.zeros(len(der)), np.float64)
-            outs = [(var, idx) for (unit, var), idx in slots.items() if unit == name]
-            rout = [(u.variables[v].vr, idx, v) for v, idx in outs if u.variables[v].type == "Real"]
-            iout = [(u.variables[v].vr, idx, v) for v, idx in outs if u.variables[v].type == "Integer"]
-            p.n_rout = len(rout)
-            p.rout_vr = arr([r[0] for r in rout], np.uintc)
-            p.rout_slot = arr([r[1] for r in rout], np.int_)
-            p.rout_scale = arr([self._convs[(name, r[2])][0] for r in rout], np.float64)
-            p.rout_shift = arr([self._convs[(name, r[2])][1] for r in rout], np.float64)
-            p.rout_buf = arr(np.zeros(len(rout)), np.float64)
-            p.n_iout = len(iout)
-            p.iout_vr = arr([r[0] for r in iout], np.uintc)
-            p.iout_slot = arr([r[1] for r in iout], np.int_)
-            p.iout_buf = arr(np.zeros(len(iout)), np.intc)
-            meta.append({"rin": [r[4] for r in rin], "rout": [r[2] for r in rout]})
-        keep.append(meta)
-        return plan, keep
-
-    def _native_message(self, err, names, plan, keep, t0, h) -> str:
-        u = self.units[names[err.unit]]
-        meta = keep[-1][err.unit]
-        t = t0 + err.step * h
-        call = native.CALLS.get(err.call, f"call {err.call}")
-        if err.call == 7:
-            var = meta["rout"][err.index]
-            value = plan[err.unit].rout_buf[err.index]
-            # the output belongs to the end of the unit's step (as on the Python path)
-            t_out = t0 + (err.step + plan[err.unit].multiple) * h
-            head = f"unit {u.name}: output {var} = {value} at t = {t_out:.9g} s (step {err.step})"
-        else:
-            st = STATUS[err.status] if 0 <= err.status < len(STATUS) else err.status
-            head = f"unit {u.name}: {call} returned {st} at t = {t:.9g} s (step {err.step})"
-        return head + self._log_suffix(u)
 
     # ------------------------------------------------------------------ provenance
     def provenance(self) -> dict:
@@ -517,10 +385,6 @@ class Simulation:
         if sysm.source and Path(sysm.source).exists():
             prov["system"]["sha256"] = sha256_file(sysm.source)
         return prov
-
-
-class _NativeFault(Exception):
-    pass
 
 
 def _calbench_version() -> str:

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from orchestrator import si
+from orchestrator.errors import UnitParseError
 from orchestrator.units import Unit, VarInfo
 
 
@@ -94,7 +95,7 @@ def _conversion(rv: RoleVariable, v: VarInfo) -> tuple[float, float] | str:
     else:
         try:
             have, factor, offset = si.parse(v.unit)
-        except si.UnitParseError:
+        except UnitParseError:
             return (f"{v.name}: unit {v.unit!r} has no unit definition in the FMU and is not an SI "
                     f"unit string; expected {rv.unit}")
     if tuple(have) != tuple(want):

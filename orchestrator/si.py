@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import re
 
+from orchestrator.errors import UnitParseError
+
 BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 _SYMBOLS: dict[str, tuple[dict, float, float]] = {
     # symbol: (exponents, factor to SI, offset to SI)
@@ -24,10 +26,6 @@ _SYMBOLS: dict[str, tuple[dict, float, float]] = {
     "N": ({"kg": 1, "m": 1, "s": -2}, 1.0, 0.0),
     "Hz": ({"s": -1}, 1.0, 0.0),
 }
-
-
-class UnitParseError(ValueError):
-    pass
 
 
 def parse(unit: str) -> tuple[tuple[int, ...], float, float]:

@@ -1,7 +1,8 @@
 """The system description: units, roles, parameters, connections, steps, recording.
 
-The same object comes from a TOML file (:func:`load_system`), from an SSP archive
-(:mod:`orchestrator.ssp`) or is built in Python. TOML layout::
+The same object comes from a TOML file (:func:`load_toml_system`, here, because the TOML layout
+mirrors these classes), from an SSP archive (:mod:`orchestrator.ssp_load`) or is built in Python;
+:func:`orchestrator.loader.load_system` picks the reader by the file's suffix. TOML layout::
 
     [system]
     name = "tumble"
@@ -49,14 +50,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from orchestrator.errors import SystemError_
 from orchestrator.tomlfile import read_toml
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 AGGREGATIONS = ("sample", "sum")
-
-
-class SystemError_(Exception):
-    """A system description is wrong: the message names the file, the key and what was expected."""
 
 
 @dataclass
@@ -213,11 +211,9 @@ def system_from_dict(data: dict, source: str = "system", base_dir: Path | None =
     return sysobj
 
 
-def load_system(path: str | Path) -> System:
+def load_toml_system(path: str | Path) -> System:
+    """The :class:`System` in a TOML system file (relative FMU paths are relative to its folder).
+    :func:`orchestrator.loader.load_system` reads SSP archives as well."""
     p = Path(path)
-    if p.suffix.lower() == ".ssp":
-        from orchestrator.ssp import load_ssp
-
-        return load_ssp(p)
     data = read_toml(p, SystemError_, "system")
     return system_from_dict(data, source=str(p), base_dir=p.parent.resolve())

@@ -30,9 +30,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from orchestrator.errors import LibcosimUnsupported, SystemError_
 from orchestrator.master import simulate
 from orchestrator.recording import Recording
-from orchestrator.system import AGGREGATIONS, System, SystemError_
+from orchestrator.system import AGGREGATIONS, System
 
 
 @dataclass
@@ -167,7 +168,7 @@ def verify(system: System, rel_tol: float = 1e-6, engine_abs: float = 1e-12, eng
 
 
 def _engine_check(system: System, base: Recording, report: VerifyReport) -> None:
-    from orchestrator.libcosim import LibcosimUnsupported, run_libcosim
+    from orchestrator.libcosim import run_libcosim
 
     try:
         theirs = run_libcosim(copy.deepcopy(system))

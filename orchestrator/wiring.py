@@ -9,15 +9,12 @@ from __future__ import annotations
 import difflib
 from dataclasses import dataclass
 
+from orchestrator.errors import AlgebraicLoopError, SystemError_
 from orchestrator.roles import Binding
-from orchestrator.system import System, SystemError_
+from orchestrator.system import System
 from orchestrator.units import Unit
 
 VECTOR_SUFFIXES = (("x", "y", "z"), ("w", "x", "y", "z"))
-
-
-class AlgebraicLoopError(Exception):
-    """Units whose outputs depend instantaneously on each other's outputs in a cycle."""
 
 
 @dataclass(frozen=True)

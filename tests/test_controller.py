@@ -10,7 +10,7 @@ from components.control.controller import CalibrationController
 from components.control.schedule import COUNTS_PER_REV, DEG, loads_schedule
 from components.simulation.scenario import Scenario, load_scenario
 from components.simulation.run import run_scenario
-from orchestrator.master import SimulationFault
+from orchestrator.errors import SimulationFault
 
 Q = 2 * math.pi / COUNTS_PER_REV
 G = 9.8          # site gravity set explicitly, so the check needs no gravity model

@@ -26,7 +26,8 @@ from support import Slave
 import components.simulation.roles  # noqa: F401  (roles and builtin: FMUs)
 from components.control.sequencer import AttitudeSequence
 from components.simulation.tumble import IMU_ERRORS, IMU_NOISE
-from orchestrator.libcosim import LibcosimUnsupported, run_libcosim
+from orchestrator.errors import LibcosimUnsupported
+from orchestrator.libcosim import run_libcosim
 from orchestrator.master import simulate
 from orchestrator.system import Connection, System, UnitSpec
 

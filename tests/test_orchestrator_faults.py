@@ -12,11 +12,12 @@ import pytest
 
 from fmus.build import fmu_path
 from orchestrator.component import Component, Var
-from orchestrator.master import RoleError, Simulation, SimulationFault, simulate
+from orchestrator.errors import AlgebraicLoopError, RoleError, SimulationFault, SystemError_
+from orchestrator.fmu_units import FMU2Unit
+from orchestrator.loader import load_system
+from orchestrator.master import Simulation, simulate
 from orchestrator.recording import Recording
-from orchestrator.system import Connection, System, SystemError_, UnitSpec, load_system
-from orchestrator.units import FMU2Unit
-from orchestrator.wiring import AlgebraicLoopError
+from orchestrator.system import Connection, System, UnitSpec
 
 import components.simulation.roles  # noqa: F401  (registers role imu)
 

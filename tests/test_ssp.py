@@ -11,9 +11,12 @@ import pytest
 
 import components  # noqa: F401  (registers builtin: and the roles)
 from fmus.build import fmu_path
+from orchestrator.errors import SystemError_
+from orchestrator.loader import load_system
 from orchestrator.master import simulate
-from orchestrator.ssp import SSD_NS, SSV_NS, load_ssp, save_ssp
-from orchestrator.system import SystemError_, load_system
+from orchestrator.ssp_common import SSD_NS, SSV_NS
+from orchestrator.ssp_load import load_ssp
+from orchestrator.ssp_save import save_ssp
 
 TOML = """
 [system]

@@ -30,7 +30,7 @@ from components.cli import main as cli_main
 from fmus.build import fmu_path
 from orchestrator.component import Component, Var
 from orchestrator.master import simulate
-from orchestrator.system import load_system
+from orchestrator.loader import load_system
 
 H = 0.005
 N = 40

@@ -15,7 +15,8 @@ import pytest
 
 from components.cli import main
 from orchestrator.component import Component, Var
-from orchestrator.system import Connection, System, UnitSpec, load_system
+from orchestrator.loader import load_system
+from orchestrator.system import Connection, System, UnitSpec
 from orchestrator.verify import aggregation_of, on_grid, verify
 
 

@@ -167,7 +167,7 @@ def resolve_imu(spec: str, base_dir: Path) -> Path:
         folder = Path(spec[len("build:"):])
         folder = folder if folder.is_absolute() else (base_dir / folder).resolve()
         return fmu_path(folder, 2)
-    from orchestrator.master import resolve_fmu
+    from orchestrator.fmu_resolver import resolve_fmu
 
     return Path(resolve_fmu(spec, base_dir)).resolve()
 

@@ -20,7 +20,7 @@ def _cmd_build_fmus(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from orchestrator.master import Simulation
-    from orchestrator.system import load_system
+    from orchestrator.loader import load_system
 
     system = load_system(args.system)
     if args.stop is not None:
@@ -45,7 +45,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
-    from orchestrator.system import load_system
+    from orchestrator.loader import load_system
     from orchestrator.verify import verify
 
     system = load_system(args.system)

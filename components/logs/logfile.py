@@ -1,4 +1,4 @@
-"""Measurement logs, format ``calbench-log/1`` (docs: /work/shared/spec/measurement-log.md).
+"""Measurement logs, format ``calbench-log/1`` (docs/measurement-log.md).
 
 :func:`read_log` reads the pair ``<stem>.csv`` (or ``<stem>.parquet``) + ``<stem>.json`` into a
 :class:`MeasurementLog`, enforcing every rule of the spec; :func:`write_log` writes one;

@@ -1,4 +1,4 @@
-"""The rules of the ``calbench-log/1`` format (../shared/spec/measurement-log.md), checked on
+"""The rules of the ``calbench-log/1`` format (docs/measurement-log.md), checked on
 metadata and sample columns; every broken rule raises :class:`LogFormatError` naming the file,
 the key or the data row and what was expected. Choices the spec leaves open are stated in
 components/logs/logfile.py."""

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from orchestrator.component import Component, Var
-from orchestrator.system import Connection, System, UnitSpec, load_system
+from orchestrator.loader import load_system
+from orchestrator.system import Connection, System, UnitSpec
 
 XYZ = "xyz"
 
@@ -59,8 +60,9 @@ def _unit_of_role(system: System, role: str) -> UnitSpec:
 
 def replay_imu(data, system_file: str | Path, motion=None) -> np.ndarray:
     """Predicted increments (N, 6) [rad, m/s] of the system's IMU unit on the log's motion."""
-    from orchestrator.master import Simulation, resolve_fmu
-    from orchestrator.units import load_fmu_unit
+    from orchestrator.fmu_resolver import resolve_fmu
+    from orchestrator.master import Simulation
+    from orchestrator.fmu_units import load_fmu_unit
 
     system = load_system(system_file)
     spec = _unit_of_role(system, "imu")

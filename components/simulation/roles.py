@@ -2,7 +2,7 @@
 orchestrator, and the ``builtin:`` scheme that names the project's own FMUs in system files."""
 from __future__ import annotations
 
-from orchestrator.master import register_fmu_resolver
+from orchestrator.fmu_resolver import register_fmu_resolver
 from orchestrator.roles import Role, RoleVariable, register_role
 
 DEFAULT_AXES = ("outer", "middle", "inner")

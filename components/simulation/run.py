@@ -20,7 +20,7 @@ from components.model.result import file_sha256
 from components.simulation.scenario import TRUTH_FORMAT, Scenario, scenario_from_dict
 
 def _fmu_path(spec: str, base_dir: Path) -> Path:
-    from orchestrator.master import resolve_fmu
+    from orchestrator.fmu_resolver import resolve_fmu
 
     return resolve_fmu(spec, base_dir)
 

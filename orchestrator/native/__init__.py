@@ -1,6 +1,7 @@
 """The native hot loop (span.c), compiled on first use and cached by the SHA-256 of its source.
 
-The ctypes structures here mirror the C structs in span.c field for field."""
+The ctypes structures here mirror the C structs in span.c field for field; a run's units are
+resolved into them by :mod:`orchestrator.native.plan`."""
 from __future__ import annotations
 
 import ctypes

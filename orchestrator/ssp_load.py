@@ -1,7 +1,5 @@
-"""SSP 1.0 archives (System Structure and Parameterization) as system files.
-
-:func:`load_ssp` reads a ``.ssp`` archive into the same :class:`~orchestrator.system.System` a
-TOML file gives; :func:`save_ssp` writes one from a System whose units are FMUs.
+"""Reading an SSP archive into the same :class:`~orchestrator.system.System` a TOML file gives
+(the conventions, and calbench's annotation: :mod:`orchestrator.ssp_common`).
 
 What is read from ``SystemStructure.ssd`` (namespaces of SSP 1.0):
 
@@ -20,32 +18,6 @@ What is read from ``SystemStructure.ssd`` (namespaces of SSP 1.0):
   set's parameters (parameters without it do not apply to that component).
 * ``ssd:DefaultExperiment startTime/stopTime``. A missing ``stopTime`` is an error unless the
   caller passes ``stop=``.
-
-SSP has no communication step, no co-simulation algorithm and no notion of what to record.
-calbench reads them from one annotation, anywhere in the SSD (``save_ssp`` puts it in
-``ssd:DefaultExperiment``)::
-
-    <ssc:Annotation type="org.calbench.system">
-      <calbench step="0.005" algorithm="gauss-seidel" record="imu.gyro imu.acc"
-                record_every="1" order="table imu">
-        <aggregate signal="imu.gyro" how="sum"/>
-        <unit name="imu" role="imu" step_multiple="1" role_options='{"gyro_output": "rate"}'>
-          <map role="omega.x" name="AngularRate_X"/>
-        </unit>
-      </calbench>
-    </ssc:Annotation>
-
-Without it: ``step = 0.005`` s, Gauss–Seidel, every unit at the base step, no roles, and every
-connected output is recorded (each connection's start connector, once). Roles, role options,
-mappings and step multiples are calbench concepts and live only in that annotation; a
-connection's ``derivative_order`` lives in a connection annotation
-``<ssc:Annotation type="org.calbench.connection"><calbench derivative_order="1"/>``.
-
-Names: SSP connectors and parameters name the FMU's own variables. Where a unit has a role with
-a ``mapping`` (role name -> the FMU's name), :func:`save_ssp` writes the FMU's names and
-:func:`load_ssp` maps them back to role names, so the orchestrator applies the same role
-bindings (unit conversions) as for the TOML system. Vector prefixes (``plate.omega``) are
-expanded to scalar connections on save.
 """
 from __future__ import annotations
 
@@ -59,32 +31,14 @@ import zipfile
 from pathlib import Path, PurePosixPath
 from xml.etree import ElementTree as ET
 
-from orchestrator.system import ALGORITHMS, Connection, System, SystemError_, UnitSpec
+from orchestrator.errors import SystemError_
+from orchestrator.ssp_common import (CONNECTION_ANNOTATION, FMU_TYPE, SSD_NAME, SSD_NS, SSV_NS,
+                                     SYSTEM_ANNOTATION, ssc, ssd, ssv)
+from orchestrator.system import ALGORITHMS, Connection, System, UnitSpec
 
-SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
-SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"
-FMU_TYPE = "application/x-fmu-sharedlibrary"
-SYSTEM_ANNOTATION = "org.calbench.system"
-CONNECTION_ANNOTATION = "org.calbench.connection"
 DEFAULT_STEP = 0.005
-SSD_NAME = "SystemStructure.ssd"
-
-_VECTOR_SUFFIXES = (("x", "y", "z"), ("w", "x", "y", "z"))
 _DOUBLE = re.compile(r"^\s*([+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?|[+-]?INF|NaN)\s*$")
 _INT = re.compile(r"^\s*[+-]?\d+\s*$")
-
-
-def _d(tag: str) -> str:
-    return f"{{{SSD_NS}}}{tag}"
-
-
-def _v(tag: str) -> str:
-    return f"{{{SSV_NS}}}{tag}"
-
-
-def _c(tag: str) -> str:
-    return f"{{{SSC_NS}}}{tag}"
 
 
 def cache_root() -> Path:
@@ -100,7 +54,6 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-# ---------------------------------------------------------------------------------------- load
 def load_ssp(path: str | Path, stop: float | None = None) -> System:
     """Read an SSP archive into a :class:`System` (see the module docstring for what is read)."""
     p = Path(path)
@@ -119,10 +72,10 @@ def load_ssp(path: str | Path, stop: float | None = None) -> System:
             raise SystemError_(f"{p}: {SSD_NAME} is not well-formed XML ({e})") from None
         ssv_texts = {n: z.read(n) for n in names if n.lower().endswith(".ssv")}
     where = f"{p}: {SSD_NAME}"
-    if root.tag != _d("SystemStructureDescription"):
+    if root.tag != ssd("SystemStructureDescription"):
         raise SystemError_(f"{where}: root element is {root.tag}; expected ssd:SystemStructureDescription "
                            f"in namespace {SSD_NS}")
-    system_el = root.find(_d("System"))
+    system_el = root.find(ssd("System"))
     if system_el is None:
         raise SystemError_(f"{where}: no ssd:System element")
     sys_name = system_el.get("name") or root.get("name") or p.stem
@@ -133,14 +86,14 @@ def load_ssp(path: str | Path, stop: float | None = None) -> System:
     units: list[UnitSpec] = []
     connectors: dict[str, set[str] | None] = {}
     inverse: dict[str, dict[str, str]] = {}
-    elements = system_el.find(_d("Elements"))
+    elements = system_el.find(ssd("Elements"))
     for el in list(elements) if elements is not None else []:
-        if el.tag == _d("System"):
+        if el.tag == ssd("System"):
             raise SystemError_(f"{where}: ssd:System {el.get('name')!r} inside ssd:Elements: nested "
                                "systems are not supported")
-        if el.tag == _d("SignalDictionaryReference"):
+        if el.tag == ssd("SignalDictionaryReference"):
             raise SystemError_(f"{where}: ssd:SignalDictionaryReference is not supported")
-        if el.tag != _d("Component"):
+        if el.tag != ssd("Component"):
             continue
         name = el.get("name")
         if not name:
@@ -158,9 +111,9 @@ def load_ssp(path: str | Path, stop: float | None = None) -> System:
         if a is not None:
             _apply_unit_annotation(spec, a, f"{where}: calbench annotation unit {name!r}")
         inverse[name] = {v: k for k, v in spec.mapping.items()}
-        cons = el.find(_d("Connectors"))
-        connectors[name] = None if cons is None else {c.get("name") for c in cons.findall(_d("Connector"))}
-        for b in el.findall(f"{_d('ParameterBindings')}/{_d('ParameterBinding')}"):
+        cons = el.find(ssd("Connectors"))
+        connectors[name] = None if cons is None else {c.get("name") for c in cons.findall(ssd("Connector"))}
+        for b in el.findall(f"{ssd('ParameterBindings')}/{ssd('ParameterBinding')}"):
             for pname, value in _binding(b, ssv_texts, names, ewhere):
                 if connectors[name] is not None and pname not in connectors[name]:
                     raise SystemError_(f"{ewhere}: parameter {pname!r} is not one of its connectors")
@@ -173,8 +126,8 @@ def load_ssp(path: str | Path, stop: float | None = None) -> System:
         raise SystemError_(f"{where}: the system has no ssd:Component")
 
     conns: list[Connection] = []
-    cons_el = system_el.find(_d("Connections"))
-    for i, c in enumerate(cons_el.findall(_d("Connection")) if cons_el is not None else []):
+    cons_el = system_el.find(ssd("Connections"))
+    for i, c in enumerate(cons_el.findall(ssd("Connection")) if cons_el is not None else []):
         cwhere = f"{where}: ssd:Connection #{i + 1}"
         ends = []
         for elem_attr, conn_attr in (("startElement", "startConnector"), ("endElement", "endConnector")):
@@ -191,7 +144,7 @@ def load_ssp(path: str | Path, stop: float | None = None) -> System:
                 raise SystemError_(f"{cwhere}: component {e!r} has no connector {k!r}")
             ends.append(f"{e}.{inverse[e].get(k, k)}")
         for child in c:
-            if child.tag not in (_d("Annotations"), _d("ConnectionGeometry")):
+            if child.tag not in (ssd("Annotations"), ssd("ConnectionGeometry")):
                 raise SystemError_(f"{cwhere}: {child.tag.split('}')[-1]} is not supported "
                                    "(no transformations on connections)")
         order = 0
@@ -200,7 +153,7 @@ def load_ssp(path: str | Path, stop: float | None = None) -> System:
             order = _int_attr(ca, "derivative_order", cwhere, 0)
         conns.append(Connection(ends[0], ends[1], order))
 
-    de = root.find(_d("DefaultExperiment"))
+    de = root.find(ssd("DefaultExperiment"))
     start = _float_attr(de, "startTime", f"{where}: ssd:DefaultExperiment", 0.0) if de is not None else 0.0
     stop_v = _float_attr(de, "stopTime", f"{where}: ssd:DefaultExperiment", None) if de is not None else None
     if stop_v is None:
@@ -280,7 +233,7 @@ def _extract(p: Path, names: set[str]) -> Path:
 
 
 def _find_annotation(el: ET.Element, type_: str, where: str) -> ET.Element | None:
-    found = [a for a in el.iter(_c("Annotation")) if a.get("type") == type_]
+    found = [a for a in el.iter(ssc("Annotation")) if a.get("type") == type_]
     if len(found) > 1:
         raise SystemError_(f"{where}: {len(found)} ssc:Annotation elements of type {type_!r}; expected one")
     if not found:
@@ -336,7 +289,7 @@ def _binding(b: ET.Element, ssv_texts: dict, names: set[str], where: str):
     """(name, value) pairs of one ssd:ParameterBinding."""
     if b.get("type") not in (None, "application/x-ssp-parameter-set"):
         raise SystemError_(f"{where}: ssd:ParameterBinding type={b.get('type')!r} is not supported")
-    if b.find(_d("ParameterMapping")) is not None:
+    if b.find(ssd("ParameterMapping")) is not None:
         raise SystemError_(f"{where}: ssd:ParameterMapping is not supported")
     src = b.get("source")
     if src:
@@ -346,16 +299,16 @@ def _binding(b: ET.Element, ssv_texts: dict, names: set[str], where: str):
             pset = ET.fromstring(ssv_texts[member]) if member in ssv_texts else None
         except ET.ParseError as e:
             raise SystemError_(f"{bwhere}: not well-formed XML ({e})") from None
-        if pset is None or pset.tag != _v("ParameterSet"):
+        if pset is None or pset.tag != ssv("ParameterSet"):
             raise SystemError_(f"{bwhere}: expected an ssv:ParameterSet (namespace {SSV_NS})")
     else:
         bwhere = f"{where}: inline ssd:ParameterValues"
-        pset = b.find(f"{_d('ParameterValues')}/{_v('ParameterSet')}")
+        pset = b.find(f"{ssd('ParameterValues')}/{ssv('ParameterSet')}")
         if pset is None:
             raise SystemError_(f"{where}: ssd:ParameterBinding has neither source= nor "
                                "ssd:ParameterValues/ssv:ParameterSet")
     prefix = b.get("prefix", "")
-    for par in pset.findall(f"{_v('Parameters')}/{_v('Parameter')}"):
+    for par in pset.findall(f"{ssv('Parameters')}/{ssv('Parameter')}"):
         pname = par.get("name")
         if not pname:
             raise SystemError_(f"{bwhere}: ssv:Parameter without a name")
@@ -367,7 +320,7 @@ def _binding(b: ET.Element, ssv_texts: dict, names: set[str], where: str):
 
 
 def _parameter_value(par: ET.Element, where: str):
-    kids = [k for k in par if k.tag != _v("Annotations") and k.tag != _c("Annotations")]
+    kids = [k for k in par if k.tag != ssv("Annotations") and k.tag != ssc("Annotations")]
     if len(kids) != 1:
         raise SystemError_(f"{where}: expected exactly one value element (ssv:Real, ssv:Integer, "
                            "ssv:Boolean or ssv:String)")
@@ -376,176 +329,20 @@ def _parameter_value(par: ET.Element, where: str):
     s = k.get("value")
     if s is None:
         raise SystemError_(f"{where}: ssv:{kind} has no value attribute")
-    if k.tag == _v("Real"):
+    if k.tag == ssv("Real"):
         if not _DOUBLE.match(s):
             raise SystemError_(f"{where}: ssv:Real value={s!r} is not a number (xs:double)")
         return float(s.strip().replace("INF", "inf"))
-    if k.tag == _v("Integer"):
+    if k.tag == ssv("Integer"):
         if not _INT.match(s):
             raise SystemError_(f"{where}: ssv:Integer value={s!r} is not an integer (xs:int)")
         return int(s)
-    if k.tag == _v("Boolean"):
+    if k.tag == ssv("Boolean"):
         t = s.strip()
         if t not in ("true", "false", "1", "0"):
             raise SystemError_(f"{where}: ssv:Boolean value={s!r}; expected true, false, 1 or 0")
         return t in ("true", "1")
-    if k.tag == _v("String"):
+    if k.tag == ssv("String"):
         return s
     raise SystemError_(f"{where}: value element {k.tag!r} is not supported (expected ssv:Real, "
                        "ssv:Integer, ssv:Boolean or ssv:String)")
-
-
-# ---------------------------------------------------------------------------------------- save
-def _fmu_variables(system: System, spec: UnitSpec) -> tuple[Path, dict]:
-    from fmpy import read_model_description
-
-    from orchestrator.master import resolve_fmu
-
-    path = resolve_fmu(spec.fmu, system.base_dir)
-    if not Path(path).exists():
-        raise SystemError_(f"units.{spec.name}.fmu = {spec.fmu!r}: {path} does not exist")
-    md = read_model_description(str(path))
-    return Path(path), {v.name: v for v in md.modelVariables}
-
-
-def _scalar_names(spec: UnitSpec, variables: dict, name: str, where: str) -> list[str]:
-    """The FMU's own names for *name* (a role or FMU name, or a vector prefix of either)."""
-    def own(n: str) -> str | None:
-        m = spec.mapping.get(n, n)
-        return m if m in variables else None
-
-    o = own(name)
-    if o is not None:
-        return [o]
-    for suffixes in _VECTOR_SUFFIXES:
-        parts = [own(f"{name}.{s}") for s in suffixes]
-        if all(parts):
-            return parts  # type: ignore[return-value]
-    raise SystemError_(f"{where}: unit {spec.name} has no variable {name!r}")
-
-
-def _fmt(x: float) -> str:
-    r = repr(float(x))
-    return {"inf": "INF", "-inf": "-INF", "nan": "NaN"}.get(r, r)
-
-
-def save_ssp(system: System, path: str | Path) -> Path:
-    """Write *system* as an SSP archive: the FMUs copied into ``resources/<unit>.fmu``, vector
-    connections expanded to scalars, parameters typed by the FMU's variables, the calbench
-    annotation carrying step, algorithm, recording, order, roles and mappings."""
-    system.validate()
-    where = system.source or "system"
-    ET.register_namespace("ssd", SSD_NS)
-    ET.register_namespace("ssv", SSV_NS)
-    ET.register_namespace("ssc", SSC_NS)
-    root = ET.Element(_d("SystemStructureDescription"), {"version": "1.0", "name": system.name})
-    sys_el = ET.SubElement(root, _d("System"), {"name": system.name})
-    elements = ET.SubElement(sys_el, _d("Elements"))
-    files: dict[str, Path] = {}
-    variables: dict[str, dict] = {}
-    for spec in system.units:
-        if spec.fmu is None:
-            raise SystemError_(f"{where}: units.{spec.name} is a Python component; an SSP archive "
-                               "holds FMUs only")
-        fpath, variables[spec.name] = _fmu_variables(system, spec)
-        files[f"resources/{spec.name}.fmu"] = fpath
-
-    # scalar connections in the FMUs' own names
-    scalar: list[tuple[str, str, str, str, int]] = []
-    used: dict[str, list[str]] = {u.name: [] for u in system.units}
-    for i, c in enumerate(system.connections):
-        cw = f"{where}: connections[{i}] ({c.source} -> {c.target})"
-        su, sn = c.source.split(".", 1)
-        tu, tn = c.target.split(".", 1)
-        src = _scalar_names(system.unit(su), variables[su], sn, cw)
-        dst = _scalar_names(system.unit(tu), variables[tu], tn, cw)
-        if len(src) != len(dst):
-            raise SystemError_(f"{cw}: {len(src)} source value(s) but {len(dst)} target value(s)")
-        for s, d in zip(src, dst):
-            scalar.append((su, s, tu, d, c.derivative_order))
-            for u, n in ((su, s), (tu, d)):
-                if n not in used[u]:
-                    used[u].append(n)
-
-    for spec in system.units:
-        comp = ET.SubElement(elements, _d("Component"), {
-            "name": spec.name, "type": FMU_TYPE, "source": f"resources/{spec.name}.fmu"})
-        vars_ = variables[spec.name]
-        params = []
-        for pname, value in spec.parameters.items():
-            (own,) = _scalar_names(spec, vars_, pname, f"{where}: units.{spec.name}.parameters")
-            params.append((own, value))
-        cons = ET.SubElement(comp, _d("Connectors"))
-        for n in used[spec.name] + [p for p, _ in params if p not in used[spec.name]]:
-            v = vars_[n]
-            kind = v.causality if v.causality in ("input", "output", "parameter", "calculatedParameter") \
-                else "parameter"
-            con = ET.SubElement(cons, _d("Connector"), {"name": n, "kind": kind})
-            ET.SubElement(con, _c(_ssc_type(v.type)))
-        if params:
-            pb = ET.SubElement(ET.SubElement(comp, _d("ParameterBindings")), _d("ParameterBinding"))
-            pset = ET.SubElement(ET.SubElement(pb, _d("ParameterValues")), _v("ParameterSet"),
-                                 {"version": "1.0", "name": f"{spec.name}.parameters"})
-            plist = ET.SubElement(pset, _v("Parameters"))
-            for own, value in params:
-                par = ET.SubElement(plist, _v("Parameter"), {"name": own})
-                ET.SubElement(par, _v(_ssc_type(vars_[own].type)), {"value": _ssv_value(value, vars_[own].type)})
-
-    conns_el = ET.SubElement(sys_el, _d("Connections"))
-    for su, s, tu, d, order in scalar:
-        c = ET.SubElement(conns_el, _d("Connection"), {"startElement": su, "startConnector": s,
-                                                        "endElement": tu, "endConnector": d})
-        if order:
-            a = ET.SubElement(ET.SubElement(c, _d("Annotations")), _c("Annotation"),
-                              {"type": CONNECTION_ANNOTATION})
-            ET.SubElement(a, "calbench", {"derivative_order": str(order)})
-
-    de = ET.SubElement(root, _d("DefaultExperiment"), {"startTime": _fmt(system.start),
-                                                        "stopTime": _fmt(system.stop)})
-    ann = ET.SubElement(ET.SubElement(de, _d("Annotations")), _c("Annotation"), {"type": SYSTEM_ANNOTATION})
-    attrs = {"step": _fmt(system.step), "algorithm": system.algorithm, "record": " ".join(system.record),
-             "record_every": str(system.record_every)}
-    if system.order:
-        attrs["order"] = " ".join(system.order)
-    cb = ET.SubElement(ann, "calbench", attrs)
-    for sig, how in (getattr(system, "record_aggregate", None) or {}).items():
-        ET.SubElement(cb, "aggregate", {"signal": sig, "how": how})
-    for spec in system.units:
-        ua = {"name": spec.name, "step_multiple": str(spec.step_multiple)}
-        if spec.role:
-            ua["role"] = spec.role
-        if spec.role_options:
-            ua["role_options"] = json.dumps(spec.role_options)
-        u = ET.SubElement(cb, "unit", ua)
-        for r, n in spec.mapping.items():
-            ET.SubElement(u, "map", {"role": r, "name": n})
-
-    ET.indent(root)
-    xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
-        z.writestr(SSD_NAME, xml)
-        for arc, f in files.items():
-            z.write(f, arc)
-    tmp.replace(out)
-    return out
-
-
-def _ssc_type(fmi_type: str) -> str:
-    return {"Real": "Real", "Float64": "Real", "Float32": "Real", "Integer": "Integer", "Int32": "Integer",
-            "Boolean": "Boolean", "String": "String", "Enumeration": "Integer"}.get(fmi_type, "Real")
-
-
-def _ssv_value(value, fmi_type: str) -> str:
-    t = _ssc_type(fmi_type)
-    if t == "Real":
-        return _fmt(value)
-    if t == "Integer":
-        if isinstance(value, float) and not value.is_integer():
-            raise SystemError_(f"parameter value {value!r} for an Integer variable is not whole")
-        return str(int(value))
-    if t == "Boolean":
-        return "true" if value else "false"
-    return str(value)
