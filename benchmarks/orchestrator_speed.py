@@ -37,7 +37,6 @@ def sequence(hours: float) -> list:
 
 
 def _system(hours: float, controller: bool):
-    import components.simulation.roles  # noqa: F401
     from components.simulation.tumble import IMU_ERRORS, IMU_NOISE
     from orchestrator.system import Connection, System, UnitSpec
 
@@ -149,7 +148,6 @@ def main() -> int:
         os.sched_setaffinity(0, {args.core})
         print(json.dumps({"wall": ENGINES[args.engine](args.hours)}))
         return 0
-    import components.simulation.roles  # noqa: F401
     from fmus.build import fmu_path
 
     fmu_path("turntable", 2), fmu_path("imu", 2)  # build outside the timed runs

@@ -10,6 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
+from orchestrator.plugins import load_plugins
+
 _FMU_RESOLVERS: dict[str, Callable[[str], Path]] = {}
 
 
@@ -22,6 +24,8 @@ def resolve_fmu(spec: str, base_dir: Path) -> Path:
     """The FMU file a system names: ``<scheme>:<name>`` through a registered resolver, else a
     path (relative to *base_dir*)."""
     scheme, _, rest = spec.partition(":")
+    if rest and scheme not in _FMU_RESOLVERS and not Path(spec).exists():
+        load_plugins()
     if rest and scheme in _FMU_RESOLVERS:
         return Path(_FMU_RESOLVERS[scheme](rest))
     p = Path(spec)

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from orchestrator import si
+from orchestrator.plugins import load_plugins
 from orchestrator.errors import UnitParseError
 from orchestrator.units import Unit, VarInfo
 
@@ -44,12 +45,15 @@ def register_role(name: str, factory: Callable[..., Role]) -> None:
 
 def get_role(name: str, **options) -> Role:
     if name not in _ROLE_FACTORIES:
+        load_plugins()
+    if name not in _ROLE_FACTORIES:
         known = ", ".join(sorted(_ROLE_FACTORIES)) or "none registered"
         raise KeyError(f"unknown role {name!r} (known: {known})")
     return _ROLE_FACTORIES[name](**options)
 
 
 def known_roles() -> list[str]:
+    load_plugins()
     return sorted(_ROLE_FACTORIES)
 
 

@@ -131,3 +131,17 @@ def test_the_checker_sees_a_circle_and_a_wrong_way_import():
     assert "components.model.effects" in GRAPH["components.estimation.lsq"]
     assert "components.errors" in GRAPH["components.cli"]
     assert _layer("components.cli.demo") > _layer("components.model.effects")
+
+
+def test_the_orchestrator_finds_the_plant_roles_without_importing_components():
+    """The roles and ``builtin:`` FMUs reach the domain-free orchestrator through the installed
+    entry point, in a fresh interpreter that never imports ``components`` itself."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom orchestrator.roles import get_role\nfrom orchestrator.fmu_resolver import resolve_fmu\n"
+            "from pathlib import Path\nr = get_role('imu')\np = resolve_fmu('builtin:imu', Path('.'))\n"
+            "print(r.name, p.suffix)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["imu", ".fmu"]

@@ -23,7 +23,6 @@ import numpy as np
 import pytest
 from support import Slave
 
-import components.simulation.roles  # noqa: F401  (roles and builtin: FMUs)
 from components.control.sequencer import AttitudeSequence
 from components.simulation.tumble import IMU_ERRORS, IMU_NOISE
 from orchestrator.errors import LibcosimUnsupported

@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import components.simulation.roles  # noqa: F401  (roles imu/turntable, builtin: FMUs)
 from components.cli import main as cli_main
 from fmus.build import fmu_path
 from orchestrator.component import Component, Var

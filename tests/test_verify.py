@@ -112,7 +112,6 @@ def test_aggregate_from_toml_and_prefix(tmp_path):
 
 
 def test_cli_verify_exit_codes(tmp_path, capsys):
-    import components.simulation.roles  # noqa: F401
 
     toml = tmp_path / "fmus.toml"
     toml.write_text("""

@@ -7,4 +7,3 @@
 - :mod:`.multi_imu`  several IMUs on one table in one run
 - :mod:`.tumble`     the one-minute check of the two FMUs
 """
-from components.simulation import roles as _roles  # noqa: E402,F401  (registers the plant roles; replaced by entry points)

@@ -1,5 +1,7 @@
-"""The two plant roles of architecture.md §3 (``turntable`` and ``imu``), registered with the
-orchestrator, and the ``builtin:`` scheme that names the project's own FMUs in system files."""
+"""The two plant roles of architecture.md §3 (``turntable`` and ``imu``) and the ``builtin:`` scheme
+that names the project's own FMUs in system files, registered with the orchestrator through its
+``orchestrator.plugins`` entry point (so a system file that names them runs without importing
+``components`` first)."""
 from __future__ import annotations
 
 from orchestrator.fmu_resolver import register_fmu_resolver
@@ -69,6 +71,8 @@ def _builtin(name: str):
     return fmu_path(name, fmi)
 
 
-register_role("turntable", lambda axes=DEFAULT_AXES: turntable_role(tuple(axes)))
-register_role("imu", imu_role)
-register_fmu_resolver("builtin", _builtin)
+def register() -> None:
+    """The ``orchestrator.plugins`` entry point (pyproject.toml): the two roles and ``builtin:``."""
+    register_role("turntable", lambda axes=DEFAULT_AXES: turntable_role(tuple(axes)))
+    register_role("imu", imu_role)
+    register_fmu_resolver("builtin", _builtin)
