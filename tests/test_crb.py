@@ -12,13 +12,10 @@ from components.effects import DEFAULT_EFFECTS, DEG, UG
 from components.logfile import read_log
 from components.lsq import LogData, calibrate
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
-pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
-
 
 @pytest.fixture(scope="module")
-def ideal():
-    return LogData.from_log(read_log(EXAMPLES / "ideal"))
+def ideal(conformance: Path):
+    return LogData.from_log(read_log(conformance / "ideal"))
 
 
 def _noisy(data: LogData, noise: NoiseModel, rng: np.random.Generator) -> LogData:

@@ -21,17 +21,14 @@ from components.result import CalibrationResult
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from kf_vs_lsq import TRUTH  # noqa: E402  (the injected errors, one list for tests and benchmark)
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
-pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
-
 # numerical floors (as the least-squares tests): 1e-4 deg/h, 0.01 ppm, 0.01", 0.1 ug, 0.01 mm
 FLOORS = {"gyro.bias": 1e-4 * DEG_H, "gyro.sf": 1e-8, "gyro.mis": 0.01 * ARCSEC,
           "acc.bias": 0.1 * UG, "acc.sf": 1e-8, "acc.mis": 0.01 * ARCSEC,
           "acc.k2": 0.1 * UG / G0**2, "acc.lever": 1e-5, "imu.time_offset": 1e-7}
 
 
-def _corrupted_ideal():
-    log = read_log(EXAMPLES / "ideal")
+def _corrupted_ideal(examples: Path):
+    log = read_log(examples / "ideal")
     # the filter's effects (not the time offset: the table stage's, and a time shift by a
     # first-order regressor is not a shift), on the rests the table's angles show
     ps = [p for p in TRUTH if p != "imu.time_offset"]
@@ -51,8 +48,8 @@ def _config(passes=3, smoother=False):
 
 
 @pytest.fixture(scope="module")
-def solved():
-    log = _corrupted_ideal()
+def solved(conformance):
+    log = _corrupted_ideal(conformance)
     res, outs = calibrate_system(log, _config())
     return log, res, outs
 
@@ -82,19 +79,19 @@ def test_result_file_round_trip(solved, tmp_path):
     assert all(np.isfinite(s) and s > 0 for s in back.sigmas.values())
 
 
-def test_offline_re_solve_is_bit_identical(solved, tmp_path):
+def test_offline_re_solve_is_bit_identical(solved, tmp_path, conformance):
     # the run's raw log written as a calbench-log/1 pair and read back later (seed 003's promise):
     # every estimate, sigma and statistic bit-identical; only the provenance names the other file
     log, res, _ = solved
-    write_log(tmp_path / "raw", _corrupted_ideal())
+    write_log(tmp_path / "raw", _corrupted_ideal(conformance))
     again, _ = calibrate_system(read_log(tmp_path / "raw"), _config())
     a, b = res.to_dict(), again.to_dict()
     assert a.pop("data")["samples"] == b.pop("data")["samples"]
     assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
-def test_rts_smoother_agrees_with_the_filter_on_constants():
-    log = _corrupted_ideal()
+def test_rts_smoother_agrees_with_the_filter_on_constants(conformance):
+    log = _corrupted_ideal(conformance)
     n = 12000  # the first minute: keeps the stored matrices small
     log.time, log.gyro, log.acc = log.time[:n], log.gyro[:n], log.acc[:n]
     log.gimbal = {k: v[:n] for k, v in log.gimbal.items()}
