@@ -3,7 +3,8 @@ knows nothing of IMUs (roles, FMU schemes and components are registered from out
 
 Modules, each importing only modules listed before it (so there is no import circle):
 
-* the base, importing at most ``errors``: ``errors`` (every exception, one base class),
+* the base, importing at most ``errors`` and ``plugins``: ``errors`` (every exception, one base
+  class), ``plugins`` (roles and FMU schemes other packages contribute, by entry point),
   ``fmu_resolver``, ``tomlfile``, ``si``, ``component`` (the Python component API),
   ``recording``, ``ssp_common``, ``native`` (the C span loop and its build)
 * the model: ``system`` (System, TOML layout), ``units`` (the Unit interface)

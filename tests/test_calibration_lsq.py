@@ -1,5 +1,5 @@
 """General least-squares calibration against the independent simulator's conformance vectors
-(../shared/spec/examples): truth recovery within the reported σ, a noise-free run giving zero
+(tests/data/conformance): truth recovery within the reported σ, a noise-free run giving zero
 errors below the numerical floors, and apply/recalibrate consistency."""
 import json
 import math
@@ -13,12 +13,9 @@ from components.logs.logfile import read_log
 from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
-pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
 
-
-def truth_values(name: str) -> dict:
-    t = json.loads((EXAMPLES / f"{name}.truth.json").read_text())["baseline"]
+def truth_values(examples: Path, name: str) -> dict:
+    t = json.loads((examples / f"{name}.truth.json").read_text())["baseline"]
     Ag, Aa = np.array(t["gyro_matrix_minus_identity"]), np.array(t["acc_matrix_minus_identity"])
     out = {}
     for i, c in enumerate("xyz"):
@@ -34,13 +31,13 @@ def truth_values(name: str) -> dict:
 
 
 @pytest.fixture(scope="module")
-def example_fit():
-    data = LogData.from_log(read_log(EXAMPLES / "example"))
+def example_fit(conformance):
+    data = LogData.from_log(read_log(conformance / "example"))
     return calibrate(data, list(DEFAULT_EFFECTS))
 
 
-def test_example_truth_within_reported_sigma(example_fit):
-    truth = truth_values("example")
+def test_example_truth_within_reported_sigma(example_fit, conformance):
+    truth = truth_values(conformance, "example")
     z = np.array([(v - truth[p]) / s for p, v, s in zip(example_fit.parameters, example_fit.value,
                                                         example_fit.sigma)])
     assert len(z) == 24
@@ -49,8 +46,8 @@ def test_example_truth_within_reported_sigma(example_fit):
     assert 0.5 < np.sqrt(np.mean(z**2)) < 1.6
 
 
-def test_example_sigma_matches_the_noise_of_the_truth(example_fit):
-    t = json.loads((EXAMPLES / "example.truth.json").read_text())["noise"]
+def test_example_sigma_matches_the_noise_of_the_truth(example_fit, conformance):
+    t = json.loads((conformance / "example.truth.json").read_text())["noise"]
     # per-sample white noise estimated from static data vs the simulator's stated values
     np.testing.assert_allclose(example_fit.sigma_gyro, t["sigma_dtheta_rad"], rtol=0.05)
     np.testing.assert_allclose(example_fit.sigma_acc, t["sigma_dv_mps"], rtol=0.05)
@@ -58,8 +55,8 @@ def test_example_sigma_matches_the_noise_of_the_truth(example_fit):
     assert abs(example_fit.chi2 / dof - 1) < 5 * math.sqrt(2 / dof)
 
 
-def test_ideal_log_gives_zero_errors_below_numerical_floors():
-    data = LogData.from_log(read_log(EXAMPLES / "ideal"))
+def test_ideal_log_gives_zero_errors_below_numerical_floors(conformance):
+    data = LogData.from_log(read_log(conformance / "ideal"))
     fit = calibrate(data, list(DEFAULT_EFFECTS) + ["acc.k2"])
     floors = {"gyro.bias": 1e-4 * DEG_H, "gyro.sf": 1e-8, "gyro.mis": 0.01 * ARCSEC,
               "acc.bias": 0.1 * UG, "acc.sf": 1e-8, "acc.mis": 0.01 * ARCSEC,
@@ -69,12 +66,12 @@ def test_ideal_log_gives_zero_errors_below_numerical_floors():
         assert abs(v) < floor, (p, v, floor)
 
 
-def test_apply_then_recalibrate_gives_zero(tmp_path, example_fit):
+def test_apply_then_recalibrate_gives_zero(tmp_path, example_fit, conformance):
     from components.model.correct import correct_log
     from components.logs.logfile import write_log
     from components.model.result import CalibrationResult, result_from_fit
 
-    log = read_log(EXAMPLES / "example")
+    log = read_log(conformance / "example")
     data = LogData.from_log(log)
     res = result_from_fit(example_fit, list(DEFAULT_EFFECTS), data, log)
     res.save(tmp_path / "r.json")

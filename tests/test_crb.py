@@ -13,13 +13,10 @@ from components.logs.logfile import read_log
 from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
-pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
-
 
 @pytest.fixture(scope="module")
-def ideal():
-    return LogData.from_log(read_log(EXAMPLES / "ideal"))
+def ideal(conformance: Path):
+    return LogData.from_log(read_log(conformance / "ideal"))
 
 
 def _noisy(data: LogData, noise: NoiseModel, rng: np.random.Generator) -> LogData:

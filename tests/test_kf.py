@@ -21,17 +21,14 @@ from components.model.result import CalibrationResult
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from kf_vs_lsq import TRUTH  # noqa: E402  (the injected errors, one list for tests and benchmark)
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
-pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
-
 # numerical floors (as the least-squares tests): 1e-4 deg/h, 0.01 ppm, 0.01", 0.1 ug, 0.01 mm
 FLOORS = {"gyro.bias": 1e-4 * DEG_H, "gyro.sf": 1e-8, "gyro.mis": 0.01 * ARCSEC,
           "acc.bias": 0.1 * UG, "acc.sf": 1e-8, "acc.mis": 0.01 * ARCSEC,
           "acc.k2": 0.1 * UG / G0**2, "acc.lever": 1e-5, "imu.time_offset": 1e-7}
 
 
-def _corrupted_ideal():
-    log = read_log(EXAMPLES / "ideal")
+def _corrupted_ideal(examples: Path):
+    log = read_log(examples / "ideal")
     # the filter's effects (not the time offset: the table stage's, and a time shift by a
     # first-order regressor is not a shift), on the rests the table's angles show
     ps = [p for p in TRUTH if p != "imu.time_offset"]
@@ -51,8 +48,8 @@ def _config(passes=3, smoother=False):
 
 
 @pytest.fixture(scope="module")
-def solved():
-    log = _corrupted_ideal()
+def solved(conformance):
+    log = _corrupted_ideal(conformance)
     res, outs = calibrate_system(log, _config())
     return log, res, outs
 
@@ -82,19 +79,38 @@ def test_result_file_round_trip(solved, tmp_path):
     assert all(np.isfinite(s) and s > 0 for s in back.sigmas.values())
 
 
-def test_offline_re_solve_is_bit_identical(solved, tmp_path):
+def test_offline_re_solve_is_bit_identical(solved, tmp_path, conformance):
     # the run's raw log written as a calbench-log/1 pair and read back later (seed 003's promise):
     # every estimate, sigma and statistic bit-identical; only the provenance names the other file
     log, res, _ = solved
-    write_log(tmp_path / "raw", _corrupted_ideal())
+    write_log(tmp_path / "raw", _corrupted_ideal(conformance))
     again, _ = calibrate_system(read_log(tmp_path / "raw"), _config())
     a, b = res.to_dict(), again.to_dict()
     assert a.pop("data")["samples"] == b.pop("data")["samples"]
     assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
-def test_rts_smoother_agrees_with_the_filter_on_constants():
-    log = _corrupted_ideal()
+def test_rts_smoother_agrees_with_the_filter_on_constants(conformance):
+    """The effect states are random constants (Φ's rows for them [0 | I], no process noise), so
+    the rows of the smoother gain C = P⁺ Φᵀ (P⁻)⁻¹ for them are exactly [0 | I] and the value
+    smoothed back to the first interval is the filter's final one. The smoother has to get that
+    right up to the rounding of its θ bookkeeping: the filter's and the smoother's running sums
+    of the updates, about 3 K additions (K filter intervals, 600 here). Each rounds to eps/2 of a
+    partial sum bounded by 2 max|θ̂|, so the total is at most 3 K eps max|θ̂|. The test allows
+    4 K eps max|θ̂|, which is 3e-9 to 2e-7 σ for these states.
+
+    A tolerance relative to the values measures nothing here: the former rtol 1e-6 is 0.13 σ for
+    acc.bias.y (σ = 2.5e-8 m/s²) and 0.015 σ for gyro.bias.x. With the gain solved for in full,
+    the result depends on the BLAS kernel, because cond(P⁻) is 3e20 (median; 1e23 at worst, and
+    still 3e11 after diagonal scaling). With OpenBLAS's SkylakeX kernel smoothed − filtered was
+    7e-6 σ (1.3e-10 relative). With its Haswell kernel, which AVX2 machines without AVX-512 use,
+    it was 0.49 σ (acc.bias.y, 3.8e-6 relative). With the Sandybridge kernel it was 0.31 σ and
+    with Prescott 0.26 σ. The figures were the same with numpy 2.2.6 (OpenBLAS 0.3.29) and
+    2.4.6 (0.3.31), and with 1 or 2 threads. On the same stored filter runs, np.linalg.inv
+    instead of solve gave 5-24 σ, and symmetrising P⁻ gave up to 1.6e3 σ. With the gain's
+    effect rows set to [0 | I] the difference is at most 3e-15 relative (7e-10 σ, 0.004 of the
+    bound) on all four kernels."""
+    log = _corrupted_ideal(conformance)
     n = 12000  # the first minute: keeps the stored matrices small
     log.time, log.gyro, log.acc = log.time[:n], log.gyro[:n], log.acc[:n]
     log.gimbal = {k: v[:n] for k, v in log.gimbal.items()}
@@ -108,7 +124,11 @@ def test_rts_smoother_agrees_with_the_filter_on_constants():
     _, outs = calibrate_system(log, cfg)
     f = outs[0].filter
     assert f.smoothed_nav.shape[1] == 9
-    np.testing.assert_allclose(f.smoothed_values, f.values, rtol=1e-6, atol=1e-15)
+    diff = np.abs(f.smoothed_values - f.values)
+    bound = 4 * f.predictions * np.finfo(float).eps * np.maximum(np.abs(f.history_values).max(axis=0),
+                                                                 np.abs(f.values))
+    assert np.all(diff <= bound), "; ".join(f"{p}: {d / s:.2g} sigma, {d / b:.2g} x bound"
+                                            for p, d, s, b in zip(f.parameters, diff, f.sigma, bound))
 
 
 def _noise_free_fmu_calibration(schedule: str, overrides: dict, config: str, extra: dict | None = None):

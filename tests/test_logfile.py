@@ -15,9 +15,6 @@ import pytest
 from components.errors import LogFormatError
 from components.logs.logfile import MeasurementLog, read_log, write_log
 
-EXAMPLES = Path("/work/shared/spec/examples")
-pytestmark = pytest.mark.skipif(not (EXAMPLES / "ideal.csv").exists(), reason="shared examples not present")
-
 EARTH_RATE = 7.2921151467e-5  # domain.md §2
 
 
@@ -27,14 +24,14 @@ def bits(a) -> np.ndarray:
 
 # ------------------------------------------------------------------ shared examples
 @pytest.fixture(scope="module")
-def ideal() -> MeasurementLog:
-    return read_log(EXAMPLES / "ideal")
+def ideal(conformance: Path) -> MeasurementLog:
+    return read_log(conformance / "ideal")
 
 
 @pytest.mark.parametrize("name", ["ideal", "example"])
-def test_shared_examples_load(name):
-    log = read_log(EXAMPLES / f"{name}.csv")
-    meta = json.loads((EXAMPLES / f"{name}.json").read_text())
+def test_shared_examples_load(name, conformance):
+    log = read_log(conformance / f"{name}.csv")
+    meta = json.loads((conformance / f"{name}.json").read_text())
     assert log.n == 83300 == 416.5 * 200
     assert log.axis_names == ["outer", "middle", "inner"]
     assert np.array_equal(log.axis_vectors, [[0, 0, 1], [1, 0, 0], [0, 0, 1]])
@@ -48,7 +45,7 @@ def test_shared_examples_load(name):
     assert log.temperature is not None and log.command == {} and log.extra == {}
     assert log.gyro_increment() is log.gyro  # increments are taken as they are
     # the first data line, parsed independently
-    with open(EXAMPLES / f"{name}.csv") as f:
+    with open(conformance / f"{name}.csv") as f:
         head = f.readline().strip().split(",")
         first = dict(zip(head, f.readline().strip().split(",")))
     assert log.acc[0, 2] == float(first["acc_z"]) and log.gyro[0, 1] == float(first["gyro_y"])
@@ -195,10 +192,10 @@ ROWS = 400  # a copy of the first 400 samples of ideal (pos01, static)
 
 
 @pytest.fixture(scope="module")
-def ideal_head() -> tuple[list[str], dict]:
-    with open(EXAMPLES / "ideal.csv") as f:
+def ideal_head(conformance: Path) -> tuple[list[str], dict]:
+    with open(conformance / "ideal.csv") as f:
         lines = [next(f) for _ in range(ROWS + 1)]
-    return lines, json.loads((EXAMPLES / "ideal.json").read_text())
+    return lines, json.loads((conformance / "ideal.json").read_text())
 
 
 def _edit_col(lines, col, row, value):
@@ -343,8 +340,8 @@ def test_unedited_copy_and_tolerated_edits_load(tmp_path, ideal_head):
     assert np.all(log.extra["humidity"] == 41.5) and log.metadata()["operator"] == "A. N. Other"
 
 
-def test_missing_files(tmp_path):
-    shutil.copy(EXAMPLES / "ideal.json", tmp_path / "only.json")
+def test_missing_files(tmp_path, conformance):
+    shutil.copy(conformance / "ideal.json", tmp_path / "only.json")
     with pytest.raises(LogFormatError, match=r"only\.csv: sample file does not exist"):
         read_log(tmp_path / "only")
     (tmp_path / "nometa.csv").write_text("time\n")

@@ -1,5 +1,5 @@
 """Strapdown navigation and alignment on the independent simulator's ideal vector
-(../shared/spec/examples/ideal: a perfect IMU, 6 positions + rotations at ±10 and ±30 °/s):
+(tests/data/conformance/ideal: a perfect IMU, 6 positions + rotations at ±10 and ±30 °/s):
 what remains is the algorithm's numerical error."""
 from pathlib import Path
 
@@ -13,9 +13,6 @@ from components.navigation.earth import Site
 from components.navigation.strapdown import navigate
 from components.navigation.system import static_mask
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
-pytestmark = pytest.mark.skipif(not EXAMPLES.exists(), reason="shared examples not present")
-
 VELOCITY_BOUND = 2e-6    # m/s over the whole 416 s run (drift of a perfect IMU: numerics only)
 ATTITUDE_AT_REST = 1e-9  # rad, where the logged angles are exact counts
 HALF_COUNT = 2 * np.pi / 2**20 / 2  # rad: logged angles while moving are rounded to counts
@@ -28,8 +25,8 @@ def _err(Ca, Cb):
 
 
 @pytest.fixture(scope="module")
-def ideal():
-    d = LogData.from_log(read_log(EXAMPLES / "ideal"))
+def ideal(conformance: Path):
+    d = LogData.from_log(read_log(conformance / "ideal"))
     site = Site.of_geometry(d.geometry)
     C_true = d.geometry.kinematics(d.angles)[0]
     return d, site, C_true

@@ -14,7 +14,6 @@ from components.logs.logfile import read_log
 from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "shared" / "spec" / "examples"
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -31,14 +30,14 @@ def render(page: Path, tmp: Path) -> tuple[str, list[str]]:
 
 
 @pytest.fixture(scope="module")
-def report(tmp_path_factory):
+def report(tmp_path_factory, conformance):
     from components.diagnosis.compare import compare
     from components.diagnosis.diagnose import diagnose
     from components.diagnosis.report import build_report
     from components.model.result import result_from_fit
 
     out = tmp_path_factory.mktemp("report")
-    log = read_log(EXAMPLES / "example")
+    log = read_log(conformance / "example")
     data = LogData.from_log(log)
     fit = calibrate(data, list(DEFAULT_EFFECTS))
     model = result_from_fit(fit, list(DEFAULT_EFFECTS), data, log)
@@ -48,7 +47,7 @@ def report(tmp_path_factory):
                "rms": {k: v["rms"] for k, v in comp.channels.items()},
                "noise_floor": {k: v["noise_floor"] for k, v in comp.channels.items()}}]
     return build_report(out / "report", title="example", comparison=comp, diagnosis=diag,
-                        ladder=ladder, provenance={"log": str(EXAMPLES / "example")})
+                        ladder=ladder, provenance={"log": str(conformance / "example")})
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (.ci/run installs it)")
