@@ -25,6 +25,10 @@ HERE = Path(__file__).resolve().parent
 COMMON = HERE / "common"
 MODELS = ("turntable", "imu")
 FMI_VERSIONS = (2, 3)
+# the C files of fmus/common compiled into every FMU: its FMI version's layer, then the
+# version-neutral half of the layers and the models' helpers
+LAYER_SOURCES = {2: ["fmi2_layer.c"], 3: ["fmi3_layer.c"]}
+COMMON_SOURCES = ["fmi_common.c", "model_support.c"]
 
 CFLAGS = ["-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",
           "-Wno-unused-parameter", "-fvisibility=hidden",
@@ -153,9 +157,9 @@ def _build_into(work: Path, model: str | Path, table: modeldef.ModelTable, fmi_v
     src.mkdir()
     token = table.token(key)
     (src / "config.h").write_text(modeldef.c_header(table, token))
-    layer = COMMON / f"fmi{fmi_version}_layer.c"
     folder = _model_dir(model)
-    c_files = [layer, COMMON / "model_support.c"] + [folder / s for s in table.sources]
+    c_files = ([COMMON / n for n in LAYER_SOURCES[fmi_version] + COMMON_SOURCES]
+               + [folder / s for s in table.sources])
     headers = sorted(COMMON.glob("*.h")) + sorted(folder.glob("*.h"))
     fmi_headers = sorted(_fmi_headers().glob(f"fmi{fmi_version}*.h"))
     for f in c_files + headers + fmi_headers:
