@@ -27,7 +27,7 @@ MODELS = ("turntable", "imu")
 FMI_VERSIONS = (2, 3)
 # the C files of fmus/common compiled into every FMU: its FMI version's layer, then the
 # version-neutral half of the layers and the models' helpers
-LAYER_SOURCES = {2: ["fmi2_layer.c"], 3: ["fmi3_layer.c"]}
+LAYER_SOURCES = {2: ["fmi2_layer.c"], 3: ["fmi3_layer.c", "fmi3_unsupported.c"]}
 COMMON_SOURCES = ["fmi_common.c", "model_support.c"]
 
 CFLAGS = ["-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",

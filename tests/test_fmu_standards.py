@@ -566,6 +566,7 @@ def test_fmu_archive_contents(model, version):
                 "sources/model_instance.h", "sources/model_state.h",
                 "sources/buildDescription.xml"}
     expected |= {f"sources/{s}" for s in table.sources}
+    expected |= {f"sources/{n}" for n in build.LAYER_SOURCES[version] + build.COMMON_SOURCES}
     assert expected <= names, sorted(expected - names)
     assert not any("\\" in n for n in names)
 

@@ -15,11 +15,7 @@ typedef struct {
 
 static const FmiVersion FMI2 = {"Real", "Integer", 0};
 
-/* Refuse the call unless the instance exists and is in one of the modes of mask. */
-#define ALLOW(mask)                                                                           \
-    do {                                                                                      \
-        if (!fmi_allowed(CORE(c), (mask), __func__)) return fmi2Error;                        \
-    } while (0)
+#define ALLOW(mask) FMI_ALLOW(c, mask, fmi2Error)
 
 static void fmi2_log(ModelInstance *m, ModelStatus status, const char *category, const char *msg) {
     Fmi2Instance *self = (Fmi2Instance *)m;

@@ -62,6 +62,13 @@ typedef struct {
  * a NULL handle stays NULL. */
 #define CORE(c) ((FmiCore *)(c))
 
+/* The first statement of an FMI function: return error unless the handle c exists and is in
+ * one of the modes of mask (__func__ names the function in the message). */
+#define FMI_ALLOW(c, mask, error)                                                             \
+    do {                                                                                      \
+        if (!fmi_allowed(CORE(c), (mask), __func__)) return (error);                          \
+    } while (0)
+
 /* Fill in a freshly allocated (zeroed) instance and put it into MODE_INSTANTIATED. */
 void fmi_instantiated(FmiCore *f, const FmiVersion *version, const char *name, ModelLogFn log_fn,
                       void *env, int logging_on);
