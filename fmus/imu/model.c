@@ -92,6 +92,7 @@
 #include <string.h>
 
 #include "model_instance.h"
+#include "vec3.h"
 
 enum { GYRO = 0, ACC = 1 };
 #define NSUB 4 /* Gauss-Legendre sub-intervals per piece */
@@ -239,15 +240,6 @@ static void seed_streams(ModelInstance *m) {
 }
 
 /* ================================================================ input signal */
-
-static void cross3(const double a[3], const double b[3], double out[3]) {
-    double c0 = a[1] * b[2] - a[2] * b[1];
-    double c1 = a[2] * b[0] - a[0] * b[2];
-    double c2 = a[0] * b[1] - a[1] * b[0];
-    out[0] = c0;
-    out[1] = c1;
-    out[2] = c2;
-}
 
 static int any_nonzero(const double *d0, const double *d1, const double *d2) {
     return *d0 != 0.0 || *d1 != 0.0 || *d2 != 0.0;
