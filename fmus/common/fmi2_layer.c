@@ -1,5 +1,5 @@
 /* The FMI 2.0 co-simulation interface, shared by every calbench model. All physics lives in
- * the model's own model.c behind model_instance.h, and everything that FMI 3 does alike (the
+ * the model's own C files behind model_instance.h, and everything that FMI 3 does alike (the
  * state machine, argument checks, values, FMU states) in fmi_common.c; this file maps the FMI 2
  * signatures onto them and holds what only FMI 2 has (its logger, the status queries). */
 #include <stdlib.h>

@@ -1,5 +1,5 @@
 /* The FMI 3.0 co-simulation interface, shared by every calbench model. It mirrors fmi2_layer.c:
- * all physics lives in the model's own model.c behind model_instance.h, and everything that
+ * all physics lives in the model's own C files behind model_instance.h, and everything that
  * FMI 2 does alike (the state machine, argument checks, values, FMU states) in fmi_common.c;
  * this file maps the FMI 3 signatures onto them. What FMI 3 declares but a calbench FMU does
  * not offer is refused in fmi3_unsupported.c. */

@@ -122,6 +122,6 @@ TABLE = ModelTable(
     identifier="calbench_turntable",
     description="calbench three-axis turntable: servo loops, gimbal chain, base, Earth",
     variables=VARIABLES,
-    sources=["model.c"],
+    sources=["model.c", "gimbal.c", "servo.c"],
     default_step=0.005,
 )
