@@ -30,8 +30,8 @@ FMI_VERSIONS = (2, 3)
 LAYER_SOURCES = {2: ["fmi2_layer.c"], 3: ["fmi3_layer.c", "fmi3_unsupported.c"]}
 COMMON_SOURCES = ["fmi_common.c", "model_support.c"]
 
-CFLAGS = ["-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",
-          "-Wno-unused-parameter", "-fvisibility=hidden",
+CFLAGS = ["-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Wshadow", "-Wpedantic",
+          "-Werror", "-fvisibility=hidden",
           # no fused multiply-add contraction: the same seed gives the same bits on every CPU
           "-ffp-contract=off", "-fno-fast-math"]
 
