@@ -108,6 +108,13 @@ def _platform_dir(fmi_version: int) -> str:
     return f"{arch}-{system}"
 
 
+def _link_flags() -> list[str]:
+    """A model spread over several C files can miss a definition; a shared library links with
+    it undefined and fails only when a master loads it. GNU ld refuses it at build time with
+    -z defs; Apple's linker does by default."""
+    return [] if platform.system() == "Darwin" else ["-Wl,-z,defs"]
+
+
 def _shared_suffix() -> str:
     return ".dylib" if platform.system() == "Darwin" else ".so"
 
@@ -122,7 +129,7 @@ def source_key(model: str | Path, fmi_version: int) -> str:
         h.update(p.name.encode())
         h.update(p.read_bytes())
     h.update(_compiler_identity(cc).encode())
-    h.update(" ".join(CFLAGS).encode())
+    h.update(" ".join(CFLAGS + _link_flags()).encode())
     h.update(f"fmi{fmi_version}".encode())
     h.update(_platform_dir(fmi_version).encode())
     return h.hexdigest()
@@ -171,7 +178,7 @@ def _build_into(work: Path, model: str | Path, table: modeldef.ModelTable, fmi_v
     bindir = work / "binaries" / plat
     bindir.mkdir(parents=True)
     cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(bindir / binary_name),
-           *[str(src / n) for n in c_names], "-lm"]
+           *[str(src / n) for n in c_names], "-lm", *_link_flags()]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         raise BuildError(f"building {table.identifier} (FMI {fmi_version}) failed:\n"

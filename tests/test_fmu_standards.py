@@ -535,6 +535,14 @@ def test_compile_error_surfaces_as_build_error(fmus_copy):
     with pytest.raises(BuildError) as err:
         build_fmu("imu", 2)
     assert "unused_xyz" in str(err.value)
+    # so is a function declared but defined in none of the files (else found only when loaded)
+    layer.write_text(layer.read_text().replace("int unused_xyz; return 0;",
+                                               "return calbench_missing_xyz();")
+                     .replace("int calbench_broken(void)",
+                              "int calbench_missing_xyz(void);\nint calbench_broken(void)"))
+    with pytest.raises(BuildError) as err:
+        build_fmu("imu", 2)
+    assert "calbench_missing_xyz" in str(err.value)
     assert not list((fmus_copy.parent / "cache" / "fmus").glob("*.fmu"))
 
 
@@ -567,6 +575,8 @@ def test_fmu_archive_contents(model, version):
                 "sources/buildDescription.xml"}
     expected |= {f"sources/{s}" for s in table.sources}
     expected |= {f"sources/{n}" for n in build.LAYER_SOURCES[version] + build.COMMON_SOURCES}
+    expected |= {f"sources/{h.name}" for h in [*build.COMMON.glob("*.h"),
+                                               *(build.HERE / model).glob("*.h")]}
     assert expected <= names, sorted(expected - names)
     assert not any("\\" in n for n in names)
 
