@@ -25,9 +25,13 @@ HERE = Path(__file__).resolve().parent
 COMMON = HERE / "common"
 MODELS = ("turntable", "imu")
 FMI_VERSIONS = (2, 3)
+# the C files of fmus/common compiled into every FMU: its FMI version's layer, then the
+# version-neutral half of the layers and the models' helpers
+LAYER_SOURCES = {2: ["fmi2_layer.c"], 3: ["fmi3_layer.c", "fmi3_unsupported.c"]}
+COMMON_SOURCES = ["fmi_common.c", "model_support.c"]
 
-CFLAGS = ["-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",
-          "-Wno-unused-parameter", "-fvisibility=hidden",
+CFLAGS = ["-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Wshadow", "-Wpedantic",
+          "-Werror", "-fvisibility=hidden",
           # no fused multiply-add contraction: the same seed gives the same bits on every CPU
           "-ffp-contract=off", "-fno-fast-math"]
 
@@ -104,6 +108,13 @@ def _platform_dir(fmi_version: int) -> str:
     return f"{arch}-{system}"
 
 
+def _link_flags() -> list[str]:
+    """A model spread over several C files can miss a definition; a shared library links with
+    it undefined and fails only when a master loads it. GNU ld refuses it at build time with
+    -z defs; Apple's linker does by default."""
+    return [] if platform.system() == "Darwin" else ["-Wl,-z,defs"]
+
+
 def _shared_suffix() -> str:
     return ".dylib" if platform.system() == "Darwin" else ".so"
 
@@ -118,7 +129,7 @@ def source_key(model: str | Path, fmi_version: int) -> str:
         h.update(p.name.encode())
         h.update(p.read_bytes())
     h.update(_compiler_identity(cc).encode())
-    h.update(" ".join(CFLAGS).encode())
+    h.update(" ".join(CFLAGS + _link_flags()).encode())
     h.update(f"fmi{fmi_version}".encode())
     h.update(_platform_dir(fmi_version).encode())
     return h.hexdigest()
@@ -153,9 +164,9 @@ def _build_into(work: Path, model: str | Path, table: modeldef.ModelTable, fmi_v
     src.mkdir()
     token = table.token(key)
     (src / "config.h").write_text(modeldef.c_header(table, token))
-    layer = COMMON / f"fmi{fmi_version}_layer.c"
     folder = _model_dir(model)
-    c_files = [layer, COMMON / "model_support.c"] + [folder / s for s in table.sources]
+    c_files = ([COMMON / n for n in LAYER_SOURCES[fmi_version] + COMMON_SOURCES]
+               + [folder / s for s in table.sources])
     headers = sorted(COMMON.glob("*.h")) + sorted(folder.glob("*.h"))
     fmi_headers = sorted(_fmi_headers().glob(f"fmi{fmi_version}*.h"))
     for f in c_files + headers + fmi_headers:
@@ -167,7 +178,7 @@ def _build_into(work: Path, model: str | Path, table: modeldef.ModelTable, fmi_v
     bindir = work / "binaries" / plat
     bindir.mkdir(parents=True)
     cmd = [cc, *CFLAGS, f"-I{src}", "-o", str(bindir / binary_name),
-           *[str(src / n) for n in c_names], "-lm"]
+           *[str(src / n) for n in c_names], "-lm", *_link_flags()]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         raise BuildError(f"building {table.identifier} (FMI {fmi_version}) failed:\n"

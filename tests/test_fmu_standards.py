@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
 from fmpy.validation import validate_fmu
 
@@ -100,7 +100,9 @@ class Instance:
             self.fmu.instantiate(logMessage=self._log3)
             self.fmu.enterInitializationMode(startTime=t0)
         else:
-            self.fmu.instantiate()
+            self._callbacks = fmi2CallbackFunctions()  # kept alive with the instance
+            self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log2)
+            self.fmu.instantiate(callbacks=self._callbacks)
             self.fmu.setupExperiment(startTime=t0)
             self.fmu.enterInitializationMode()
         self.set(start)
@@ -109,6 +111,9 @@ class Instance:
         self.out_vrs = [v.valueReference for v in real_outputs(md)]
 
     def _log3(self, env, status, category, message):
+        self.log.append((int(status), message.decode()))
+
+    def _log2(self, env, instance_name, status, category, message):
         self.log.append((int(status), message.decode()))
 
     def set(self, values: dict) -> None:
@@ -411,6 +416,70 @@ def test_fmi3_layer_behaviour(model, unzipped):
     inst.fmu.freeInstance()
 
 
+# ----------------------------------------------------------------------------- state machine
+
+def _raw(inst: Instance, name: str, *args) -> int:
+    """Call the C function fmi2<name> or fmi3<name> on the instance; returns its status."""
+    return getattr(inst.fmu.dll, ("fmi3" if inst.fmi3 else "fmi2") + name)(inst.fmu.component,
+                                                                          *args)
+
+
+def _raw_do_step(inst: Instance, t: float) -> int:
+    if not inst.fmi3:
+        return _raw(inst, "DoStep", ctypes.c_double(t), ctypes.c_double(H), 1)
+    flags, last = [ctypes.c_bool() for _ in range(3)], ctypes.c_double()
+    return _raw(inst, "DoStep", ctypes.c_double(t), ctypes.c_double(H), ctypes.c_bool(True),
+                *map(ctypes.byref, flags), ctypes.byref(last))
+
+
+def _raw_real(inst: Instance, vr: int, value: float | None = None) -> tuple[int, float]:
+    """Get (value None) or set one Real / Float64 variable; returns (status, value)."""
+    vrs, val = (ctypes.c_uint32 * 1)(vr), (ctypes.c_double * 1)(value or 0.0)
+    name = ("Get" if value is None else "Set") + ("Float64" if inst.fmi3 else "Real")
+    n_values = (ctypes.c_size_t(1),) if inst.fmi3 else ()
+    return _raw(inst, name, vrs, ctypes.c_size_t(1), val, *n_values), val[0]
+
+
+@pytest.mark.parametrize("version", (2, 3))
+@pytest.mark.parametrize("model", MODELS)
+def test_state_machine_refuses_calls_out_of_mode(model, version, unzipped):
+    """Both layers check, on entry to every function, the modes it may be called in. After
+    terminate no step and no set is accepted (FMI 2 used to step on), the outputs stay readable;
+    after reset nothing can be read or stepped until the instance is initialised again."""
+    d, md = unzipped(fmu(model, version))
+    inst = Instance(d, md, "modes", scenario(model))
+    inp = next(v for v in md.modelVariables
+               if v.causality == "input" and v.type in ("Real", "Float64"))
+    out = real_outputs(md)[0].valueReference
+    inst.step()
+    assert _raw(inst, "Terminate") == 0
+    n_log = len(inst.log)
+    assert _raw_do_step(inst, inst.t) == 3
+    assert len(inst.log) == n_log + 1 and "DoStep is not allowed in Terminated" in inst.log[-1][1]
+    assert _raw_real(inst, inp.valueReference, 0.1)[0] == 3
+    st, value = _raw_real(inst, out)
+    assert st == 0 and np.isfinite(value)
+    assert _raw(inst, "Terminate") == 0  # a second terminate is harmless
+
+    assert _raw(inst, "Reset") == 0
+    assert _raw_do_step(inst, 0.0) == 3
+    assert _raw_real(inst, out)[0] == 3  # no outputs before initialisation has begun
+    assert _raw(inst, "ExitInitializationMode") == 3  # not entered
+    assert "not allowed in Instantiated" in inst.log[-1][1]
+    if inst.fmi3:
+        inst.fmu.enterInitializationMode(startTime=0.0)
+    else:
+        inst.fmu.setupExperiment(startTime=0.0)
+        inst.fmu.enterInitializationMode()
+        assert _raw(inst, "SetupExperiment", 0, 0.0, 0.0, 0, 0.0) == 3  # too late
+    assert _raw(inst, "EnterInitializationMode", *((0, 0.0, 0.0, 0, 0.0) if inst.fmi3 else ())) == 3
+    inst.set(scenario(model))
+    inst.fmu.exitInitializationMode()
+    inst.t = 0.0
+    assert np.all(np.isfinite(inst.run(3)))
+    inst.close()
+
+
 # ----------------------------------------------------------------------------- build chain
 
 @pytest.fixture
@@ -466,6 +535,14 @@ def test_compile_error_surfaces_as_build_error(fmus_copy):
     with pytest.raises(BuildError) as err:
         build_fmu("imu", 2)
     assert "unused_xyz" in str(err.value)
+    # so is a function declared but defined in none of the files (else found only when loaded)
+    layer.write_text(layer.read_text().replace("int unused_xyz; return 0;",
+                                               "return calbench_missing_xyz();")
+                     .replace("int calbench_broken(void)",
+                              "int calbench_missing_xyz(void);\nint calbench_broken(void)"))
+    with pytest.raises(BuildError) as err:
+        build_fmu("imu", 2)
+    assert "calbench_missing_xyz" in str(err.value)
     assert not list((fmus_copy.parent / "cache" / "fmus").glob("*.fmu"))
 
 
@@ -492,10 +569,14 @@ def test_fmu_archive_contents(model, version):
     plat = build._platform_dir(version)
     expected = {"modelDescription.xml",
                 f"binaries/{plat}/{table.identifier}{build._shared_suffix()}",
-                "sources/config.h", f"sources/fmi{version}_layer.c", "sources/model_support.c",
+                "sources/config.h", f"sources/fmi{version}_layer.c", "sources/fmi_common.c",
+                "sources/fmi_common.h", "sources/model_support.c",
                 "sources/model_instance.h", "sources/model_state.h",
                 "sources/buildDescription.xml"}
     expected |= {f"sources/{s}" for s in table.sources}
+    expected |= {f"sources/{n}" for n in build.LAYER_SOURCES[version] + build.COMMON_SOURCES}
+    expected |= {f"sources/{h.name}" for h in [*build.COMMON.glob("*.h"),
+                                               *(build.HERE / model).glob("*.h")]}
     assert expected <= names, sorted(expected - names)
     assert not any("\\" in n for n in names)
 
@@ -549,7 +630,6 @@ def test_bad_parameter_is_named_and_reset_recovers(model, version, unzipped):
     if inst.fmi3:
         f.instantiate(logMessage=inst._log3)
     else:
-        from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
         cb = fmi2CallbackFunctions()
         cb.logger = fmi2CallbackLoggerTYPE(
             lambda env, name, st, cat, msg: inst.log.append((int(st), msg.decode())))

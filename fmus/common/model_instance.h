@@ -1,5 +1,5 @@
 /* The contract between one model (physics) and the shared FMI layers (fmi2_layer.c,
- * fmi3_layer.c). A model provides "model_state.h" (its private state, a plain struct with no
+ * fmi3_layer.c, on top of fmi_common.c). A model provides "model_state.h" (its private state, a plain struct with no
  * pointers) and the four functions declared at the bottom; the layers do everything FMI.
  *
  * Variable values live in s.r[] (Real) and s.i[] (Integer), indexed by value reference
@@ -46,7 +46,6 @@ struct ModelInstance {
     ModelLogFn log_fn;
     void *env;
     int logging_on;
-    int initialized; /* exitInitializationMode has succeeded */
 };
 
 /* printf-style logging through the master's callback; defined in model_support.c */

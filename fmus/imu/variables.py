@@ -120,6 +120,6 @@ TABLE = ModelTable(
     identifier="calbench_imu",
     description="calbench strapdown IMU: gyro and accelerometer triads with error effects and noise",
     variables=VARIABLES,
-    sources=["model.c"],
+    sources=["model.c", "signal.c", "noise.c"],
     default_step=0.005,
 )

@@ -5,18 +5,24 @@ from __future__ import annotations
 import math
 
 from fmus.modeldef import ModelTable, integer, real
-from fmus.turntable.design_servo import design_axis
+from fmus.turntable.design_servo import (
+    BANDWIDTH_HZ,
+    CONTROL_RATE_HZ,
+    DEFAULT_INERTIA,
+    DEFAULT_VISCOUS,
+    PHASE_MARGIN_DEG,
+    design_axis,
+)
+
+# The servo design's inputs (inertia, viscous friction, rates) are defined with the design, in
+# design_servo.py, which must not import this module back; they are the defaults below and are
+# read from here too.
 
 AXES = ("outer", "middle", "inner")
 DEFAULT_AXIS = {"outer": (0.0, 0.0, 1.0), "middle": (1.0, 0.0, 0.0), "inner": (0.0, 0.0, 1.0)}
-# Motor + load inertia, viscous and Coulomb friction of a mid-size three-axis test table.
-DEFAULT_INERTIA = {"outer": 12.0, "middle": 5.0, "inner": 1.5}
-DEFAULT_VISCOUS = {"outer": 0.8, "middle": 0.4, "inner": 0.15}
+# Coulomb friction of the same table as the design's inertia and viscous friction.
 DEFAULT_COULOMB = {"outer": 0.6, "middle": 0.3, "inner": 0.1}
 DEFAULT_TORQUE_MAX = {"outer": 300.0, "middle": 150.0, "inner": 60.0}
-CONTROL_RATE_HZ = 2000.0
-BANDWIDTH_HZ = 20.0
-PHASE_MARGIN_DEG = 50.0
 DEG = math.pi / 180.0
 
 
@@ -122,6 +128,6 @@ TABLE = ModelTable(
     identifier="calbench_turntable",
     description="calbench three-axis turntable: servo loops, gimbal chain, base, Earth",
     variables=VARIABLES,
-    sources=["model.c"],
+    sources=["model.c", "gimbal.c", "servo.c"],
     default_step=0.005,
 )
