@@ -1,7 +1,7 @@
 """Turntable FMU against physics computed independently here (scipy rotations, the WGS-84
 normal-gravity formula, python-control's closed loop), never against numbers taken from the FMU.
 
-Conventions under test (documented at the top of fmus/turntable/model.c):
+Conventions under test (documented at the top of fmus/turntable/gimbal.c):
 C_p^n = R(x, tilt.x) R(y, tilt.y) R(z, azimuth) * prod_k Rot(w_k) R(a_k, theta_k),
 a_k = Rot(nonorth_k) normalize(axis_k), w_k = A [cos(theta+phi) u + sin(theta+phi) v]."""
 from __future__ import annotations

@@ -24,7 +24,7 @@ from components.estimation.design import design
 from components.estimation.rest_angles import rest_sigma
 
 # sigma of the Gauss–Markov process whose Allan-deviation peak equals the IEEE bias-instability
-# floor 0.664 B (the same constants as the IMU FMU, fmus/imu/model.c)
+# floor 0.664 B (the same constants as the IMU FMU, fmus/imu/noise.c)
 FLICKER_FLOOR = 0.664282
 GM_PEAK = 0.617364
 

@@ -1,7 +1,7 @@
 """Turntable geometry and the Earth model, vectorised over samples.
 
 The same conventions as the turntable FMU (the comment block at the top of
-fmus/turntable/model.c), so a model fitted here and the FMU that produced the data agree:
+fmus/turntable/gimbal.c), so a model fitted here and the FMU that produced the data agree:
 
 - n = ENU; C_x^y maps frame-x vectors to frame y; rotations active, right-handed;
   ``R(a, t) = I + sin t [a]x + (1 - cos t) [a]x^2``.
