@@ -23,11 +23,11 @@ import time
 import numpy as np
 
 from components.estimation.crb import NoiseModel, cramer_rao
-from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of
-from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
-from components.simulation.scenario import scenario_from_dict
+from components.estimation.lsq import calibrate
+from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of
 from components.simulation.run import run_scenario
+from components.simulation.scenario import scenario_from_dict
 
 INJECTED = {
     "gyro.bias.x": "0.01 deg/h", "gyro.bias.y": "-0.02 deg/h", "gyro.bias.z": "0.015 deg/h",

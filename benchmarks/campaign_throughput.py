@@ -62,8 +62,8 @@ def main() -> int:
     from components.campaign.case import run_case
     from components.campaign.execute import connect
     from components.campaign.isolate import run_isolated, warm
-    from components.campaign.spec import task_for
     from components.campaign.reader import load_campaign
+    from components.campaign.spec import task_for
 
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "c.toml"

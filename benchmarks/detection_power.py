@@ -28,14 +28,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from components.estimation.crb import NoiseModel, cramer_rao  # noqa: E402
 from components.cli.demo import SCENARIO  # noqa: E402
 from components.diagnosis.diagnose import diagnose  # noqa: E402
-from components.model.effects import DEFAULT_EFFECTS, DEG, EFFECTS, UG  # noqa: E402
-from components.estimation.lsq import calibrate  # noqa: E402
+from components.estimation.crb import NoiseModel, cramer_rao  # noqa: E402
 from components.estimation.log_data import LogData
-from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
+from components.estimation.lsq import calibrate  # noqa: E402
+from components.model.effects import DEFAULT_EFFECTS, DEG, EFFECTS, UG  # noqa: E402
 from components.model.result import result_from_fit  # noqa: E402
+from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
 from components.simulation.scenario import scenario_from_dict  # noqa: E402
 
 BASELINE = list(DEFAULT_EFFECTS)

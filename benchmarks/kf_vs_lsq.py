@@ -103,8 +103,8 @@ def stage_nees(outs, truth: dict) -> list[tuple[str, float, int]]:
 
 
 def one_run(args):
-    from components.estimation.lsq import calibrate
     from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
     from components.simulation.run import run_scenario
 
     seed, overrides, noise, config, outer_arm = args

@@ -23,8 +23,8 @@ import numpy as np
 from components.model.effects import ARCSEC, DEG_H, UG, effect_of
 from components.navigation.configs import load_config
 from components.navigation.system import calibrate_system
-from components.simulation.scenario import scenario_from_dict
 from components.simulation.run import run_scenario
+from components.simulation.scenario import scenario_from_dict
 
 TRUTH = {
     "gyro.bias.x": 0.008 * DEG_H, "gyro.bias.y": -0.005 * DEG_H, "gyro.bias.z": 0.01 * DEG_H,

@@ -58,9 +58,13 @@ class FMU2Unit(Unit):
 
     def instantiate(self, t0: float) -> None:
         from fmpy import extract
-        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE,
-                               fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
-                               fmi2CallbackLoggerTYPE)
+        from fmpy.fmi2 import (
+            FMU2Slave,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
 
         self._dir = extract(str(self.path), unzipdir=tempfile.mkdtemp(prefix=f"calbench-{self.name}-"))
         self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self._dir,

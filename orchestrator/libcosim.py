@@ -127,12 +127,12 @@ def run_libcosim(system: System, chunk: int = 4096) -> Recording:
     """Run *system* in libcosim and return a :class:`Recording` with the same signals, time rows
     and SI values as :meth:`Simulation.run` would. Raises :class:`LibcosimUnsupported` before
     anything runs when the system needs what libcosim cannot do."""
+    from libcosimpy._internal import get_last_error_message
+    from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
     from libcosimpy.CosimSlave import CosimLocalSlave
-    from libcosimpy._internal import get_last_error_message
-    from libcosimpy.CosimEnums import CosimVariableType
 
     sim = check_supported(system)
     h = system.step

@@ -28,8 +28,15 @@ from orchestrator.recording import Recording
 from orchestrator.roles import RoleCheck, check_unit, get_role
 from orchestrator.system import System
 from orchestrator.units import Unit, log_suffix, sha256_file
-from orchestrator.wiring import (Endpoint, ScalarConnection, check_algebraic_loops,
-                                 expand_connections, fmu_feedthrough, resolve, stepping_order)
+from orchestrator.wiring import (
+    Endpoint,
+    ScalarConnection,
+    check_algebraic_loops,
+    expand_connections,
+    fmu_feedthrough,
+    resolve,
+    stepping_order,
+)
 
 
 def _import_component(spec, name: str, config: dict) -> Component:

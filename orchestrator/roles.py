@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from orchestrator import si
-from orchestrator.plugins import load_plugins
 from orchestrator.errors import UnitParseError
+from orchestrator.plugins import load_plugins
 from orchestrator.units import Unit, VarInfo
 
 

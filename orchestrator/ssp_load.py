@@ -32,8 +32,17 @@ from pathlib import Path, PurePosixPath
 from xml.etree import ElementTree as ET
 
 from orchestrator.errors import SystemError_
-from orchestrator.ssp_common import (CONNECTION_ANNOTATION, FMU_TYPE, SSD_NAME, SSD_NS, SSV_NS,
-                                     SYSTEM_ANNOTATION, ssc, ssd, ssv)
+from orchestrator.ssp_common import (
+    CONNECTION_ANNOTATION,
+    FMU_TYPE,
+    SSD_NAME,
+    SSD_NS,
+    SSV_NS,
+    SYSTEM_ANNOTATION,
+    ssc,
+    ssd,
+    ssv,
+)
 from orchestrator.system import ALGORITHMS, Connection, System, UnitSpec
 
 DEFAULT_STEP = 0.005

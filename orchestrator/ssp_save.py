@@ -11,8 +11,18 @@ from xml.etree import ElementTree as ET
 
 from orchestrator.errors import SystemError_
 from orchestrator.fmu_resolver import resolve_fmu
-from orchestrator.ssp_common import (CONNECTION_ANNOTATION, FMU_TYPE, SSC_NS, SSD_NAME, SSD_NS, SSV_NS,
-                                     SYSTEM_ANNOTATION, ssc, ssd, ssv)
+from orchestrator.ssp_common import (
+    CONNECTION_ANNOTATION,
+    FMU_TYPE,
+    SSC_NS,
+    SSD_NAME,
+    SSD_NS,
+    SSV_NS,
+    SYSTEM_ANNOTATION,
+    ssc,
+    ssd,
+    ssv,
+)
 from orchestrator.system import System, UnitSpec
 
 _VECTOR_SUFFIXES = (("x", "y", "z"), ("w", "x", "y", "z"))

@@ -1,17 +1,24 @@
 """Small test-side driver for one FMU through fmpy (independent of the orchestrator)."""
 from __future__ import annotations
 
+import ctypes
 import shutil
 import tempfile
 from pathlib import Path
 
 import numpy as np
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-from fmpy.fmi3 import fmi3LogMessageCallback  # noqa: F401  (documents the FMI 3 signature)
-import ctypes
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+from fmpy.fmi3 import (
+    FMU3Slave,
+    fmi3LogMessageCallback,  # noqa: F401  (documents the FMI 3 signature)
+)
 
 
 class Slave:

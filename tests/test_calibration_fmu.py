@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from components.model.effects import ARCSEC, DEG_H, UG, G0, effect_of
-from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
-from components.simulation.scenario import scenario_from_dict
+from components.estimation.lsq import calibrate
+from components.model.effects import ARCSEC, DEG_H, G0, UG, effect_of
 from components.simulation.run import run_scenario
+from components.simulation.scenario import scenario_from_dict
 
 INJECTED = {
     "gyro.bias.x": "0.01 deg/h", "gyro.bias.y": "-0.02 deg/h", "gyro.bias.z": "0.015 deg/h",

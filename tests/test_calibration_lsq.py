@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.model.effects import ARCSEC, DEFAULT_EFFECTS, DEG_H, UG
-from components.logs.logfile import read_log
-from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
+from components.estimation.lsq import calibrate
+from components.logs.logfile import read_log
+from components.model.effects import ARCSEC, DEFAULT_EFFECTS, DEG_H, UG
 
 
 def truth_values(examples: Path, name: str) -> dict:
@@ -67,8 +67,8 @@ def test_ideal_log_gives_zero_errors_below_numerical_floors(conformance):
 
 
 def test_apply_then_recalibrate_gives_zero(tmp_path, example_fit, conformance):
-    from components.model.correct import correct_log
     from components.logs.logfile import write_log
+    from components.model.correct import correct_log
     from components.model.result import CalibrationResult, result_from_fit
 
     log = read_log(conformance / "example")

@@ -24,9 +24,9 @@ import pytest
 
 from components.campaign.criteria import evaluate
 from components.campaign.reader import load_campaign
-from components.errors import CampaignError
 from components.campaign.store import Store
 from components.cli import main as cli_main
+from components.errors import CampaignError
 
 ROOT = Path(__file__).resolve().parents[1]
 FMUS = Path(__file__).parent / "fmus"

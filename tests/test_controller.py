@@ -8,8 +8,8 @@ import pytest
 
 from components.control.controller import CalibrationController
 from components.control.schedule import COUNTS_PER_REV, DEG, loads_schedule
-from components.simulation.scenario import Scenario, load_scenario
 from components.simulation.run import run_scenario
+from components.simulation.scenario import Scenario, load_scenario
 from orchestrator.errors import SimulationFault
 
 Q = 2 * math.pi / COUNTS_PER_REV
@@ -56,7 +56,7 @@ def six():
 
 
 def test_six_position_dwells_exact(six):
-    log, rec, ctrl = six.log, six.recording, six.controller
+    log, rec = six.log, six.recording
     tol = six.scenario.schedule.settings.settle_rate_tol
     f = np.column_stack([rec[f"table.plate.f.{c}"][1:] for c in "xyz"])
     rates = np.column_stack([rec[f"table.{a}.rate"][1:] for a in AXES])

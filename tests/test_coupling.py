@@ -7,10 +7,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
+
+from fmus.turntable import variables as tv
 
 from support import Slave
-from fmus.turntable import variables as tv
 
 AXES = ("outer", "middle", "inner")
 AX = "xyz"

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from components.estimation.crb import FLICKER_FLOOR, GM_PEAK, NoiseModel, cramer_rao
-from components.model.effects import DEFAULT_EFFECTS, DEG, UG
-from components.logs.logfile import read_log
-from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
+from components.estimation.lsq import calibrate
+from components.logs.logfile import read_log
+from components.model.effects import DEFAULT_EFFECTS, DEG, UG
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,6 @@ import math
 
 import numpy as np
 import pytest
-from support import Slave
 
 from components.control.sequencer import AttitudeSequence
 from components.simulation.tumble import IMU_ERRORS, IMU_NOISE
@@ -29,6 +28,8 @@ from orchestrator.errors import LibcosimUnsupported
 from orchestrator.libcosim import run_libcosim
 from orchestrator.master import simulate
 from orchestrator.system import Connection, System, UnitSpec
+
+from support import Slave
 
 D = math.pi / 180
 H = 0.005

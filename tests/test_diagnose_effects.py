@@ -29,16 +29,16 @@ import numpy as np
 import pytest
 from scipy.stats import chi2 as chi2_distribution
 
-from components.diagnosis.compare import compare
 from components.cli.demo import SCENARIO
+from components.diagnosis.compare import compare
 from components.diagnosis.diagnose import diagnose
-from components.model.effects import DEFAULT_EFFECTS, EFFECTS, effect_of
-from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
-from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants
-from components.model.result import result_from_fit
-from components.simulation.scenario import scenario_from_dict
+from components.estimation.lsq import calibrate
+from components.model.effects import DEFAULT_EFFECTS, EFFECTS
 from components.model.quantities import effect_value
+from components.model.result import result_from_fit
+from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants
+from components.simulation.scenario import scenario_from_dict
 
 BASELINE = list(DEFAULT_EFFECTS)
 DWELL = 2.0

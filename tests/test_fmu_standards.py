@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
+from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
 from fmus import build

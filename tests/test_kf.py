@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.model.effects import ARCSEC, DEG_H, G0, UG, effect_of
 from components.logs.logfile import read_log, write_log
+from components.model.effects import ARCSEC, DEG_H, G0, UG, effect_of
+from components.model.result import CalibrationResult
 from components.navigation.configs import load_config
 from components.navigation.sensor import Regressors
 from components.navigation.system import Config, Stage, calibrate_system, static_mask
-from components.model.result import CalibrationResult
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from kf_vs_lsq import TRUTH  # noqa: E402  (the injected errors, one list for tests and benchmark)
@@ -134,8 +134,8 @@ def test_rts_smoother_agrees_with_the_filter_on_constants(conformance):
 def _noise_free_fmu_calibration(schedule: str, overrides: dict, config: str, extra: dict | None = None):
     """A noise-free FMU run of *schedule* with TRUTH (+ *extra*) injected, calibrated by *config*:
     (stage outputs, the values outside 1 % / the floors: (parameter, truth, value))."""
-    from components.simulation.scenario import scenario_from_dict
     from components.simulation.run import run_scenario
+    from components.simulation.scenario import scenario_from_dict
 
     effects = dict(TRUTH)
     for p, v in (extra or {}).items():

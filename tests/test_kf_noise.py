@@ -29,6 +29,7 @@ from components.navigation.kf import _schmidt_update
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from kf_vs_lsq import TARGET, scenario, stage_nees  # noqa: E402
+
 from components.model.effects import effect_of  # noqa: E402
 
 ONE_HOUR = {"cycles": 1, "bias_cycles": 6, "exc_dwell": 150.0, "dwell": 60.0}  # seed_003.toml  (the benchmark's run, 12 min here)

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.logs.logfile import read_log
 from components.estimation.log_data import LogData
+from components.logs.logfile import read_log
 from components.navigation.alignment import coarse_align, fine_align, static_run
 from components.navigation.earth import Site
 from components.navigation.strapdown import navigate

@@ -13,14 +13,14 @@ against facts that do not come from the analysis itself:
 import numpy as np
 import pytest
 
-from components.simulation.run import schedule_motion_log
-from components.model.effects import DEG, UG, parameters_of
 from components.estimation.log_data import LogData
+from components.model.effects import DEG, UG, parameters_of
 from components.navigation.earth import Site
 from components.navigation.observability import analyse, pwcs, static_runs, total_observability
 from components.navigation.sensor import Regressors
 from components.navigation.strapdown import navigate
 from components.navigation.system import static_mask
+from components.simulation.run import schedule_motion_log
 
 ZUP = """
 [schedule]

@@ -19,7 +19,6 @@ from orchestrator.master import Simulation, simulate
 from orchestrator.recording import Recording
 from orchestrator.system import Connection, System, UnitSpec
 
-
 HERE = Path(__file__).parent / "fmus"
 H = 0.01  # communication step of every system here
 

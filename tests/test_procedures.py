@@ -4,7 +4,6 @@ floors), the tilted base of seed 000, seed 002's latitude and vertical with navi
 noise, and each procedure on a written and re-read log giving the in-memory result."""
 from __future__ import annotations
 
-import copy
 import math
 import tomllib
 from pathlib import Path
@@ -12,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from components.model.effects import ARCSEC, DEG_H, UG, effect_of
 from components.logs.logfile import read_log, write_log
+from components.model.effects import ARCSEC, DEG_H, UG, effect_of
 from components.procedures import cwccw, latitude, tilt
-from components.simulation.scenario import load_scenario, scenario_from_dict
 from components.simulation.run import run_scenario
+from components.simulation.scenario import load_scenario, scenario_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "examples" / "scenarios"

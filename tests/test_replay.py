@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from components.diagnosis.compare import assess
-from components.model.effects import effect_of
-from components.estimation.log_data import LogData
 from components.estimation.design import predict
+from components.estimation.log_data import LogData
+from components.model.effects import effect_of
 from components.simulation.replay import replay_imu, replay_servo
-from components.simulation.scenario import scenario_from_dict
 from components.simulation.run import run_scenario
+from components.simulation.scenario import scenario_from_dict
 
 EFFECTS = {"gyro.bias.x": "0.02 deg/h", "gyro.sf.z": "30 ppm", "gyro.mis.xy": "20 arcsec",
            "acc.bias.z": "80 ug", "acc.sf.x": "40 ppm", "acc.k2.z": "40 ug/g2"}

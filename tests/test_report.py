@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from components.model.effects import DEFAULT_EFFECTS
-from components.logs.logfile import read_log
-from components.estimation.lsq import calibrate
 from components.estimation.log_data import LogData
+from components.estimation.lsq import calibrate
+from components.logs.logfile import read_log
+from components.model.effects import DEFAULT_EFFECTS
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

@@ -3,9 +3,18 @@ import math
 
 import pytest
 
+from components.control.schedule import (
+    COUNTS_PER_REV,
+    DEG,
+    Dwell,
+    Index,
+    Rate,
+    Rotate,
+    available_schedules,
+    load_schedule,
+    loads_schedule,
+)
 from components.errors import ScheduleError
-from components.control.schedule import (COUNTS_PER_REV, DEG, Dwell, Index, Rate, Rotate,
-                                 available_schedules, load_schedule, loads_schedule)
 
 GOOD = """
 [schedule]

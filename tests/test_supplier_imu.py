@@ -28,8 +28,8 @@ import pytest
 from components.cli import main as cli_main
 from fmus.build import fmu_path
 from orchestrator.component import Component, Var
-from orchestrator.master import simulate
 from orchestrator.loader import load_system
+from orchestrator.master import simulate
 
 H = 0.005
 N = 40

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from support import Slave
 from fmus.turntable import design_servo
 from fmus.turntable import variables as tv
+
+from support import Slave
 
 AXES = ("outer", "middle", "inner")
 DEG = math.pi / 180

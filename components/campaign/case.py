@@ -30,8 +30,8 @@ def _mark(task: dict) -> None:
 
 
 def _procedure(proc: dict, log):
-    from components.estimation.lsq import calibrate
     from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
     from components.model.result import result_from_fit
 
     data = LogData.from_log(log)
@@ -68,8 +68,8 @@ def numbers_of(task: dict) -> tuple[dict, object, object, object]:
     """(numbers, data, model, comparison) of the case: the estimates against the truth and the
     CRB, chi2/dof of the model on its own log, the diagnosis verdict (when a criterion asks)."""
     from components.diagnosis.compare import compare
-    from components.simulation.scenario import scenario_from_dict
     from components.simulation.run import run_scenario
+    from components.simulation.scenario import scenario_from_dict
 
     sc = scenario_from_dict(task["scenario"], task["source"], Path(task["base_dir"]))
     run = run_scenario(sc, progress=False)

@@ -16,8 +16,8 @@ from components.campaign.isolate import run_isolated
 from components.campaign.manifest import new_manifest, now
 from components.campaign.progress import Progress
 from components.campaign.spec import Campaign, task_for
-from components.errors import CampaignError
 from components.campaign.store import Store
+from components.errors import CampaignError
 
 
 class _Terminated(KeyboardInterrupt):

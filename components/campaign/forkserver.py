@@ -96,14 +96,15 @@ def _wait(pid: int, timeout: float) -> dict:
 
 def serve() -> int:
     # the imports every case needs, once (children inherit them)
+    import fmpy  # noqa: F401
+
     import components.campaign.case  # noqa: F401
     import components.diagnosis.compare  # noqa: F401
-    import components.estimation.crb  # noqa: F401
     import components.diagnosis.diagnose  # noqa: F401
+    import components.estimation.crb  # noqa: F401
     import components.estimation.lsq  # noqa: F401
-    import components.simulation.scenario  # noqa: F401
-    import fmpy  # noqa: F401
     import components.logs.recording  # noqa: F401  (imports python-control, matplotlib: ~1.2 s)
+    import components.simulation.scenario  # noqa: F401
     import fmus.turntable.variables  # noqa: F401
     import orchestrator.master  # noqa: F401
 

@@ -64,13 +64,25 @@
 """
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
-import copy
-
-from components.campaign.spec import (KINDS, METHODS, VERDICTS, Campaign, Criterion, Procedure, System, Variation,
-                                      expand, is_number, match_parameters, parse_value, resolve_imu,
-                                      scenario_for)
+from components.campaign.spec import (
+    KINDS,
+    METHODS,
+    VERDICTS,
+    Campaign,
+    Criterion,
+    Procedure,
+    System,
+    Variation,
+    expand,
+    is_number,
+    match_parameters,
+    parse_value,
+    resolve_imu,
+    scenario_for,
+)
 from components.errors import CampaignError
 from orchestrator.tomlfile import read_toml
 

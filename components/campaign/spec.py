@@ -9,7 +9,6 @@ every procedure and system sees the same truth (paired comparison).
 """
 from __future__ import annotations
 
-from components.errors import CampaignError
 import copy
 import fnmatch
 import hashlib
@@ -19,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from components.errors import CampaignError
 
 METHODS = ("lsq", "cwccw", "tilt", "tilt_ignored")
 KINDS = ("estimate", "chi2", "crb", "diagnosis")

@@ -20,13 +20,12 @@ def _print_result(res) -> None:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from components.model.effects import DEFAULT_EFFECTS, parse_effects
-    from components.logs.logfile import read_log
-    from components.estimation.lsq import calibrate
-    from components.estimation.log_data import LogData
-    from components.model.result import result_from_fit
-
     from components.errors import UserError
+    from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
+    from components.logs.logfile import read_log
+    from components.model.effects import DEFAULT_EFFECTS, parse_effects
+    from components.model.result import result_from_fit
 
     try:
         effects = parse_effects(args.effects) if args.effects else list(DEFAULT_EFFECTS)
@@ -43,8 +42,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _cmd_apply(args: argparse.Namespace) -> int:
-    from components.model.correct import correct_log
     from components.logs.logfile import read_log, write_log
+    from components.model.correct import correct_log
     from components.model.result import CalibrationResult
 
     res = CalibrationResult.load(args.result)

@@ -10,10 +10,9 @@ import sys
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
     from components.campaign.execute import run_campaign
-    from components.campaign.reports import write_reports
     from components.campaign.reader import load_campaign
-    from components.errors import CampaignError
-    from components.errors import UserError
+    from components.campaign.reports import write_reports
+    from components.errors import CampaignError, UserError
 
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers {args.workers}: expected at least 1")

@@ -19,8 +19,8 @@ def _cmd_build_fmus(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from orchestrator.master import Simulation
     from orchestrator.loader import load_system
+    from orchestrator.master import Simulation
 
     system = load_system(args.system)
     if args.stop is not None:

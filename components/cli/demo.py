@@ -21,16 +21,16 @@ def _scenario_path() -> Path:
 
 def run_demo(out_dir: str | Path = "calbench-demo", seed: int | None = None, dwell: float | None = None,
              max_added: int = 3) -> int:
-    from components.diagnosis.ladder import ladder_entry, ladder_lines
     from components.diagnosis.compare import compare
     from components.diagnosis.diagnose import diagnose
-    from components.logs.logfile import read_log
-    from components.estimation.lsq import calibrate
-    from components.estimation.log_data import LogData
+    from components.diagnosis.ladder import ladder_entry, ladder_lines
     from components.diagnosis.report import build_report
+    from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
+    from components.logs.logfile import read_log
     from components.model.result import result_from_fit
-    from components.simulation.scenario import load_scenario
     from components.simulation.run import run_scenario, write_outputs
+    from components.simulation.scenario import load_scenario
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -33,9 +33,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     from components.diagnosis.compare import compare
     from components.diagnosis.residual_export import write_residuals
-    from components.model.result import fitted_on
-    from components.logs.logfile import read_log
     from components.estimation.log_data import LogData
+    from components.logs.logfile import read_log
+    from components.model.result import fitted_on
 
     log = read_log(args.log)
     data = LogData.from_log(log)
@@ -62,9 +62,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _print_servo(log, system_file) -> None:
-    from components.simulation.replay import replay_servo
-
     from components.errors import UserError
+    from components.simulation.replay import replay_servo
 
     try:
         res = replay_servo(log, system_file)
@@ -82,9 +81,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     import json
 
     from components.diagnosis.diagnose import diagnose
-    from components.model.effects import EFFECTS, parse_effects
-    from components.logs.logfile import read_log
     from components.estimation.log_data import LogData
+    from components.logs.logfile import read_log
+    from components.model.effects import EFFECTS, parse_effects
 
     log = read_log(args.log)
     data = LogData.from_log(log)
@@ -116,13 +115,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 def _cmd_add(args: argparse.Namespace) -> int:
     from components.diagnosis.compare import compare
     from components.diagnosis.ladder import ladder_entry, ladder_lines
-    from components.model.effects import parse_effects
-    from components.logs.logfile import read_log
-    from components.estimation.lsq import calibrate
-    from components.estimation.log_data import LogData
-    from components.model.result import result_from_fit
-
     from components.errors import UserError
+    from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
+    from components.logs.logfile import read_log
+    from components.model.effects import parse_effects
+    from components.model.result import result_from_fit
 
     log = read_log(args.log)
     data = LogData.from_log(log)

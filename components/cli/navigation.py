@@ -17,8 +17,8 @@ def _cmd_kf(args: argparse.Namespace) -> int:
     if args.simulate and args.log:
         raise UserError("kf: give a LOG or --simulate SCENARIO, not both")
     if args.simulate:
-        from components.simulation.scenario import load_scenario
         from components.simulation.run import run_scenario
+        from components.simulation.scenario import load_scenario
 
         log = run_scenario(load_scenario(args.simulate), progress=False).log
         source = args.simulate

@@ -8,13 +8,12 @@ import argparse
 def _cmd_plan(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from components.estimation.crb import NoiseModel, cramer_rao
-    from components.simulation.run import schedule_motion_log
-    from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of, parse_effects
-    from components.logs.logfile import read_log
-    from components.estimation.log_data import LogData
-
     from components.errors import UserError
+    from components.estimation.crb import NoiseModel, cramer_rao
+    from components.estimation.log_data import LogData
+    from components.logs.logfile import read_log
+    from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of, parse_effects
+    from components.simulation.run import schedule_motion_log
 
     try:
         effects = parse_effects(args.effects) if args.effects else list(DEFAULT_EFFECTS)

@@ -48,8 +48,8 @@ def _cmd_procedure(args: argparse.Namespace) -> int:
         opts["static_labels"] = args.static_labels
     truth = None
     if args.simulate:
-        from components.simulation.scenario import load_scenario
         from components.simulation.run import run_scenario
+        from components.simulation.scenario import load_scenario
 
         ov = {"dwell": args.dwell} if args.dwell is not None else None
         sc = load_scenario(args.simulate, ov)

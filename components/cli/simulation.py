@@ -5,8 +5,8 @@ import argparse
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from components.simulation.scenario import load_scenario
     from components.simulation.run import run_scenario, write_outputs
+    from components.simulation.scenario import load_scenario
 
     overrides = {}
     if args.dwell is not None:

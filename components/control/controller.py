@@ -30,14 +30,22 @@ Deterministic: decisions depend only on the inputs and integer step counts.
 """
 from __future__ import annotations
 
-from components.errors import ScheduleFault
 import math
 
+from components.control.schedule import (
+    AXIS_POSITIONS,
+    COUNTS_PER_REV,
+    DEG,
+    Dwell,
+    Index,
+    Rate,
+    Rotate,
+    Schedule,
+    load_schedule,
+    schedule_from_dict,
+)
+from components.errors import ScheduleError, ScheduleFault
 from orchestrator.component import Component, Var
-
-from components.control.schedule import (AXIS_POSITIONS, COUNTS_PER_REV, DEG, Dwell, Index, Rate, Rotate,
-                                 Schedule, load_schedule, schedule_from_dict)
-from components.errors import ScheduleError
 
 TWO_PI = 2.0 * math.pi
 

@@ -60,12 +60,13 @@ for the 2nd step inside the 3rd), the key, and what was expected.
 """
 from __future__ import annotations
 
-from components.errors import ScheduleError
 import math
 import tomllib
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
+
+from components.errors import ScheduleError
 
 DEG = math.pi / 180.0
 COUNTS_PER_REV = 2 ** 24

@@ -32,12 +32,12 @@ import numpy as np
 from scipy import stats
 
 from components.estimation.blocks import observation_blocks, white_noise_sigma
-from components.model.effects import effect_of
-from components.estimation.log_data import LogData
-from components.model.table_parameters import apply_table_parameter
-from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.design import sensor_columns
+from components.estimation.log_data import LogData
+from components.estimation.rest_angles import rest_sigma, rest_variance
+from components.model.effects import effect_of
 from components.model.result import CalibrationResult
+from components.model.table_parameters import apply_table_parameter
 
 CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
 

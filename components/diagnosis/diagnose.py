@@ -23,10 +23,10 @@ import numpy as np
 from scipy import stats
 
 from components.estimation.blocks import observation_blocks, white_noise_sigma
-from components.model.effects import EFFECTS, effect_of, parameters_of
-from components.estimation.log_data import LogData
 from components.estimation.design import design
+from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
+from components.model.effects import EFFECTS, effect_of, parameters_of
 from components.model.result import CalibrationResult
 
 # Which schedule change separates two effects (order-free pairs), else a generic hint per effect.

@@ -17,11 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from components.model.effects import effect_of, parameters_of
 from components.estimation.blocks import observation_blocks
-from components.estimation.log_data import LogData
 from components.estimation.design import design
+from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
+from components.model.effects import effect_of, parameters_of
 
 # sigma of the Gauss–Markov process whose Allan-deviation peak equals the IEEE bias-instability
 # floor 0.664 B (the same constants as the IMU FMU, fmus/imu/noise.c)

@@ -38,10 +38,17 @@ from pathlib import Path
 
 import numpy as np
 
-
 from components.errors import LogFormatError
-from components.logs.rules import (FORMAT, NONFINITE, NUMBER, XYZ,  # noqa: F401  (FORMAT: re-exported)
-                                   check_columns, check_samples, numeric_columns, parse_metadata)
+from components.logs.rules import (  # noqa: F401  (FORMAT: re-exported)
+    FORMAT,
+    NONFINITE,
+    NUMBER,
+    XYZ,
+    check_columns,
+    check_samples,
+    numeric_columns,
+    parse_metadata,
+)
 
 
 @dataclass

@@ -6,9 +6,8 @@ import math
 
 import numpy as np
 
-
-from components.logs.rules import FORMAT, XYZ, parse_metadata
 from components.logs.logfile import MeasurementLog
+from components.logs.rules import FORMAT, XYZ, parse_metadata
 
 # ---------------------------------------------------------------------------- from a run
 _KIND_CODES = {"gyro": {0: "increment", 1: "rate", 2: "counts"},

@@ -4,12 +4,12 @@ the key or the data row and what was expected. Choices the spec leaves open are 
 components/logs/logfile.py."""
 from __future__ import annotations
 
-from components.errors import LogFormatError
 import math
 import re
 
 import numpy as np
 
+from components.errors import LogFormatError
 
 FORMAT = "calbench-log/1"
 GYRO_OUTPUTS = {"rate": "rad/s", "increment": "rad", "counts": "counts of gyro_count_rad"}

@@ -4,7 +4,6 @@ fit statistics, the schedule and the data it came from. SI units; ratios as plai
 No wall-clock time is written: the same log and options give a byte-identical file."""
 from __future__ import annotations
 
-from components.errors import ResultFormatError
 import hashlib
 import json
 import platform
@@ -13,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from components.errors import ResultFormatError
 from components.model.effects import EFFECTS, effect_of
 
 FORMAT = "calbench-result/1"

@@ -48,9 +48,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import expm
 
+from components.estimation.log_data import LogData
 from components.model.effects import effect_of
 from components.model.geometry import skew
-from components.estimation.log_data import LogData
 from components.navigation.earth import Site
 from components.navigation.kf import FilterSettings, prior_sigmas
 from components.navigation.sensor import Regressors

@@ -29,14 +29,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from components.estimation.blocks import white_noise_sigma
-from components.model.effects import effect_of, parameters_of
 from components.estimation.log_data import LogData
+from components.model.effects import effect_of, parameters_of
+from components.model.result import CalibrationResult, schedule_of
 from components.navigation.alignment import alignment_run, coarse_align, fine_align
 from components.navigation.earth import Site
-from components.navigation.kf import (SIGMA_ACC_FLOOR, SIGMA_GYRO_FLOOR, FilterOutput,
-                                      FilterSettings, run_filter)
+from components.navigation.kf import SIGMA_ACC_FLOOR, SIGMA_GYRO_FLOOR, FilterOutput, FilterSettings, run_filter
 from components.navigation.sensor import Regressors
-from components.model.result import CalibrationResult, schedule_of
 
 METHOD = "system-level KF"
 STATIC_TOL = 1e-9  # rad: an angle change per sample below this is "at rest"

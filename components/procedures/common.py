@@ -6,8 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.estimation.blocks import white_noise_sigma
-from components.model.effects import effect_of
 from components.estimation.log_data import LogData
+from components.model.effects import effect_of
 
 
 def as_data(log_or_data) -> tuple[LogData, object]:

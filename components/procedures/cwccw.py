@@ -44,9 +44,15 @@ import numpy as np
 from components.model.effects import AX
 from components.model.geometry import TableGeometry
 from components.model.result import CalibrationResult, schedule_of
-
-from components.procedures.common import (angle_quantum, as_data, is_static,
-                                          linear_covariance, noise_sigma, sample_interval, segments)
+from components.procedures.common import (
+    angle_quantum,
+    as_data,
+    is_static,
+    linear_covariance,
+    noise_sigma,
+    sample_interval,
+    segments,
+)
 
 NAME = "cwccw"
 TWO_PI = 2 * np.pi

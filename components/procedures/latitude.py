@@ -56,7 +56,6 @@ from dataclasses import replace
 import numpy as np
 
 from components.model.result import CalibrationResult, schedule_of
-
 from components.procedures.common import angle_quantum, as_data, noise_sigma, sample_interval, segments
 
 NAME = "latitude"
@@ -324,7 +323,7 @@ def _concat(logs):
 
 def truth_of(sc) -> dict:
     """Truth of a scenario: base tilt, azimuth, latitude, up and east in base axes."""
-    from components.model.geometry import TableGeometry, Stage
+    from components.model.geometry import Stage, TableGeometry
 
     tx = sc.table_effects.get("table.base_tilt.x", sc.table_parameters.get("base.tilt.x", 0.0))
     ty = sc.table_effects.get("table.base_tilt.y", sc.table_parameters.get("base.tilt.y", 0.0))
@@ -344,8 +343,8 @@ def drive(scenario, *, rate_dps: float = 10.0, acc_turns: int = 1, north_turns: 
     path: its site, turntable (seed-002 axes), IMU and step; its schedule is replaced spin by
     spin). Returns (MeasurementLog of all spins, list of per-run truths, the decisions)."""
     from components.estimation.log_data import LogData
-    from components.simulation.scenario import Scenario, load_scenario
     from components.simulation.run import run_scenario
+    from components.simulation.scenario import Scenario, load_scenario
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     logs, truths, decisions = [], [], []

@@ -27,7 +27,6 @@ import numpy as np
 
 from components.estimation.lsq import calibrate
 from components.model.result import CalibrationResult, result_from_fit
-
 from components.procedures.common import as_data, is_static, sample_interval, segments
 
 NAME = "tilt"

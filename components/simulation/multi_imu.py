@@ -58,12 +58,11 @@ def run_variants(sc, variants: list[Variant], temperature_profile: Callable | No
 
     Returns ``{variant name: (MeasurementLog, truth dict)}``; each truth is the scenario's truth
     with that instance's effects, noise seed and parameters."""
+    from components.errors import ScenarioError
+    from components.logs.recording import log_from_recording
+    from components.simulation.run import build_system, truth_of
     from orchestrator.master import Simulation
     from orchestrator.system import Connection, UnitSpec
-
-    from components.logs.recording import log_from_recording
-    from components.errors import ScenarioError
-    from components.simulation.run import truth_of, build_system
 
     names = [v.name for v in variants]
     if len(set(names)) != len(names):

@@ -61,8 +61,8 @@ def _unit_of_role(system: System, role: str) -> UnitSpec:
 def replay_imu(data, system_file: str | Path, motion=None) -> np.ndarray:
     """Predicted increments (N, 6) [rad, m/s] of the system's IMU unit on the log's motion."""
     from orchestrator.fmu_resolver import resolve_fmu
-    from orchestrator.master import Simulation
     from orchestrator.fmu_units import load_fmu_unit
+    from orchestrator.master import Simulation
 
     system = load_system(system_file)
     spec = _unit_of_role(system, "imu")

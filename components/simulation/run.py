@@ -19,6 +19,7 @@ from components.errors import ScenarioError
 from components.model.result import file_sha256
 from components.simulation.scenario import TRUTH_FORMAT, Scenario, scenario_from_dict
 
+
 def _fmu_path(spec: str, base_dir: Path) -> Path:
     from orchestrator.fmu_resolver import resolve_fmu
 
@@ -41,8 +42,9 @@ def _starts(path: Path) -> dict:
 def table_fmu_parameters(sc: Scenario, fmu_axis: dict) -> dict:
     """FMU parameters (the FMU's names, SI) for the table: site, the table effects mapped onto
     the FMU's parameters, then the explicit parameters."""
-    from components.model.geometry import perpendicular_pair
     import numpy as np
+
+    from components.model.geometry import perpendicular_pair
 
     out = {"site.latitude": math.radians(sc.site["latitude_deg"]), "site.height": sc.site["height_m"],
            "site.gravity": sc.site["gravity_mps2"]}

@@ -54,14 +54,12 @@ runs it.
 """
 from __future__ import annotations
 
-from components.errors import ScenarioError
 from dataclasses import dataclass, field
 from pathlib import Path
 
-
-from components.model.quantities import QuantityError, effect_value, noise_value
 from components.control.schedule import DEG, Schedule, load_schedule
-from components.errors import ScheduleError
+from components.errors import ScenarioError, ScheduleError
+from components.model.quantities import QuantityError, effect_value, noise_value
 from orchestrator.tomlfile import read_toml
 
 TRUTH_FORMAT = "calbench-truth/1"
