@@ -22,10 +22,11 @@ import time
 
 import numpy as np
 
-from components.estimation.crb import NoiseModel, cramer_rao
+from components.estimation.crb import cramer_rao
 from components.estimation.log_data import LogData
 from components.estimation.lsq import calibrate
 from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of
+from components.model.noise import NoiseModel
 from components.simulation.run import run_scenario
 from components.simulation.scenario import scenario_from_dict
 
@@ -83,7 +84,7 @@ def main() -> None:
             data = LogData.from_log(run.log)
             effects = list(dict.fromkeys(effect_of(p).name for p in names))
             rest = calibrate(data, list(DEFAULT_EFFECTS)).rest_sigma
-            crb = cramer_rao(data, effects, NoiseModel(gyro_arw=0.002 * DEG / 60, acc_vrw=10 * UG),
+            crb = cramer_rao(data, effects, NoiseModel.per_sensor({"white": 0.002 * DEG / 60}, {"white": 10 * UG}),
                              rest_angle_sigma=rest)
     e, s = np.array(errors), np.array(sigmas)
     rms, mean, emp = np.sqrt((e**2).mean(0)), e.mean(0), e.std(0, ddof=1)

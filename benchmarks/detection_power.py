@@ -30,10 +30,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from components.cli.demo import SCENARIO  # noqa: E402
 from components.diagnosis.diagnose import diagnose  # noqa: E402
-from components.estimation.crb import NoiseModel, cramer_rao  # noqa: E402
+from components.estimation.crb import cramer_rao
 from components.estimation.log_data import LogData
 from components.estimation.lsq import calibrate  # noqa: E402
 from components.model.effects import DEFAULT_EFFECTS, DEG, EFFECTS, UG  # noqa: E402
+from components.model.noise import NoiseModel  # noqa: E402
 from components.model.result import result_from_fit  # noqa: E402
 from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
 from components.simulation.scenario import scenario_from_dict  # noqa: E402
@@ -48,7 +49,7 @@ PARAM = {  # the hidden parameter per effect
     "table.base_tilt": "table.base_tilt.x", "table.nonorth": "table.nonorth.middle.v",
     "table.wobble": "table.wobble.outer.c", "table.encoder": "table.encoder.outer.s1",
 }
-NOISE = NoiseModel(gyro_arw=0.002 * DEG / 60, acc_vrw=10 * UG)
+NOISE = NoiseModel.per_sensor({"white": 0.002 * DEG / 60}, {"white": 10 * UG})
 QUIET = {"gyro.noise.arw": 0.0, "acc.noise.vrw": 0.0}
 MODE2 = {"temperature.mode": 2}
 LADDER = [2, 3, 5, 7, 10, 14, 20, 30]

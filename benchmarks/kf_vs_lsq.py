@@ -130,8 +130,9 @@ def bounds(overrides: dict, noise: float, config: str = "seed_003",
     """KF: the posterior over S202-S204 of the states of the configuration's first filter (with
     its observation: velocity, or velocity and position), and the table stage's CRB for its
     parameters (the time offset) on its window; LS: the CRB of the whole log."""
-    from components.estimation.crb import NoiseModel, cramer_rao
+    from components.estimation.crb import cramer_rao
     from components.estimation.log_data import LogData
+    from components.model.noise import NoiseModel
     from components.navigation.observability import filter_covariance
     from components.simulation.run import run_scenario
 
@@ -148,9 +149,9 @@ def bounds(overrides: dict, noise: float, config: str = "seed_003",
     kf = dict(zip(out.parameters, map(float, out.sigma)))
     for st in (s for s in stages if s.kind == "table"):
         a, b = window_of(data.segment, st.window, len(data.time))
-        crb = cramer_rao(data.window(a, b), st.effects, NoiseModel(gyro_arw=arw, acc_vrw=vrw))
+        crb = cramer_rao(data.window(a, b), st.effects, NoiseModel.per_sensor({"white": arw}, {"white": vrw}))
         kf.update({p: crb[p] for p in st.parameters})
-    ls = cramer_rao(data, LS_EFFECTS, NoiseModel(gyro_arw=arw, acc_vrw=vrw))
+    ls = cramer_rao(data, LS_EFFECTS, NoiseModel.per_sensor({"white": arw}, {"white": vrw}))
     return kf, ls
 
 

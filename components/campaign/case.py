@@ -49,8 +49,9 @@ def _procedure(proc: dict, log):
 def _crb(data, model, noise: dict) -> dict:
     import numpy as np
 
-    from components.estimation.crb import NoiseModel, cramer_rao
+    from components.estimation.crb import cramer_rao
     from components.model.effects import EFFECTS
+    from components.model.noise import NoiseModel
 
     arw = noise.get("gyro.noise.arw") or float(np.mean(model.noise.get("gyro_arw_rad_per_sqrt_s", [0.0])))
     vrw = noise.get("acc.noise.vrw") or float(np.mean(model.noise.get("acc_vrw_mps_per_sqrt_s", [0.0])))
@@ -58,7 +59,7 @@ def _crb(data, model, noise: dict) -> dict:
     if not effects or not (arw > 0 and vrw > 0):
         return {}
     try:
-        return cramer_rao(data, effects, NoiseModel(gyro_arw=arw, acc_vrw=vrw),
+        return cramer_rao(data, effects, NoiseModel.per_sensor({"white": arw}, {"white": vrw}),
                           rest_angle_sigma=model.noise.get("rest_angle_sigma_rad"))
     except Exception:  # noqa: BLE001  (a bound we cannot compute is reported as missing)
         return {}

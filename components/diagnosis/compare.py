@@ -35,7 +35,9 @@ from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import sensor_columns
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
+from components.estimation.whitening import whiten
 from components.model.effects import effect_of
+from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
 from components.model.table_parameters import apply_table_parameter
 
@@ -89,11 +91,11 @@ class Comparison:
                 "conditions": self.conditions}
 
 
-def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s):
+def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
     dt = float(np.median(np.diff(data.time)))
     n_chunk = max(1, int(round(chunk_s / dt)))
     gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
-    zs, sens, axis, start, stop, moving = [], [], [], [], [], []
+    zs, vs, sens, axis, start, stop, moving = [], [], [], [], [], [], []
     for blocks, sl, name in ((gb, slice(0, 3), "gyro"), (ab, slice(3, 6), "acc")):
         s = blocks.sum(residual[:, sl])
         var = blocks.count[:, None] * sigma[sl][None, :] ** 2
@@ -101,20 +103,32 @@ def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s):
             var = var + rest_variance(data, geo, blocks, rest)
         z = s / np.sqrt(var)
         zs.append(z.reshape(-1))
+        vs.append((s.reshape(-1), var.reshape(-1)))
         sens += [name] * z.size
         axis.append(np.tile([0, 1, 2], len(blocks)) + (0 if name == "gyro" else 3))
         start.append(np.repeat(blocks.start, 3))
         stop.append(np.repeat(blocks.stop, 3))
         moving.append(np.repeat(blocks.moving, 3))
-    return {"z": np.concatenate(zs), "sensor": np.array(sens), "channel": np.concatenate(axis),
+    rows = {"z": np.concatenate(zs), "sensor": np.array(sens), "channel": np.concatenate(axis),
             "start": np.concatenate(start), "stop": np.concatenate(stop),
             "moving": np.concatenate(moving)}
+    if noise is not None and noise.coloured:
+        # block sums whitened under the coloured model: z is then the normalised innovation
+        rows["axis"] = rows["channel"] % 3
+        sums = np.concatenate([v[0] for v in vs])
+        var = np.concatenate([v[1] for v in vs])
+        span = float(data.time[-1] - data.time[0] + dt)
+        z, _, _ = whiten(sums, np.zeros((len(sums), 0)), rows, var, noise, dt, span, chunk_s)
+        rows["z"] = z
+    return rows
 
 
 def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int = 0,
-            chunk_s: float = 1.0, rest_angle_sigma=None) -> Comparison:
+            chunk_s: float = 1.0, rest_angle_sigma=None, noise: NoiseModel | None = None) -> Comparison:
     """Residual of *model* on *data*. ``fitted_parameters``: how many parameters were fitted to
-    this same log (subtracted from the degrees of freedom)."""
+    this same log (subtracted from the degrees of freedom). ``noise``: the composite noise model
+    the block residuals are whitened with (default: the model's own, else white noise of the
+    level estimated from the residual's high-frequency content)."""
     geo = model_geometry(data, model)
     motion = data.motion(geo, model.temperature_ref)
     sensor_params = [p for p in model.values if effect_of(p).target != "table"]
@@ -123,12 +137,14 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     pred = np.hstack([motion.ideal_gyro + G @ values, motion.ideal_acc + A @ values])
     if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
         rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
+    if noise is None:
+        noise = model.noise_model()
     return assess(data, geo, motion, pred, fitted_parameters=fitted_parameters, chunk_s=chunk_s,
-                  rest_angle_sigma=rest_angle_sigma)
+                  rest_angle_sigma=rest_angle_sigma, noise=noise)
 
 
 def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: int = 0,
-           chunk_s: float = 1.0, rest_angle_sigma=None) -> Comparison:
+           chunk_s: float = 1.0, rest_angle_sigma=None, noise: NoiseModel | None = None) -> Comparison:
     """The misfit figures of a prediction (N, 6) of the log's IMU increments, whatever made it
     (a calibration result, or a supplier's IMU FMU replayed on the log's motion)."""
     meas = np.hstack([data.gyro, data.acc])
@@ -137,7 +153,10 @@ def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: i
     floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(motion.dt))
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
     rest = rest_sigma(data.angles, rest_angle_sigma)
-    rows = _blocks_rows(data, geo, motion, resid, sigma, rest, chunk_s)
+    if noise is not None and noise.coloured:
+        white = noise.white_sigma(float(np.median(motion.dt)))
+        sigma = np.where(white > 0, white, sigma)
+    rows = _blocks_rows(data, geo, motion, resid, sigma, rest, chunk_s, noise)
     chi2 = float(np.sum(rows["z"] ** 2))
     dof = max(len(rows["z"]) - fitted_parameters, 1)
     channels = {}

@@ -26,7 +26,9 @@ from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import design
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
+from components.estimation.whitening import whiten
 from components.model.effects import EFFECTS, effect_of, parameters_of
+from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
 
 # Which schedule change separates two effects (order-free pairs), else a generic hint per effect.
@@ -107,7 +109,7 @@ class _Design:
     """Whitened block design of all parameters of the model and of every candidate."""
 
     def __init__(self, data: LogData, model: CalibrationResult, params: list[str],
-                 chunk_s: float, rest_angle_sigma):
+                 chunk_s: float, rest_angle_sigma, noise: NoiseModel | None = None):
         from components.diagnosis.compare import model_geometry
 
         geo = model_geometry(data, model)
@@ -124,16 +126,22 @@ class _Design:
         # noise from the high-frequency content of the data (differences remove the model)
         sg = white_noise_sigma(data.gyro, motion.static)
         sa = white_noise_sigma(data.acc, motion.static)
+        if noise is not None and noise.coloured:
+            white = noise.white_sigma(dt)
+            sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
         sg = np.where(np.isfinite(sg) & (sg > 0), sg, 0.0) + 1e-13 * 7.3e-5 * dt
         sa = np.where(np.isfinite(sa) & (sa > 0), sa, 0.0) + 1e-13 * 9.8 * dt
         rest = rest_sigma(data.angles, rest_angle_sigma)
         y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, rest, geo, table_params, motion_for)
+        span = float(data.time[-1] - data.time[0] + dt)
+        yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
         # table columns are derivatives at the model's geometry: the model's table values are
         # already in the motion, so their unknowns here are corrections (start at 0)
         self.params = params
         self.index = {p: k for k, p in enumerate(params)}
-        self.y = y * w
-        self.H = H * w[:, None]
+        self.y = yw
+        self.H = Hw
+        self.noise = noise
         self.rows = rows
         self.n = len(y)
         self.motion = motion
@@ -180,7 +188,12 @@ def default_candidates(model_effects: list[str]) -> list[str]:
 
 def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] | None = None,
              alpha: float = 0.01, forward: bool = True, max_steps: int = 4, chunk_s: float = 1.0,
-             rest_angle_sigma=None) -> Diagnosis:
+             rest_angle_sigma=None, noise: NoiseModel | None = None) -> Diagnosis:
+    """Which effects of the vocabulary are missing from *model* on *data* (see the module
+    docstring). ``noise``: the composite noise model the rows are whitened with (default: the
+    model's own; without one, white noise of the level in the data's high-frequency content)."""
+    if noise is None:
+        noise = model.noise_model()
     base_effects = list(model.effects)
     cands = candidates if candidates is not None else default_candidates(base_effects)
     cands = [c for c in cands if c not in base_effects]
@@ -189,7 +202,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     stage_names = set(data.geometry.names)
     params = [p for p in params if not (effect_of(p).target == "table" and p.split(".")[2] not in
                                         stage_names and not p.startswith("table.base_tilt"))]
-    design = _Design(data, model, params, chunk_s, rest_angle_sigma)
+    design = _Design(data, model, params, chunk_s, rest_angle_sigma, noise)
     available = {c: [p for p in EFFECTS[c].parameters if p in design.index] for c in cands}
     base = [p for p in parameters_of(base_effects) if p in design.index]
     found: list[str] = []

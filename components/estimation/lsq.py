@@ -19,9 +19,11 @@ from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import design, noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
+from components.estimation.whitening import whiten
 from components.model.effects import effect_of, parameters_of
 from components.model.geometry import TableGeometry
 from components.model.motion import Motion
+from components.model.noise import NoiseModel
 from components.model.table_parameters import apply_table_parameter, table_parameter_value
 
 RCOND = 1e-7  # relative singular value below which a design direction is not resolved
@@ -42,6 +44,7 @@ class Fit:
     iterations: int
     rows: dict = field(default_factory=dict)  # design of the last iteration, for diagnostics
     rest_sigma: np.ndarray | None = None  # σ of the rest angles used (estimated or given) [rad]
+    noise: NoiseModel | None = None  # the noise model the rows were whitened with (None: white)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -59,10 +62,13 @@ class Fit:
 def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
               iterations: int = 3, sigma_gyro=None, sigma_acc=None,
               temperature_ref: float | None = None, fixed: dict | None = None,
-              rest_angle_sigma=None) -> Fit:
+              rest_angle_sigma=None, noise: NoiseModel | None = None) -> Fit:
     """Fit the parameters of *effects* jointly to *data*.
 
     ``fixed``: parameter values held (not fitted), e.g. a geometry known from elsewhere.
+    ``noise``: the composite noise model (components.model.noise) the rows are whitened with
+    (generalised least squares); its white part is the per-sample σ unless ``sigma_gyro`` /
+    ``sigma_acc`` are given. Without one, white noise of the σ estimated from the static data.
     ``rest_angle_sigma`` [rad, per axis]: uncertainty of the true angle at rest around the
     encoder reading, which bounds a rest-to-rest gyro block; default: one count uniform
     (q/√12, q = the smallest logged angle step), 0 for logs whose rest angles are exact."""
@@ -82,6 +88,20 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
 
     motion = motion_for(geo)
     gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
+    if noise is not None:
+        white = noise.white_sigma(dt_mean)
+        if sigma_gyro is None and np.all(white[:3] > 0):
+            sigma_gyro = white[:3]
+        if sigma_acc is None and np.all(white[3:] > 0):
+            sigma_acc = white[3:]
+    span = float(data.time[-1] - data.time[0] + dt_mean) if len(data.time) else 0.0
+
+    def weighted(y, H, w, rows):
+        if noise is None or not noise.coloured:
+            return y * w, H * w[:, None]
+        yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt_mean, span, chunk_s)
+        return yw, Hw
+
     sg = noise_floor(np.asarray(sigma_gyro if sigma_gyro is not None
                                  else white_noise_sigma(data.gyro, motion.static), float),
                       7.3e-5 * dt_mean)
@@ -103,7 +123,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     for it in range(1, iterations + 1):
         y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
         # residual relative to the current table values (Gauss–Newton on the geometry)
-        Hw = H * w[:, None]
+        yw, Hw = weighted(y, H, w, rows)
         scale = np.linalg.norm(Hw, axis=0)
         scale[scale == 0] = 1.0
         # rcond: a direction of the column-normalised design below 1e-7 of the largest is a
@@ -111,7 +131,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         # constant rotation of the plate = IMU misalignment, left only with the forward-
         # difference error of its column); resolving it would amplify noise into a huge step
         # of the geometry and wreck the next linearisation
-        sol, *_ = np.linalg.lstsq(Hw / scale, y * w, rcond=RCOND)
+        sol, *_ = np.linalg.lstsq(Hw / scale, yw, rcond=RCOND)
         step = sol / scale
         sensor_idx = [k for k, p in enumerate(params) if p not in table_params]
         value[sensor_idx] = step[sensor_idx]
@@ -131,19 +151,23 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
             break
     # final linearisation at the solution: sensor values and the last (tiny) table correction
     y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
-    Hw = H * w[:, None]
+    yw, Hw = weighted(y, H, w, rows)
     scale = np.linalg.norm(Hw, axis=0)
     scale[scale == 0] = 1.0
-    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=RCOND)[0] / scale
+    sol = np.linalg.lstsq(Hw / scale, yw, rcond=RCOND)[0] / scale
     for k, p in enumerate(params):
         value[k] = value[k] + sol[k] if p in table_params else sol[k]
     resid_vec = y - H @ sol
-    chi2 = float(np.sum((resid_vec * w) ** 2))
+    if noise is None or not noise.coloured:
+        chi2 = float(np.sum((resid_vec * w) ** 2))
+    else:
+        chi2 = float(np.sum((yw - Hw @ sol) ** 2))
     info = (Hw / scale).T @ (Hw / scale)
     cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
     rows["residual"] = resid_vec
     fit = Fit(params, value, cov, chi2, max(len(y) - len(params), 1), sg, sa, geo, motion, it, rows)
     fit.rest_sigma = q
+    fit.noise = noise if noise is not None and noise.coloured else None
     return fit
 
 

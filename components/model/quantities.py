@@ -30,6 +30,11 @@ NOISE_UNITS = {
     "acc.noise.bi_tau": ("s", UNITS["s"]),
     "acc.noise.rrw": ("m/s2/sqrt(s)", {"m/s2/sqrt(s)": 1.0, "ug/sqrt(s)": UG, "ug/sqrt(h)": UG / 60.0}),
 }
+# the terms of a noise model given by hand (calbench --noise): the FMU's densities without their
+# correlation times, plus the quantization of a pulse output
+NOISE_TERM_UNITS = {k: v for k, v in NOISE_UNITS.items() if not k.endswith("_tau")}
+NOISE_TERM_UNITS.update({"gyro.noise.q": ("rad", UNITS["rad"]),
+                         "acc.noise.q": ("m/s", {"m/s": 1.0, "mm/s": 1e-3, "um/s": 1e-6})})
 
 
 class QuantityError(CalbenchError, ValueError):

@@ -39,6 +39,15 @@ class CalibrationResult:
     def value(self, name: str, default: float = 0.0) -> float:
         return self.values.get(name, default)
 
+    def noise_model(self):
+        """The composite noise model the fit was whitened with (components.model.noise), or None
+        (white noise)."""
+        if "composite" not in self.noise:
+            return None
+        from components.model.noise import NoiseModel
+
+        return NoiseModel.from_dict(self.noise["composite"])
+
     def to_dict(self) -> dict:
         out = {
             "format": FORMAT,
@@ -160,6 +169,9 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
     if getattr(fit, "rest_sigma", None) is not None:
         # how far the table rests from its encoder readings (estimated from the moves)
         noise["rest_angle_sigma_rad"] = [float(x) for x in fit.rest_sigma]
+    if getattr(fit, "noise", None) is not None:
+        noise["model"] = f"composite noise model ({fit.noise.source}): rows whitened with it"
+        noise["composite"] = fit.noise.to_dict()
     fitd = {"chi2": fit.chi2, "dof": fit.dof, "chi2_per_dof": fit.chi2 / fit.dof,
             "iterations": fit.iterations,
             "observations": "block sums: rest-to-rest gyro moves and static chunks, accelerometer chunks"}

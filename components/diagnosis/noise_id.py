@@ -1,0 +1,139 @@
+"""Noise identification on a calibration log: which terms of the composite model
+(components.model.noise) the residual shows, how large, with a σ each.
+
+Two stages, each where its information is:
+
+1. **Fast terms from the static runs.** The model's per-sample residual in the static runs,
+   as a rate, has a pooled overlapping Allan variance (components.estimation.allan) that
+   quantization, white noise and, where the runs are long enough, the start of the bias floor
+   shape; the composite is fitted to it (components.estimation.noise_fit), σ by parametric
+   bootstrap. Quantization of a pulse output is known from its count weight and held.
+2. **Slow terms from the whole log.** Bias instability and random walk act over the whole run,
+   which the block sums of the calibration show; their magnitudes (and the bias floor's lower
+   corner) are estimated by restricted maximum likelihood with the fast terms held
+   (components.estimation.noise_likelihood), each kept when its likelihood ratio is significant.
+
+The model the estimators then use has only the terms found present.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from components.estimation.allan import static_runs
+from components.estimation.log_data import LogData
+from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel
+from components.estimation.noise_likelihood import fit_slow_terms
+from components.estimation.whitening import channel_rows
+from components.model.noise import AXES, CHANNELS, TERMS, ChannelNoise, NoiseModel, sensor_of
+
+
+@dataclass
+class ChannelIdentification:
+    name: str
+    fast: ChannelFit            # the Allan-variance stage
+    slow: dict                  # the likelihood stage: term -> value, sigma, likelihood_ratio, present
+    noise: ChannelNoise         # the final model of the channel (present terms only)
+    sigma: dict                 # term -> σ of its magnitude
+    present: list
+
+
+@dataclass
+class NoiseIdentification:
+    model: NoiseModel
+    channels: list = field(default_factory=list)
+    static_runs: int = 0
+    notes: list = field(default_factory=list)
+
+    def table(self) -> list[str]:
+        """The identified terms per channel in readable units, with σ; absent terms with their
+        upper bound."""
+        lines = [f"{'channel':8s} {'term':18s} {'value':>12s} {'sigma':>10s}  unit           present"]
+        for k, c in enumerate(self.channels):
+            terms = TERMS[sensor_of(k)]
+            for t in BASIC:
+                vname, _, dunit, scale = terms[t]
+                v = getattr(c.noise, t)
+                s = c.sigma.get(t, float("nan"))
+                if t in c.present:
+                    lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {s / scale:10.2g}  "
+                                 f"{dunit:14s} yes")
+                else:
+                    up = c.fast.upper.get(t) if t in c.fast.upper else None
+                    if t in c.slow:
+                        up = c.slow[t]["value"] + 3 * (c.slow[t]["sigma"] if np.isfinite(c.slow[t]["sigma"]) else 0)
+                    bound = f"< {up / scale:.3g}" if up is not None and np.isfinite(up) else "-"
+                    lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {bound:>12s} {'':10s}  {dunit:14s} no")
+            if c.noise.bias_instability and c.noise.flicker_range:
+                lines.append(f"{c.name:8s} {'bi floor from':18s} {c.noise.flicker_range[0]:12.3g} {'':10s}  s")
+            for s_, T in c.noise.gauss_markov:
+                gu = TERMS[sensor_of(k)]["bias_instability"]
+                lines.append(f"{c.name:8s} {'gauss-markov':18s} {s_ / gu[3]:12.4g} {'':10s}  {gu[2]:14s} yes "
+                             f"(T = {T:.3g} s)")
+        return lines
+
+
+def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BASIC, bootstrap: int = 30,
+                   seed: int = 0, chunk_s: float = 1.0, slow: bool = True) -> NoiseIdentification:
+    """The composite noise of *data*'s six channels around the calibrated *model*
+    (components.model.result.CalibrationResult). ``known``: per channel (0-5) a dict of term ->
+    magnitude held (e.g. the quantization of a pulse output); ``terms``: the basic terms to look
+    for; ``slow``: run the whole-log likelihood stage for bias instability and random walk."""
+    from components.diagnosis.compare import compare
+    from components.estimation.lsq import calibrate
+
+    known = known or {}
+    comp = compare(data, model, noise=None)
+    dt = float(np.median(np.diff(data.time)))
+    runs = static_runs(comp.static)
+    if not runs:
+        raise ValueError("no static run of 8 samples or more: the noise cannot be identified from this "
+                         "log (give it with --noise NAME=VALUE)")
+    span = float(data.time[-1] - data.time[0] + dt)
+    fast = []
+    for k in range(6):
+        fast.append(identify_channel(comp.residual[:, k] / dt, runs, dt, terms=tuple(terms),
+                                     known=known.get(k), bootstrap=bootstrap, seed=seed + k))
+    chans = [f.noise for f in fast]
+    out_channels = []
+    notes = []
+    rows = None
+    if slow:
+        white = np.array([c.white for c in chans]) * math.sqrt(dt)
+        if np.all(white > 0):
+            fit = calibrate(data, list(model.effects), chunk_s=chunk_s, sigma_gyro=white[:3], sigma_acc=white[3:],
+                            temperature_ref=model.temperature_ref)
+            rows = fit.rows
+        else:
+            notes.append("no white-noise level on every channel: the slow terms were not estimated")
+    for k in range(6):
+        ch = chans[k]
+        report: dict = {}
+        sigma = dict(fast[k].sigma)
+        present = [t for t in fast[k].present if t in ("quantization", "white")]
+        if rows is not None:
+            idx = channel_rows(rows, k)
+            H = rows["H"][idx]
+            active = np.any(H != 0, axis=0)
+            y, Hc = rows["y"][idx], H[:, active]
+            durations = (rows["stop"][idx] - rows["start"][idx]) * dt
+            white_var = 1.0 / rows["weight"][idx] ** 2
+            slow_terms = [t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
+            base = replace(ch, bias_instability=0.0, random_walk=0.0, gauss_markov=())
+            ch, report = fit_slow_terms(base, y, Hc, durations, white_var, span, chunk_s, slow_terms)
+            for t in slow_terms:
+                sigma[t] = report[t]["sigma"]
+                if report[t]["present"]:
+                    present.append(t)
+        else:
+            present = list(fast[k].present)
+        out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
+    sig = {}
+    for k, c in enumerate(out_channels):
+        for t in c.present:
+            if t in TERMS[sensor_of(k)]:
+                sig[f"{TERMS[sensor_of(k)][t][0]}.{AXES[k % 3]}"] = c.sigma.get(t, float("nan"))
+    model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig)
+    return NoiseIdentification(model_out, out_channels, len(runs), notes)

@@ -1,0 +1,178 @@
+"""Identification of a channel's composite noise from its residual Allan variance.
+
+The Allan variance of the composite model is linear in the squared term magnitudes,
+
+    AVAR(τ) = 3Q²/τ² + N²/τ + (2 ln 2/π) B² + K² τ/3 (+ σ² g(τ/T) per Gauss–Markov term),
+
+so the squared magnitudes are fitted by non-negative weighted least squares to the pooled
+overlapping Allan variance (components.estimation.allan), each τ weighted by the inverse variance
+of its estimate, 2 AVAR² / edf, with AVAR the model's own value (iterated: weights from the data
+would favour the estimates that came out low). This is the generalized method of wavelet moments
+(Guerrier et al. 2013; the Haar wavelet variance is half the Allan variance) with a diagonal
+weight matrix. Plain slope fitting (reading N at τ = 1 s, B at the floor) is the baseline it is
+measured against (benchmarks/noise_identification.py).
+
+Neighbouring octaves' estimates are correlated, so the weighted fit's own covariance would
+understate the spread; the σ of each term is a parametric bootstrap instead: the fitted model
+simulated on the same static runs, its Allan variance refitted. A term is *present* when its
+magnitude exceeds three of its σ; otherwise it is reported absent with an upper bound (its value
+plus three σ). A Gauss–Markov term is tried where the basic terms leave a misfit larger than the
+bootstrap's 99 % quantile of the fit statistic.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import nnls
+from scipy.signal import lfilter
+
+from components.estimation.allan import ALPHA, AllanVariance, pooled_allan
+from components.model.flicker import FLICKER_AVAR, flicker_terms, gm_avar_unit
+from components.model.noise import ChannelNoise
+
+BASIC = ("quantization", "white", "bias_instability", "random_walk")
+PRESENT_SIGMAS = 3.0
+
+
+def basis(term: str, tau: np.ndarray) -> np.ndarray:
+    """Allan variance per unit squared magnitude of a basic term."""
+    tau = np.asarray(tau, float)
+    return {"quantization": 3.0 / tau**2, "white": 1.0 / tau, "bias_instability": np.full_like(tau, FLICKER_AVAR),
+            "random_walk": tau / 3.0}[term]
+
+
+@dataclass
+class ChannelFit:
+    """The identified noise of one channel."""
+
+    noise: ChannelNoise
+    sigma: dict                 # term -> σ of its magnitude (bootstrap)
+    present: list               # terms above three of their σ
+    upper: dict                 # absent term -> upper bound (value + 3 σ)
+    allan: AllanVariance
+    fit_statistic: float        # Σ w (AVAR − model)²
+    fit_p: float                # bootstrap p-value of that statistic under the fitted model
+    gm_tau: float | None = None
+    notes: list = field(default_factory=list)
+
+    def model_avar(self, tau) -> np.ndarray:
+        return self.noise.avar(tau)
+
+
+def _fit_squares(av: AllanVariance, terms: list[str], fixed: dict, gm_tau: float | None,
+                 iterations: int = 6) -> tuple[dict, float]:
+    """Squared magnitudes of *terms* (and of one GM term at *gm_tau*) fitted by iteratively
+    reweighted NNLS; *fixed*: squared magnitudes held."""
+    cols = [basis(t, av.tau) for t in terms]
+    if gm_tau is not None:
+        cols.append(gm_avar_unit(av.tau / gm_tau))
+    A = np.column_stack(cols) if cols else np.zeros((len(av.tau), 0))
+    base = sum((basis(t, av.tau) * v for t, v in fixed.items()), np.zeros(len(av.tau)))
+    target = av.avar - base
+    model = np.maximum(av.avar, 1e-300)
+    x = np.zeros(A.shape[1])
+    for _ in range(iterations):
+        w = np.sqrt(av.edf / 2.0) / model
+        if A.shape[1]:
+            x, _ = nnls(A * w[:, None], target * w, maxiter=50 * A.shape[1] + 100)
+        model = np.maximum(A @ x + base, 1e-300)
+    w = np.sqrt(av.edf / 2.0) / model
+    stat = float(np.sum((w * (av.avar - model)) ** 2))
+    out = dict(zip(terms, x[: len(terms)]))
+    if gm_tau is not None:
+        out["gauss_markov"] = float(x[-1])
+    return out, stat
+
+
+def _channel(squares: dict, gm_tau: float | None, flicker_range) -> ChannelNoise:
+    kw = {t: math.sqrt(max(squares.get(t, 0.0), 0.0)) for t in BASIC}
+    gm = ((math.sqrt(squares["gauss_markov"]), gm_tau),) if gm_tau and squares.get("gauss_markov", 0) > 0 else ()
+    return ChannelNoise(gauss_markov=gm, flicker_range=flicker_range, **kw)
+
+
+def simulate_rate(ch: ChannelNoise, n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
+    """A record of *n* per-sample mean rates of the composite noise *ch* (for the bootstrap and
+    the tests): white, quantization as the difference of i.i.d. remainders, random walk,
+    Gauss–Markov terms and the flicker floor as its GM sum over [dt, n dt]."""
+    r = ch.white / math.sqrt(dt) * rng.standard_normal(n)
+    if ch.quantization:
+        q = ch.quantization * math.sqrt(12.0) * (rng.random(n + 1) - 0.5)
+        r += np.diff(q) / dt
+    if ch.random_walk:
+        r += np.cumsum(ch.random_walk * math.sqrt(dt) * rng.standard_normal(n)) \
+            + ch.random_walk * math.sqrt(n * dt) * rng.standard_normal()
+    terms = list(ch.gauss_markov)
+    if ch.bias_instability:
+        lo, hi = ch.flicker_range or (None, None)
+        lo = 2 * dt if lo is None else lo
+        hi = max(n * dt, 2 * lo) if hi is None else hi
+        terms += flicker_terms(ch.bias_instability, lo, hi)
+    for s, T in terms:
+        phi = math.exp(-dt / T)
+        e = s * math.sqrt(1 - phi**2) * rng.standard_normal(n)
+        e[0] = s * rng.standard_normal()
+        r += lfilter([1.0], [1.0, -phi], e)
+    return r
+
+
+def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *,
+                     terms: tuple = BASIC, known: dict | None = None, bootstrap: int = 30,
+                     seed: int = 0, flicker_range=None) -> ChannelFit:
+    """The composite noise of one channel from its residual *rate* (per-sample mean, e.g.
+    increment / dt) on the static *runs*. ``terms``: the basic terms to fit; ``known``: term ->
+    magnitude held (e.g. the quantization of a pulse output from its count weight)."""
+    known = dict(known or {})
+    free = [t for t in terms if t not in known]
+    fixed = {t: v**2 for t, v in known.items()}
+    av = pooled_allan(rate, runs, dt)
+    squares, stat = _fit_squares(av, free, fixed, None)
+    # degrees of freedom with the noise type that dominates at each τ under the first fit
+    ch0 = _channel({**squares, **fixed}, None, flicker_range)
+
+    def alpha_of(tau):
+        parts = np.array([basis(t, tau) * getattr(ch0, t) ** 2 for t in BASIC])
+        return np.array([ALPHA[BASIC[i]] for i in np.argmax(parts, axis=0)])
+
+    av = pooled_allan(rate, runs, dt, alpha_of)
+    squares, stat = _fit_squares(av, free, fixed, None)
+    rng = np.random.default_rng(seed)
+    n = max(b for _, b in runs)
+
+    def boot(ch: ChannelNoise, gm_tau):
+        vals, stats_ = [], []
+        for _ in range(bootstrap):
+            sim = simulate_rate(ch, n, dt, rng)
+            bav = pooled_allan(sim, runs, dt, alpha_of)
+            sq, st = _fit_squares(bav, free, fixed, gm_tau)
+            vals.append({k: math.sqrt(max(v, 0.0)) for k, v in sq.items()})
+            stats_.append(st)
+        return vals, np.array(stats_)
+
+    gm_tau = None
+    ch = _channel({**squares, **fixed}, None, flicker_range)
+    vals, stats_ = boot(ch, None)
+    p = float(np.mean(stats_ >= stat)) if bootstrap else float("nan")
+    notes = []
+    if bootstrap and p < 0.01 and len(av.tau) >= 5:
+        # a bump the basic terms cannot follow: one Gauss–Markov term, its time constant on a grid
+        best = None
+        for T in np.geomspace(av.tau[0] * 2, av.tau[-1], 16):
+            sq, st = _fit_squares(av, free, fixed, float(T))
+            if best is None or st < best[2]:
+                best = (float(T), sq, st)
+        if best is not None and best[1].get("gauss_markov", 0) > 0 and best[2] < stat:
+            gm_tau, squares, stat = best
+            ch = _channel({**squares, **fixed}, gm_tau, flicker_range)
+            vals, stats_ = boot(ch, gm_tau)
+            p = float(np.mean(stats_ >= stat))
+            notes.append(f"a Gauss–Markov term (T = {gm_tau:.3g} s) where the basic terms left a misfit")
+    sigma = {k: float(np.std([v.get(k, 0.0) for v in vals], ddof=1)) if bootstrap > 1 else float("nan")
+             for k in list(free) + (["gauss_markov"] if gm_tau else [])}
+    value = {k: math.sqrt(max(v, 0.0)) for k, v in squares.items()}
+    present = [k for k in sigma if value.get(k, 0.0) > PRESENT_SIGMAS * sigma[k]] + list(known)
+    upper = {k: value.get(k, 0.0) + PRESENT_SIGMAS * sigma[k] for k in sigma if k not in present}
+    kept = {k: (v**2 if k in present else 0.0) for k, v in value.items()}
+    final = _channel({**kept, **fixed}, gm_tau if "gauss_markov" in present else None, flicker_range)
+    return ChannelFit(final, sigma, present, upper, av, stat, p, gm_tau if "gauss_markov" in present else None, notes)

@@ -1,0 +1,73 @@
+"""Whitening of the observation rows under a coloured noise model: generalised least squares
+at a cost linear in the log's length.
+
+The block sums of one channel, in time order, are y_k = h_k θ + e_k with e_k correlated through
+the noise terms' states at the block boundaries (components.model.noise.BlockNoise). The
+Kalman filter of that state-space model turns them into innovations ν_k with variances S_k;
+ν_k / √S_k = (L⁻¹ y)_k for the Cholesky factor L of their covariance in time order, so applying
+the same (data-independent) filter to y and to every column of H gives the whitened rows whose
+ordinary least squares is the GLS estimate, whose Hᵀ H is the Fisher information and whose sum
+of squares is χ². Channels are independent. With white noise the filter is the division by the
+block's σ that the estimators have always done (the same bits).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from components.model.noise import BlockNoise, NoiseModel, block_noise
+
+
+def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.ndarray]:
+    """Whitened rows (B, k) of *values* (B, k) in block order, and the innovation variances (B,)."""
+    values = np.asarray(values, float)
+    if bn.states == 0:
+        w = 1.0 / np.sqrt(bn.r)
+        return values * w[:, None], bn.r.copy()
+    nb, m = bn.c.shape
+    out = np.empty_like(values)
+    S_all = np.empty(nb)
+    P = np.diag(bn.p0)
+    x = np.zeros((m, values.shape[1]))
+    for k in range(nb):
+        c = bn.c[k]
+        Pc = P @ c
+        S = float(c @ Pc) + bn.r[k]
+        nu = values[k] - c @ x
+        g = (bn.phi[k] * Pc + bn.cross[k]) / S
+        out[k] = nu / math.sqrt(S)
+        S_all[k] = S
+        x = bn.phi[k][:, None] * x + np.outer(g, nu)
+        P = bn.phi[k][:, None] * P * bn.phi[k][None, :] + np.diag(bn.q[k]) - S * np.outer(g, g)
+        P = 0.5 * (P + P.T)
+    return out, S_all
+
+
+def channel_rows(rows: dict, channel: int) -> np.ndarray:
+    """Indices of one channel's rows (0-2 gyro, 3-5 accelerometer), in block order."""
+    sensor = "gyro" if channel < 3 else "acc"
+    return np.nonzero((rows["sensor"] == sensor) & (rows["axis"] == channel % 3))[0]
+
+
+def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, noise: NoiseModel | None,
+           dt: float, span: float, t_lo: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(whitened y, whitened H, innovation variance per row) of the design's rows.
+    ``white_var``: each row's variance from white noise and rest angles; ``noise``: the coloured
+    terms (None or white: only ``white_var``); ``dt`` [s] the sample interval, ``span`` [s] the
+    log's duration, ``t_lo`` [s] the shortest time scale the flicker floor is realised from."""
+    if noise is None or not noise.coloured:
+        w = 1.0 / np.sqrt(white_var)
+        return y * w, H * w[:, None], np.asarray(white_var, float).copy()
+    yw = np.empty_like(y, dtype=float)
+    Hw = np.empty_like(H, dtype=float)
+    S = np.empty(len(y))
+    for ch in range(6):
+        idx = channel_rows(rows, ch)
+        if len(idx) == 0:
+            continue
+        durations = (rows["stop"][idx] - rows["start"][idx]) * dt
+        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo)
+        vals, s = whiten_channel(np.column_stack([y[idx], H[idx]]), bn)
+        yw[idx], Hw[idx], S[idx] = vals[:, 0], vals[:, 1:], s
+    return yw, Hw, S

@@ -1,0 +1,295 @@
+"""The noise of an IMU channel as a composite of the IEEE Std 952 / 1554 terms, and its exact
+discrete form on the estimators' observation blocks.
+
+Per channel (gyro x, y, z; accelerometer x, y, z), in SI and rate units (rad/s, m/s²):
+
+| term | symbol | unit (gyro / acc) | Allan variance at τ |
+|---|---|---|---|
+| quantization | Q | rad / m/s | 3 Q² / τ² |
+| white noise (ARW / VRW) | N | rad/√s / m/s/√s | N² / τ |
+| bias instability (flicker floor) | B | rad/s / m/s² | (2 ln 2 / π) B² |
+| rate / acceleration random walk | K | rad/s/√s / m/s²/√s | K² τ / 3 |
+| Gauss–Markov (σ, T) | | rad/s / m/s², s | σ² g(τ/T) |
+
+A linear drift is not noise here: it is the effect ``*.drift`` of the vocabulary.
+
+The estimators see block sums of increments over [t_k, t_k + Δ_k] (components.estimation.blocks).
+Over a block each term has an exact discrete form with a state at the block boundary:
+
+- Gauss–Markov x (the flicker floor as a sum of them, components.model.flicker): x' = φ x + w,
+  ∫x = T (1 − φ) x + v, φ = e^(−Δ/T), var w = σ² (1 − φ²), var v = σ² T [2Δ − T (3 − 4φ + φ²)],
+  cov(w, v) = σ² T (1 − φ)².
+- random walk b: b' = b + w, ∫b = Δ b + v, var w = K² Δ, var v = K² Δ³ / 3, cov(w, v) = K² Δ² / 2.
+- quantization: a pulse output carries the remainder r (|r| ≤ one count w / 2), so a block sum is
+  the true sum + r_start − r_end; r at each boundary is a state with var Q² = w² / 12 (no memory).
+- white: N² Δ, independent per block.
+
+All transitions are diagonal (the terms are independent), which keeps the whitening filter
+(components.estimation.whitening) to a few vector operations per block.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from components.model.effects import DEG, DEG_H, UG
+from components.model.flicker import FLICKER_AVAR, flicker_terms, gm_avar
+
+CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
+AXES = "xyz"
+# term -> (name in the vocabulary per sensor, SI unit, display unit, SI per display unit)
+TERMS = {
+    "gyro": {"quantization": ("gyro.noise.q", "rad", "arcsec", DEG / 3600),
+             "white": ("gyro.noise.arw", "rad/sqrt(s)", "deg/sqrt(h)", DEG / 60),
+             "bias_instability": ("gyro.noise.bi", "rad/s", "deg/h", DEG_H),
+             "random_walk": ("gyro.noise.rrw", "rad/s/sqrt(s)", "deg/h/sqrt(h)", DEG_H / 60)},
+    "acc": {"quantization": ("acc.noise.q", "m/s", "mm/s", 1e-3),
+            "white": ("acc.noise.vrw", "m/s/sqrt(s)", "ug/sqrt(Hz)", UG),
+            "bias_instability": ("acc.noise.bi", "m/s2", "ug", UG),
+            "random_walk": ("acc.noise.rrw", "m/s2/sqrt(s)", "ug/sqrt(h)", UG / 60)},
+}
+GM_UNITS = {"gyro": ("rad/s", "deg/h", DEG_H), "acc": ("m/s2", "ug", UG)}
+FORMAT = "calbench-noise/1"
+
+
+def sensor_of(channel: int) -> str:
+    return "gyro" if channel < 3 else "acc"
+
+
+@dataclass(frozen=True)
+class ChannelNoise:
+    """The composite noise of one channel (SI, rate units; see the module docstring)."""
+
+    white: float = 0.0
+    quantization: float = 0.0
+    bias_instability: float = 0.0
+    random_walk: float = 0.0
+    gauss_markov: tuple = ()          # ((σ, T), ...)
+    flicker_range: tuple | None = None  # (T_lo, T_hi) of the bias instability; None: the log's;
+    #                                     T_hi None: up to the log's duration
+
+    @property
+    def coloured(self) -> bool:
+        """Anything but white noise: the block sums are correlated (or, for quantization, their
+        variance is not the white one)."""
+        return bool(self.quantization or self.bias_instability or self.random_walk or self.gauss_markov)
+
+    def avar(self, tau) -> np.ndarray:
+        """Allan variance at averaging times *tau* [s] (the flicker floor taken flat)."""
+        tau = np.asarray(tau, float)
+        a = 3 * self.quantization**2 / tau**2 + self.white**2 / tau + FLICKER_AVAR * self.bias_instability**2 \
+            + self.random_walk**2 * tau / 3
+        for s, T in self.gauss_markov:
+            a = a + gm_avar(s, T, tau)
+        return a
+
+    def gm_terms(self, t_lo: float, t_hi: float) -> list[tuple[float, float]]:
+        """Every Gauss–Markov term: the explicit ones and the flicker floor realised over its own
+        range or, without one, over [t_lo, t_hi] (the time scales a log can show)."""
+        out = [(float(s), float(T)) for s, T in self.gauss_markov if s > 0]
+        if self.bias_instability > 0:
+            lo, hi = self.flicker_range or (t_lo, t_hi)
+            lo = t_lo if lo is None else lo
+            hi = max(t_hi, 2 * lo) if hi is None else hi
+            out += flicker_terms(self.bias_instability, lo, hi)
+        return out
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Six channels' noise, and how it was obtained (``source``) with a σ per identified term."""
+
+    channels: tuple
+    source: str = ""
+    sigmas: dict = field(default_factory=dict)
+
+    @property
+    def coloured(self) -> bool:
+        return any(c.coloured for c in self.channels)
+
+    @classmethod
+    def white(cls, sigma_per_sample, dt: float, source: str = "white noise") -> "NoiseModel":
+        """White noise only, from a per-sample σ of the increments (6,) and the sample interval."""
+        s = np.broadcast_to(np.asarray(sigma_per_sample, float), (6,))
+        return cls(tuple(ChannelNoise(white=float(x) / math.sqrt(dt)) for x in s), source)
+
+    @classmethod
+    def per_sensor(cls, gyro: dict | None = None, acc: dict | None = None, source: str = "given") -> "NoiseModel":
+        """The same terms on the three axes of a sensor: ``{"white": N, "bias_instability": B, ...}``."""
+        g, a = ChannelNoise(**(gyro or {})), ChannelNoise(**(acc or {}))
+        return cls((g, g, g, a, a, a), source)
+
+    def white_sigma(self, dt: float) -> np.ndarray:
+        """Per-sample white σ of the increments (6,)."""
+        return np.array([c.white for c in self.channels]) * math.sqrt(dt)
+
+    def with_channel(self, k: int, ch: ChannelNoise) -> "NoiseModel":
+        chans = list(self.channels)
+        chans[k] = ch
+        return replace(self, channels=tuple(chans))
+
+    # ------------------------------------------------------------------ file form
+    def to_dict(self) -> dict:
+        """The result file's ``noise`` block: per channel the terms present, SI value, unit and the
+        readable value; σ of identified terms."""
+        out = {"format": FORMAT, "source": self.source, "channels": {}}
+        for k, (name, ch) in enumerate(zip(CHANNELS, self.channels)):
+            sensor = sensor_of(k)
+            d = {}
+            for term, (vname, unit, dunit, scale) in TERMS[sensor].items():
+                v = getattr(ch, term)
+                if v:
+                    pname = f"{vname}.{AXES[k % 3]}"
+                    d[term] = {"value": v, "unit": unit, "display": [v / scale, dunit]}
+                    if pname in self.sigmas:
+                        d[term]["sigma"] = self.sigmas[pname]
+            if ch.gauss_markov:
+                gu, gd, gs = GM_UNITS[sensor]
+                d["gauss_markov"] = [{"sigma": s, "tau_s": T, "unit": gu, "display": [s / gs, gd]}
+                                     for s, T in ch.gauss_markov]
+            if ch.flicker_range and ch.bias_instability:
+                d["flicker_range_s"] = list(ch.flicker_range)
+            out["channels"][name] = d
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "NoiseModel":
+        chans = []
+        for name in CHANNELS:
+            c = d.get("channels", {}).get(name, {})
+            kw = {t: float(c[t]["value"]) for t in ("white", "quantization", "bias_instability", "random_walk")
+                  if t in c}
+            gm = tuple((float(g["sigma"]), float(g["tau_s"])) for g in c.get("gauss_markov", []))
+            fr = tuple(c["flicker_range_s"]) if "flicker_range_s" in c else None
+            chans.append(ChannelNoise(gauss_markov=gm, flicker_range=fr, **kw))
+        sig = {}
+        for k, name in enumerate(CHANNELS):
+            for term, (vname, *_rest) in TERMS[sensor_of(k)].items():
+                s = d.get("channels", {}).get(name, {}).get(term, {}).get("sigma")
+                if s is not None:
+                    sig[f"{vname}.{AXES[k % 3]}"] = float(s)
+        return cls(tuple(chans), d.get("source", ""), sig)
+
+
+# FMU noise parameter / --noise name -> ChannelNoise field
+TERM_OF_NAME = {"arw": "white", "vrw": "white", "q": "quantization", "bi": "bias_instability",
+                "rrw": "random_walk"}
+
+
+def from_terms(terms: dict, base: NoiseModel | None = None, source: str = "given") -> NoiseModel:
+    """A model from named terms in SI, ``{"gyro.noise.arw": N, "acc.noise.bi.y": B, ...}`` (a name
+    without an axis sets all three), on top of *base* (default: no noise)."""
+    chans = list(base.channels) if base is not None else [ChannelNoise()] * 6
+    for name, v in terms.items():
+        parts = name.split(".")
+        if len(parts) not in (3, 4) or parts[0] not in ("gyro", "acc") or parts[1] != "noise" \
+                or parts[2] not in TERM_OF_NAME or (len(parts) == 4 and parts[3] not in AXES):
+            raise ValueError(f"noise term {name!r}: expected <gyro|acc>.noise.<arw|vrw|q|bi|rrw>[.x|.y|.z]")
+        if (parts[0] == "gyro") != (parts[2] != "vrw") and parts[2] in ("arw", "vrw"):
+            raise ValueError(f"noise term {name!r}: the gyro's white noise is 'arw', the accelerometer's 'vrw'")
+        off = 0 if parts[0] == "gyro" else 3
+        axes = [AXES.index(parts[3])] if len(parts) == 4 else [0, 1, 2]
+        for a in axes:
+            chans[off + a] = replace(chans[off + a], **{TERM_OF_NAME[parts[2]]: float(v)})
+    return NoiseModel(tuple(chans), source)
+
+
+def from_fmu_parameters(noise: dict, gyro_count: float | None = None, acc_count: float | None = None,
+                        source: str = "injected") -> NoiseModel:
+    """The model of what the IMU FMU simulates from its noise parameters (SI, the scenario's
+    ``[imu.noise]`` names): white ``*.noise.arw|vrw``; bias instability ``*.noise.bi`` as one
+    Gauss–Markov term of correlation time ``bi_tau`` (σ = B · 0.664282 / 0.617364, its ADEV peak
+    at the flicker floor), or, with ``bi_tau_max`` > ``bi_tau``, the flicker floor realised
+    between them; random walk ``*.noise.rrw``; quantization of a pulse output of count weight
+    w: Q = w / √12."""
+    chans = []
+    for sensor, white, count in (("gyro", "arw", gyro_count), ("acc", "vrw", acc_count)):
+        B = float(noise.get(f"{sensor}.noise.bi", 0.0))
+        tau = float(noise.get(f"{sensor}.noise.bi_tau", 100.0))
+        tau_max = float(noise.get(f"{sensor}.noise.bi_tau_max", 0.0))
+        kw = {"white": float(noise.get(f"{sensor}.noise.{white}", 0.0)),
+              "random_walk": float(noise.get(f"{sensor}.noise.rrw", 0.0)),
+              "quantization": float(count) / math.sqrt(12.0) if count else 0.0}
+        if B > 0 and tau_max > tau:
+            kw.update(bias_instability=B, flicker_range=(tau, tau_max))
+        elif B > 0:
+            kw["gauss_markov"] = ((B * 0.664282 / 0.617364, tau),)
+        chans += [ChannelNoise(**kw)] * 3
+    return NoiseModel(tuple(chans), source)
+
+
+def grade(name: str) -> NoiseModel:
+    """The noise of a typical IMU grade (a navigation-grade ring-laser or fibre-optic gyro with
+    servo accelerometers; tactical grade 100 times noisier): white noise, bias instability and
+    random walk on every axis."""
+    k = {"navigation": 1.0, "tactical": 100.0}[name]
+    gyro = {"white": k * 0.002 * DEG / 60, "bias_instability": k * 0.003 * DEG_H,
+            "random_walk": k * 0.0003 * DEG_H / 60}
+    acc = {"white": k * 10 * UG, "bias_instability": k * 10 * UG, "random_walk": k * 1 * UG / 60}
+    return NoiseModel.per_sensor(gyro, acc, source=f"{name} grade")
+
+
+# ---------------------------------------------------------------------- discrete form on blocks
+@dataclass
+class BlockNoise:
+    """One channel's noise on a sequence of contiguous blocks: the boundary state's diagonal
+    transition ``phi`` (B, m) and process variance ``q`` (B, m), the block sum's loading ``c``
+    (B, m), its cross-covariance with the process noise ``cross`` (B, m), the rest of its variance
+    ``r`` (B,), and the state's initial variance ``p0`` (m,)."""
+
+    phi: np.ndarray
+    q: np.ndarray
+    c: np.ndarray
+    cross: np.ndarray
+    r: np.ndarray
+    p0: np.ndarray
+
+    @property
+    def states(self) -> int:
+        return self.p0.shape[0]
+
+
+def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, span: float,
+                t_lo: float) -> BlockNoise:
+    """The discrete form of *ch* on blocks of *durations* [s] (contiguous, in time order).
+    ``white_var`` (B,): the block sums' variance from white noise and anything else independent
+    per block (rest angles); ``span`` [s]: the log's duration (the flicker floor is realised up to
+    it and the random walk's starting value has that much wander); ``t_lo`` [s]: the shortest
+    time scale the flicker floor is realised from."""
+    d = np.asarray(durations, float)
+    nb = len(d)
+    cols_phi, cols_q, cols_c, cols_x, p0 = [], [], [], [], []
+    rest = np.asarray(white_var, float).copy()
+    for s, T in ch.gm_terms(t_lo, max(span, 2 * t_lo)):
+        phi = np.exp(-d / T)
+        cols_phi.append(phi)
+        cols_q.append(s**2 * (1 - phi**2))
+        cols_c.append(T * (1 - phi))
+        cols_x.append(s**2 * T * (1 - phi) ** 2)
+        rest += s**2 * T * (2 * d - T * (3 - 4 * phi + phi**2))
+        p0.append(s**2)
+    K = ch.random_walk
+    if K > 0:
+        cols_phi.append(np.ones(nb))
+        cols_q.append(K**2 * d)
+        cols_c.append(d.copy())
+        cols_x.append(K**2 * d**2 / 2)
+        rest += K**2 * d**3 / 3
+        p0.append(K**2 * max(span, 1.0))
+    Q = ch.quantization
+    if Q > 0:
+        # the state is the remainder at the block's start; the new one (at its end) is the next
+        # state's process noise and enters this block's sum with the opposite sign
+        cols_phi.append(np.zeros(nb))
+        cols_q.append(np.full(nb, Q**2))
+        cols_c.append(np.ones(nb))
+        cols_x.append(np.full(nb, -(Q**2)))
+        rest += Q**2
+        p0.append(Q**2)
+
+    def stack(cols):
+        return np.column_stack(cols) if cols else np.zeros((nb, 0))
+
+    return BlockNoise(stack(cols_phi), stack(cols_q), stack(cols_c), stack(cols_x), rest, np.array(p0, float))

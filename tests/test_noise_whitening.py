@@ -1,0 +1,79 @@
+"""The whitening filter against an independent computation: the dense covariance of the block
+sums written from the continuous-time noise model (double integrals of each term's covariance
+function), whitened by its Cholesky factor. The Kalman filter's output must be L⁻¹ y."""
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import cholesky, solve_triangular
+
+from components.estimation.whitening import whiten_channel
+from components.model.noise import ChannelNoise, block_noise
+
+
+def dense_covariance(ch: ChannelNoise, edges: np.ndarray, white_var: np.ndarray, span: float, t_lo: float):
+    """Covariance of the block sums ∫ e dt over [edges[k], edges[k+1]] from the covariance functions:
+    GM σ² e^(−|t−s|/T) (stationary), random walk P0 + K² min(s, t) (time from edges[0]),
+    quantization r_k − r_(k+1) with var r = Q², white on the diagonal."""
+    a, b = edges[:-1] - edges[0], edges[1:] - edges[0]
+    d = b - a
+    n = len(d)
+    C = np.diag(np.asarray(white_var, float)).copy()
+    for s, T in ch.gm_terms(t_lo, max(span, 2 * t_lo)):
+        for k in range(n):
+            C[k, k] += 2 * s**2 * T * (d[k] - T * (1 - math.exp(-d[k] / T)))
+            for m in range(k + 1, n):
+                v = s**2 * T**2 * (1 - math.exp(-d[k] / T)) * (1 - math.exp(-d[m] / T)) * math.exp(-(a[m] - b[k]) / T)
+                C[k, m] += v
+                C[m, k] += v
+    K = ch.random_walk
+    if K > 0:
+        P0 = K**2 * max(span, 1.0)
+        for k in range(n):
+            C[k, k] += P0 * d[k] ** 2 + K**2 * (a[k] * d[k] ** 2 + d[k] ** 3 / 3)
+            for m in range(k + 1, n):
+                v = P0 * d[k] * d[m] + K**2 * (b[k] ** 2 - a[k] ** 2) / 2 * d[m]
+                C[k, m] += v
+                C[m, k] += v
+    Q = ch.quantization
+    if Q > 0:
+        C[np.arange(n), np.arange(n)] += 2 * Q**2
+        C[np.arange(n - 1), np.arange(1, n)] -= Q**2
+        C[np.arange(1, n), np.arange(n - 1)] -= Q**2
+    return C
+
+
+CASES = {
+    "gauss-markov": ChannelNoise(white=1e-3, gauss_markov=((2e-3, 30.0), (1e-3, 400.0))),
+    "flicker": ChannelNoise(white=1e-3, bias_instability=1e-3),
+    "random walk": ChannelNoise(white=1e-3, random_walk=1e-4),
+    "quantization": ChannelNoise(white=1e-4, quantization=2e-3),
+    "all": ChannelNoise(white=1e-3, quantization=1e-3, bias_instability=5e-4, random_walk=5e-5,
+                        gauss_markov=((1e-3, 60.0),)),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_filter_equals_cholesky_whitening(name):
+    ch = CASES[name]
+    rng = np.random.default_rng(4)
+    d = rng.choice([1.0, 1.0, 1.0, 3.7, 0.6], size=120)   # static chunks and moves of other lengths
+    edges = np.concatenate([[0.0], np.cumsum(d)])
+    white_var = ch.white**2 * d + rng.uniform(0, 1e-7, len(d))
+    span, t_lo = float(edges[-1]), 1.0
+    C = dense_covariance(ch, edges, white_var, span, t_lo)
+    L = cholesky(C, lower=True)
+    Y = rng.standard_normal((len(d), 3))
+    expected = solve_triangular(L, Y, lower=True)
+    got, S = whiten_channel(Y, block_noise(ch, d, white_var, span, t_lo))
+    np.testing.assert_allclose(got, expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
+    # the innovation variances are the squared diagonal of L: the log-determinant of C
+    assert np.sum(np.log(S)) == pytest.approx(2 * np.sum(np.log(np.diag(L))), rel=1e-9)
+
+
+def test_white_noise_is_the_division_by_sigma_bit_for_bit():
+    d = np.full(50, 1.0)
+    var = np.linspace(1e-6, 2e-6, 50)
+    Y = np.random.default_rng(1).standard_normal((50, 2))
+    got, _ = whiten_channel(Y, block_noise(ChannelNoise(white=1e-3), d, var, 50.0, 1.0))
+    assert np.array_equal(got, Y * (1.0 / np.sqrt(var))[:, None])
