@@ -13,7 +13,7 @@ import importlib
 import sys
 
 # in the order the commands appear in --help
-COMMAND_MODULES = ("cosim", "simulation", "calibration", "diagnosis", "planning", "procedures", "navigation",
+COMMAND_MODULES = ("cosim", "simulation", "calibration", "diagnosis", "noise", "planning", "procedures", "navigation",
                    "campaign", "demo")
 
 

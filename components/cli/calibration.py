@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from components.cli import noise_option
+
 
 def _print_result(res) -> None:
     from components.model.effects import effect_of
@@ -20,6 +22,7 @@ def _print_result(res) -> None:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
     from components.estimation.log_data import LogData
     from components.estimation.lsq import calibrate
@@ -33,7 +36,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         raise UserError(f"--effects: {e}") from None
     log = read_log(args.log)
     data = LogData.from_log(log)
-    fit = calibrate(data, effects, chunk_s=args.chunk)
+    noise, said, _ = choose_noise(args.noise, data, effects=effects)
+    print(f"noise: {said}")
+    fit = calibrate(data, effects, chunk_s=args.chunk, noise=noise)
     res = result_from_fit(fit, effects, data, log)
     res.save(args.out)
     _print_result(res)
@@ -62,6 +67,7 @@ def register(sub) -> None:
     c.add_argument("--effects", help="comma list of effects (default: bias, scale factor and "
                                      "misalignment of gyro and accelerometer)")
     c.add_argument("--chunk", type=float, default=1.0, help="static block length [s]")
+    noise_option.add(c)
     c.set_defaults(func=_cmd_calibrate)
 
     a = sub.add_parser("apply", help="correct a raw log with a calibration result")

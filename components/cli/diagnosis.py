@@ -6,6 +6,8 @@ import argparse
 
 import numpy as np
 
+from components.cli import noise_option
+
 
 def _load_model(path: str):
     from components.model.result import CalibrationResult
@@ -13,8 +15,9 @@ def _load_model(path: str):
     return CalibrationResult.load(path)
 
 
-def _print_comparison(c) -> None:
-    print(f"chi2/dof (block sums against the white-noise level) = {c.chi2_per_dof:.3f} "
+def _print_comparison(c, coloured: bool = False) -> None:
+    against = "whitened with the noise model" if coloured else "against the white-noise level"
+    print(f"chi2/dof (block sums {against}) = {c.chi2_per_dof:.3f} "
           f"({c.dof} dof, 1 ± {(2 / max(c.dof, 1)) ** 0.5:.3f} for a correct model)")
     print(f"{'channel':8s} {'rms':>11s} {'noise':>11s} {'rms/noise':>9s} {'chi2/dof':>9s} "
           f"{'fit %':>9s} {'white p':>8s}")
@@ -32,6 +35,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     import json
 
     from components.diagnosis.compare import compare
+    from components.diagnosis.noise_choice import choose_noise
     from components.diagnosis.residual_export import write_residuals
     from components.estimation.log_data import LogData
     from components.logs.logfile import read_log
@@ -44,13 +48,18 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         from components.diagnosis.compare import assess
         from components.simulation.replay import replay_imu
 
+        noise, said, _ = choose_noise(args.noise, data)
+        print(f"noise: {said}")
         motion = data.motion(data.geometry)
-        c = assess(data, data.geometry, motion, replay_imu(data, args.model, motion))
+        c = assess(data, data.geometry, motion, replay_imu(data, args.model, motion), noise=noise)
         print(f"model: the IMU unit of {args.model}, replayed on the log's motion")
     else:
         model = _load_model(args.model)
-        c = compare(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0)
-    _print_comparison(c)
+        noise, said, _ = choose_noise(args.noise, data, model)
+        print(f"noise: {said}")
+        c = compare(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0,
+                    noise=noise)
+    _print_comparison(c, noise is not None and noise.coloured)
     if args.servo is not None:
         _print_servo(log, None if args.servo == "builtin" else args.servo)
     if args.json:
@@ -80,7 +89,9 @@ def _print_servo(log, system_file) -> None:
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     import json
 
-    from components.diagnosis.diagnose import diagnose
+    from components.diagnosis.diagnose import NOISE_CANDIDATES, diagnose
+    from components.diagnosis.noise_choice import choose_noise
+    from components.errors import UserError
     from components.estimation.log_data import LogData
     from components.logs.logfile import read_log
     from components.model.effects import EFFECTS, parse_effects
@@ -88,22 +99,42 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     log = read_log(args.log)
     data = LogData.from_log(log)
     model = _load_model(args.model)
-    cands = parse_effects(args.candidates) if args.candidates else None
-    d = diagnose(data, model, candidates=cands, alpha=args.alpha)
+    cands = None
+    if args.candidates:
+        names = [c.strip() for c in args.candidates.split(",") if c.strip()]
+        noise_names = [c for c in names if c in NOISE_CANDIDATES]
+        try:
+            cands = parse_effects(",".join(c for c in names if c not in NOISE_CANDIDATES)) + noise_names
+        except ValueError as e:
+            raise UserError(f"--candidates: {e} (noise terms: {', '.join(NOISE_CANDIDATES)})") from None
+    noise, said, _ = choose_noise(args.noise, data, model)
+    print(f"noise: {said}")
+    d = diagnose(data, model, candidates=cands, alpha=args.alpha, noise=noise)
     print(f"model: {', '.join(model.effects)}; chi2/dof = {d.base_chi2_per_dof:.3f} over {d.rows} block rows")
-    print(f"{'rank':4s} {'effect':16s} {'F':>10s} {'p (Holm)':>10s} {'dBIC':>10s} {'explains':>8s}  magnitude")
+    print(f"{'rank':4s} {'effect':16s} {'F':>10s} {'p (Holm)':>10s} {'dBIC':>10s} {'explains':>8s}  magnitude"
+          "  [95 % detection threshold]")
     for i, c in enumerate(d.ranking[: args.top], 1):
         e = EFFECTS[c.effect]
         unit, scale = e.display
         best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))
         mag = f"{best[0]} = {best[1][0] / scale:+.4g} ± {best[1][1] / scale:.2g} {unit}"
+        thr = c.threshold.get(best[0])
         mark = "*" if c.passes else " "
         print(f"{i:3d}{mark} {c.effect:16s} {c.statistic:10.3g} {c.p_adjusted:10.2g} {c.bic_delta:10.4g} "
-              f"{100 * c.explained_fraction:7.1f}%  {mag}")
+              f"{100 * c.explained_fraction:7.1f}%  {mag}" + (f"  [{thr / scale:.2g}]" if thr else ""))
         for other, rho, advice in c.indistinguishable:
             print(f"       cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+    if d.noise_candidates:
+        print("noise terms the model lacks (maximum likelihood on the same rows):")
+        for n in d.noise_candidates:
+            print(f"     {n['term']:16s} log-likelihood gain {n['loglik_gain']:9.2f}  (Akaike {n['aic_gain']:+.1f})"
+                  f"  {'significant' if n['significant'] else 'not significant'}")
     if d.verdict is None:
-        print("verdict: no significant effect is missing")
+        print("verdict: no significant effect is missing and the noise model suffices")
+    elif d.verdict_kind == "noise":
+        print(f"verdict: the noise model is too simple: {d.verdict} explains the residual better than any "
+              "effect (a stochastic term, not a missing effect; add it with `calbench add --effect "
+              f"{d.verdict}`)" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
     else:
         print(f"verdict: {d.verdict} is missing" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
     if args.json:
@@ -114,7 +145,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 def _cmd_add(args: argparse.Namespace) -> int:
     from components.diagnosis.compare import compare
+    from components.diagnosis.diagnose import NOISE_CANDIDATES
     from components.diagnosis.ladder import ladder_entry, ladder_lines
+    from components.diagnosis.noise_choice import choose_noise
+    from components.diagnosis.noise_id import add_noise_terms
     from components.errors import UserError
     from components.estimation.log_data import LogData
     from components.estimation.lsq import calibrate
@@ -125,18 +159,28 @@ def _cmd_add(args: argparse.Namespace) -> int:
     log = read_log(args.log)
     data = LogData.from_log(log)
     model = _load_model(args.model)
+    names = [c.strip() for c in args.effect.split(",") if c.strip()]
+    noise_terms = [c for c in names if c in NOISE_CANDIDATES]
     try:
-        new = parse_effects(args.effect)
+        new = parse_effects(",".join(c for c in names if c not in NOISE_CANDIDATES)) if len(noise_terms) < len(names) else []
     except ValueError as e:
-        raise UserError(f"--effect: {e}") from None
+        raise UserError(f"--effect: {e} (noise terms: {', '.join(NOISE_CANDIDATES)})") from None
+    noise, said, _ = choose_noise(args.noise, data, model)
+    print(f"noise: {said}")
     effects = list(dict.fromkeys(list(model.effects) + new))
     ladder = list(model.extra.get("ladder", []))
     if not ladder:
-        ladder.append(ladder_entry(compare(data, model, fitted_parameters=len(model.values)), model.effects))
-    fit = calibrate(data, effects, temperature_ref=model.temperature_ref)
+        ladder.append(ladder_entry(compare(data, model, fitted_parameters=len(model.values), noise=noise),
+                                   model.effects))
+    if noise_terms:
+        noise, report = add_noise_terms(data, model, noise, noise_terms)
+        for name, r in report.items():
+            print(f"{name:18s} {r['value']:.4g} ± {r['sigma']:.2g} (SI; likelihood ratio {r['likelihood_ratio']:.1f}"
+                  f"{', not significant' if not r['present'] else ''})")
+    fit = calibrate(data, effects, temperature_ref=model.temperature_ref, noise=noise)
     res = result_from_fit(fit, effects, data, log)
-    ladder.append(ladder_entry(compare(data, res, fitted_parameters=len(res.values)), effects,
-                               f"+ {', '.join(new)}"))
+    ladder.append(ladder_entry(compare(data, res, fitted_parameters=len(res.values), noise=noise), effects,
+                               f"+ {', '.join(new + noise_terms)}"))
     res.extra["ladder"] = ladder
     res.save(args.out)
     print("\n".join(ladder_lines(ladder)))
@@ -155,6 +199,7 @@ def register(sub) -> None:
                         "one, or a system's turntable unit) and compare with the logged angles")
     c.add_argument("--json", help="write the per-channel figures as JSON")
     c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units)")
+    noise_option.add(c)
     c.set_defaults(func=_cmd_compare)
 
     d = sub.add_parser("diagnose", help="which effect of the vocabulary is missing from the model")
@@ -164,11 +209,14 @@ def register(sub) -> None:
     d.add_argument("--alpha", type=float, default=0.01, help="family-wise error rate (Holm)")
     d.add_argument("--candidates", help="comma list of effects to test (default: all not in the model)")
     d.add_argument("--top", type=int, default=10, help="ranking lines to print")
+    noise_option.add(d)
     d.set_defaults(func=_cmd_diagnose)
 
     a = sub.add_parser("add", help="add an effect to a model and refit all parameters")
     a.add_argument("log")
     a.add_argument("--model", required=True)
-    a.add_argument("--effect", required=True, help="effect name (or comma list)")
+    a.add_argument("--effect", required=True, help="effect name (or comma list); a noise term (acc.noise.bi, "
+                                                   "gyro.noise.rrw, ...) adds it to the noise model")
     a.add_argument("--out", required=True, help="the new model (JSON), with the ladder")
+    noise_option.add(a)
     a.set_defaults(func=_cmd_add)

@@ -4,29 +4,37 @@ from __future__ import annotations
 
 import argparse
 
+from components.cli import noise_option
+
 
 def _cmd_plan(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
-    from components.estimation.crb import NoiseModel, cramer_rao
+    from components.estimation.crb import cramer_rao
     from components.estimation.log_data import LogData
     from components.logs.logfile import read_log
     from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of, parse_effects
+    from components.model.noise import describe, from_terms, grade
     from components.simulation.run import schedule_motion_log
 
     try:
         effects = parse_effects(args.effects) if args.effects else list(DEFAULT_EFFECTS)
     except ValueError as e:
         raise UserError(f"--effects: {e}") from None
-    noise = NoiseModel.navigation_grade() if args.grade == "navigation" else NoiseModel(
-        gyro_arw=0.1 * DEG / 60, acc_vrw=50 * UG, gyro_bi=1 * DEG / 3600 * 0.3, acc_bi=50 * UG)
-    noise = NoiseModel(
-        gyro_arw=args.arw * DEG / 60 if args.arw is not None else noise.gyro_arw,
-        acc_vrw=args.vrw * UG if args.vrw is not None else noise.acc_vrw,
-        gyro_bi=args.gyro_bi * DEG / 3600 if args.gyro_bi is not None else noise.gyro_bi,
-        acc_bi=args.acc_bi * UG if args.acc_bi is not None else noise.acc_bi,
-        bi_tau=args.bi_tau)
+    noise = grade(args.grade)
+    by_hand = {}
+    for opt, name, scale in (("arw", "gyro.noise.arw", DEG / 60), ("vrw", "acc.noise.vrw", UG),
+                             ("gyro_bi", "gyro.noise.bi", DEG / 3600), ("acc_bi", "acc.noise.bi", UG)):
+        if getattr(args, opt) is not None:
+            by_hand[name] = getattr(args, opt) * scale
+    noise = from_terms(by_hand, noise, noise.source + (" with " + ", ".join(by_hand) if by_hand else ""))
+    if args.noise:
+        if "identify" in args.noise or "white" in args.noise:
+            raise UserError("plan: --noise identify/white need a log with noise; give a grade, a noise file or "
+                            "NAME=VALUE terms")
+        noise, _, _ = choose_noise(args.noise, None, base=noise)
     target = args.schedule
     is_log = Path(target).with_suffix(".json").exists() and (
         Path(target).with_suffix(".csv").exists() or Path(target).with_suffix(".parquet").exists())
@@ -38,9 +46,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     data = LogData.from_log(log)
     crb = cramer_rao(data, effects, noise)
     hours = (log.time[-1] - log.time[0] + log.dt) / 3600
-    print(f"Cramér–Rao bound for {target}: {hours * 60:.1f} min, noise: ARW {noise.gyro_arw / (DEG / 60):.4g} deg/sqrt(h), "
-          f"VRW {noise.acc_vrw / UG:.3g} ug/sqrt(Hz), bias instability {noise.gyro_bi / (DEG / 3600):.3g} deg/h "
-          f"and {noise.acc_bi / UG:.3g} ug (tau {noise.bi_tau:g} s)")
+    print(f"Cramér–Rao bound for {target}: {hours * 60:.1f} min, noise ({noise.source}): {describe(noise)}")
     print(f"{'parameter':22s} {'sigma':>12s}  unit       {'sigma x sqrt(hours)':>20s}")
     for p, s in crb.items():
         unit, scale = effect_of(p).display
@@ -48,7 +54,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if args.observability:
         from components.navigation.observability import plan_observability
 
-        print(plan_observability(log, args.observability, noise.gyro_arw, noise.acc_vrw, effects))
+        print(plan_observability(log, args.observability, noise.channels[0].white, noise.channels[3].white,
+                                 effects))
     return 0
 
 
@@ -57,13 +64,14 @@ def register(sub) -> None:
                                     "for a noise model, before running it")
     p.add_argument("schedule", help="ready-made schedule name, schedule .toml, or a log stem")
     p.add_argument("--effects", help="comma list of effects (default: bias, scale factor, misalignment)")
-    p.add_argument("--grade", choices=("navigation", "tactical"), default="navigation")
+    p.add_argument("--grade", choices=("navigation", "tactical"), default="navigation",
+                   help="the noise of a typical grade: white, bias instability (flicker) and random walk")
     p.add_argument("--arw", type=float, help="gyro ARW [deg/sqrt(h)]")
     p.add_argument("--vrw", type=float, help="accelerometer VRW [ug/sqrt(Hz)]")
     p.add_argument("--gyro-bi", type=float, help="gyro bias instability [deg/h]")
     p.add_argument("--acc-bi", type=float, help="accelerometer bias instability [ug]")
-    p.add_argument("--bi-tau", type=float, default=100.0, help="bias-instability correlation time [s]")
     p.add_argument("--dwell", type=float, help="override the schedule's dwell [s]")
+    noise_option.add(p)
     p.add_argument("--observability", metavar="CONFIG",
                    help="also the system-level filter's PWCS/SVD observability and its covariance "
                         "(white noise of the grade): a kf configuration (seed_003, ...: each stage on "

@@ -7,17 +7,27 @@ each candidate costs a small weighted least-squares solve. For candidate c with 
 
     F = (Δχ² / k) / (χ²_c / (n − p_c)),   p = P(F_{k, n−p_c} > F)
 
-p-values are Holm-corrected over the candidates (family-wise error α), and the Bayesian
-information criterion must agree: ΔBIC = χ²_c − χ²_base + k ln n < 0. The verdict is the best
-candidate that passes both, or null. Forward selection adds the verdict and ranks again, so
-several missing effects are named in turn. Two candidates whose new columns are nearly the same
+p-values are Holm-corrected over the candidates (family-wise error α): a candidate passes when
+its adjusted p is below α (ΔBIC = χ²_c − χ²_base + k ln n is reported, not required: as a gate it
+cost 5–20 Cramér–Rao σ of detection power). The rows are whitened with the noise model, so
+under a correct model the test has its nominal size. Each candidate's theoretical threshold is
+reported: per parameter, the magnitude the test detects with 95 % power at the first Holm
+level α/m (non-central F).
+
+Stochastic or deterministic: beside the effects, the noise terms the model lacks
+(``gyro.noise.bi``, ``gyro.noise.rrw``, ``acc.noise.bi``, ``acc.noise.rrw``) are candidates too,
+each fitted by maximum likelihood on the base model's rows. When the best of them explains the
+residual better than the best effect (Akaike: Δℓ against the number of parameters), the verdict
+is that the noise model is too simple, not a missing effect: a slow wander from bias instability
+is not called a drift. Forward selection adds the verdict (an effect, or a noise term to the
+noise model) and ranks again, so several are named in turn. Two candidates whose new columns are nearly the same
 (largest canonical correlation > 0.98) cannot be told apart on this schedule; the diagnosis says
 so and proposes a schedule change that separates them.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -25,8 +35,9 @@ from scipy import stats
 from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import design
 from components.estimation.log_data import LogData
+from components.estimation.noise_likelihood import fit_one_term
 from components.estimation.rest_angles import rest_sigma
-from components.estimation.whitening import whiten
+from components.estimation.whitening import channel_rows, whiten
 from components.model.effects import EFFECTS, effect_of, parameters_of
 from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
@@ -74,6 +85,7 @@ class Candidate:
     implausible: list = field(default_factory=list)  # parameters fitted far outside the physical range
     correlated: list = field(default_factory=list)  # [(param, other param, rho)] within the fit
     signature: dict | None = None
+    threshold: dict = field(default_factory=dict)  # parameter -> magnitude detected with 95 % power
 
     def to_json(self) -> dict:
         e = EFFECTS[self.effect]
@@ -86,22 +98,28 @@ class Candidate:
                 "parameters_display": {p: [v / scale, s / scale] for p, (v, s) in self.parameters.items()},
                 "indistinguishable": [{"effect": o, "correlation": r, "advice": a}
                                       for o, r, a in self.indistinguishable],
-                "implausible": list(self.implausible)}
+                "implausible": list(self.implausible),
+                "threshold": dict(self.threshold),
+                "threshold_display": {p: v / scale for p, v in self.threshold.items()}}
 
 
 @dataclass
 class Diagnosis:
     verdict: str | None
     ranking: list[Candidate]
-    found: list[str]             # forward selection, in turn
+    found: list[str]             # forward selection, in turn (effects and noise terms)
     steps: list[dict]            # per selection step: effect, chi2_per_dof before/after
     base_chi2_per_dof: float
     rows: int
     alpha: float
+    noise_candidates: list = field(default_factory=list)  # the first step's noise terms (dicts)
+    verdict_kind: str | None = None   # "effect" | "noise" | None
+    noise: object = None              # the noise model after the selection (NoiseModel or None)
 
     def to_json(self) -> dict:
-        return {"verdict": self.verdict, "found": self.found,
+        return {"verdict": self.verdict, "verdict_kind": self.verdict_kind, "found": self.found,
                 "ranking": [c.to_json() for c in self.ranking], "steps": self.steps,
+                "noise_candidates": self.noise_candidates,
                 "base_chi2_per_dof": self.base_chi2_per_dof, "rows": self.rows, "alpha": self.alpha}
 
 
@@ -142,9 +160,18 @@ class _Design:
         self.y = yw
         self.H = Hw
         self.noise = noise
+        self.raw = (y, H, w, rows)
+        self.dt, self.span, self.t_lo = dt, span, chunk_s
+        self.white_sigma = np.concatenate([sg, sa])
         self.rows = rows
         self.n = len(y)
         self.motion = motion
+
+    def rewhiten(self, noise: NoiseModel | None) -> None:
+        """Whiten the same rows with another noise model (a noise term added)."""
+        y, H, w, rows = self.raw
+        self.y, self.H, _ = whiten(y, H, rows, 1.0 / w**2, noise, self.dt, self.span, self.t_lo)
+        self.noise = noise
 
     def fit(self, subset: list[str]) -> tuple[float, np.ndarray, np.ndarray, int]:
         """χ², values, covariance and rank of the WLS fit on *subset* of the parameters."""
@@ -165,6 +192,15 @@ class _Design:
         A = self.H[:, [self.index[p] for p in subset]]
         sol = np.linalg.lstsq(A, self.y, rcond=1e-10)[0]
         return self.y - A @ sol
+
+    def projected_column(self, base: list[str], p: str) -> np.ndarray:
+        """Column of *p* with the span of *base* projected out."""
+        c = self.H[:, self.index[p]].copy()
+        if base:
+            B = self.H[:, [self.index[q] for q in base]]
+            Q, _ = np.linalg.qr(B / np.maximum(np.linalg.norm(B, axis=0), 1e-300))
+            c = c - Q @ (Q.T @ c)
+        return c
 
     def projected(self, base: list[str], extra: list[str]) -> np.ndarray:
         """Columns of *extra* with the span of *base* projected out (orthonormal basis)."""
@@ -196,7 +232,8 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
         noise = model.noise_model()
     base_effects = list(model.effects)
     cands = candidates if candidates is not None else default_candidates(base_effects)
-    cands = [c for c in cands if c not in base_effects]
+    noise_asked = [c for c in cands if c in NOISE_CANDIDATES] if candidates is not None else list(NOISE_CANDIDATES)
+    cands = [c for c in cands if c not in base_effects and c not in NOISE_CANDIDATES]
     params = list(dict.fromkeys(parameters_of(base_effects) + parameters_of(cands)))
     # table-effect parameters for stages this table does not have contribute nothing
     stage_names = set(data.geometry.names)
@@ -208,15 +245,36 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     found: list[str] = []
     steps: list[dict] = []
     first_ranking: list[Candidate] | None = None
+    first_noise: list | None = None
     chi2_first = None
+    kinds: list[str] = []
+    noise_now = noise
+    noise_terms = [t for t in noise_asked if not _has_term(noise_now, t)]
     for _ in range(max_steps if forward else 1):
         ranking, chi2_base, dof_base = _rank(design, base, available, alpha)
+        stochastic = _noise_candidates(design, base, noise_now, noise_terms, alpha) if noise_terms else []
         if first_ranking is None:
-            first_ranking, chi2_first = ranking, chi2_base / dof_base
+            first_ranking, chi2_first, first_noise = ranking, chi2_base / dof_base, stochastic
         winner = next((c for c in ranking if c.passes), None)
+        best_noise = next((n for n in stochastic if n["significant"]), None)
+        effect_gain = (0.5 * max(chi2_base - design.fit(base + available[winner.effect])[0], 0.0)
+                       - winner.added_rank) if winner else -math.inf
+        if best_noise is not None and best_noise["aic_gain"] > max(effect_gain, 0.0):
+            # the residual is better explained by a noise term than by any effect
+            found.append(best_noise["term"])
+            kinds.append("noise")
+            noise_now = best_noise["model"]
+            noise_terms.remove(best_noise["term"])
+            design.rewhiten(noise_now)
+            chi2_after, _, _, rank_after = design.fit(base)
+            steps.append({"noise_term": best_noise["term"], "chi2_per_dof_before": chi2_base / dof_base,
+                          "chi2_per_dof_after": chi2_after / max(design.n - rank_after, 1),
+                          "loglik_gain": best_noise["loglik_gain"]})
+            continue
         if winner is None:
             break
         found.append(winner.effect)
+        kinds.append("effect")
         base = base + available.pop(winner.effect)
         chi2_after, _, _, rank_after = design.fit(base)
         steps.append({"effect": winner.effect, "chi2_per_dof_before": chi2_base / dof_base,
@@ -225,7 +283,60 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
         if not available:
             break
     return Diagnosis(found[0] if found else None, first_ranking or [], found, steps,
-                     chi2_first or float("nan"), design.n, alpha)
+                     chi2_first or float("nan"), design.n, alpha,
+                     [{k: v for k, v in n.items() if k != "model"} for n in (first_noise or [])],
+                     kinds[0] if kinds else None, noise_now)
+
+
+# noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)
+NOISE_CANDIDATES = ("acc.noise.bi", "acc.noise.rrw", "gyro.noise.bi", "gyro.noise.rrw")
+_FIELD = {"bi": "bias_instability", "rrw": "random_walk"}
+
+
+def _has_term(noise: NoiseModel | None, term: str) -> bool:
+    """Every axis of the sensor has the term already."""
+    if noise is None:
+        return False
+    sensor, _, t = term.split(".")
+    chans = noise.channels[:3] if sensor == "gyro" else noise.channels[3:]
+    return all(getattr(c, _FIELD[t]) > 0 for c in chans)
+
+
+def _noise_candidates(design: _Design, base: list[str], noise: NoiseModel | None, terms, alpha: float) -> list:
+    """Each missing noise term fitted by maximum likelihood on the base model's rows, channel by
+    channel (the axes that lack it): its magnitudes, the log-likelihood gain, Akaike's gain (minus
+    one per axis fitted), significance (likelihood ratio against the 1 % point of χ² with a degree
+    of freedom per axis fitted, conservative on the boundary) and the noise model with it."""
+    y, H, w, rows = design.raw
+    cols = [design.index[p] for p in base]
+    current = noise if noise is not None else NoiseModel.white(design.white_sigma, design.dt, "white noise")
+    out = []
+    for term in terms:
+        sensor, _, t = term.split(".")
+        field_ = _FIELD[t]
+        chans = list(current.channels)
+        gain, values, n_new = 0.0, [], 0
+        for k in (range(3) if sensor == "gyro" else range(3, 6)):
+            if getattr(chans[k], field_) > 0:  # this axis has it already
+                values.append(getattr(chans[k], field_))
+                continue
+            n_new += 1
+            idx = channel_rows(rows, k)
+            Hc = H[idx][:, cols] if cols else np.zeros((len(idx), 0))
+            active = np.any(Hc != 0, axis=0)
+            durations = (rows["stop"][idx] - rows["start"][idx]) * design.dt
+            value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,
+                                    design.span, design.t_lo)
+            chans[k] = replace(chans[k], **{field_: value})
+            gain += g
+            values.append(value)
+        lr = 2 * gain
+        out.append({"term": term, "values": values, "loglik_gain": gain, "aic_gain": gain - n_new,
+                    "likelihood_ratio": lr, "significant": bool(lr > stats.chi2.isf(alpha, max(n_new, 1))),
+                    "model": NoiseModel(tuple(chans), (current.source + "; " if noise is not None else "")
+                                        + f"+ {term}", current.sigmas)})
+    out.sort(key=lambda n: -n["aic_gain"])
+    return out
 
 
 def _rank(design: _Design, base: list[str], available: dict, alpha: float):
@@ -285,7 +396,7 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         adj = min(1.0, (m - i) * math.exp(c._logp))  # type: ignore[attr-defined]
         running = max(running, adj)
         c.p_adjusted = running
-        c.passes = c.p_adjusted < alpha and c.bic_delta < 0 and not c.implausible
+        c.passes = c.p_adjusted < alpha and not c.implausible
     # candidates that cannot be told apart from a passing one
     for c in out[:6]:
         if not c.passes:
@@ -296,7 +407,29 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
             s = np.linalg.svd(c._basis.T @ d._basis, compute_uv=False)  # type: ignore[attr-defined]
             if len(s) and s[0] > 0.98:
                 c.indistinguishable.append((d.effect, float(s[0]), separation_advice(c.effect, d.effect)))
+    # theoretical thresholds: the non-centrality the F test needs for 95 % power at α/m, per
+    # parameter through its information beyond the base model's columns
     for c in out:
+        k = c.added_rank
+        dof_c = max(design.n - len(base) - k, 1)
+        lam = _noncentrality(k, dof_c, alpha / max(m, 1), 0.95)
+        for p in available[c.effect]:
+            h = design.projected_column(base, p)
+            info = float(h @ h)
+            if info > 0:
+                c.threshold[p] = math.sqrt(lam / info)
         del c._basis  # type: ignore[attr-defined]
     return out, chi2_b, dof_b
+
+
+def _noncentrality(k: int, dof: int, level: float, power: float) -> float:
+    """λ with P(F'(k, dof, λ) > F_(1-level)(k, dof)) = power (non-central F)."""
+    from scipy.optimize import brentq
+
+    crit = stats.f.isf(level, k, dof)
+    f = lambda lam: stats.ncf.sf(crit, k, dof, lam) - power  # noqa: E731
+    hi = 10.0
+    while f(hi) < 0:
+        hi *= 2
+    return float(brentq(f, 1e-9, hi))
 

@@ -63,7 +63,7 @@ class NoiseIdentification:
                 else:
                     up = c.fast.upper.get(t) if t in c.fast.upper else None
                     if t in c.slow:
-                        up = c.slow[t]["value"] + 3 * (c.slow[t]["sigma"] if np.isfinite(c.slow[t]["sigma"]) else 0)
+                        up = c.slow[t].get("upper", c.slow[t]["value"])
                     bound = f"< {up / scale:.3g}" if up is not None and np.isfinite(up) else "-"
                     lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {bound:>12s} {'':10s}  {dunit:14s} no")
             if c.noise.bias_instability and c.noise.flicker_range:
@@ -137,3 +137,38 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                 sig[f"{TERMS[sensor_of(k)][t][0]}.{AXES[k % 3]}"] = c.sigma.get(t, float("nan"))
     model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig)
     return NoiseIdentification(model_out, out_channels, len(runs), notes)
+
+
+NOISE_TERMS = {"bi": "bias_instability", "rrw": "random_walk"}
+
+
+def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[str], *, chunk_s: float = 1.0):
+    """*noise* (None: white noise at the data's level) with the noise *terms* (``acc.noise.bi``,
+    ``gyro.noise.rrw``, ...) added, each magnitude estimated per axis by restricted maximum
+    likelihood on *model*'s rows. Returns (the new model, per term and axis: value, σ,
+    likelihood ratio, present)."""
+    from components.estimation.lsq import calibrate
+
+    dt = float(np.median(np.diff(data.time)))
+    span = float(data.time[-1] - data.time[0] + dt)
+    fit = calibrate(data, list(model.effects), chunk_s=chunk_s, temperature_ref=model.temperature_ref, noise=noise)
+    rows = fit.rows
+    if noise is None:
+        noise = NoiseModel.white(np.concatenate([fit.sigma_gyro, fit.sigma_acc]), dt, "white noise")
+    chans = list(noise.channels)
+    report = {}
+    for term in terms:
+        sensor, _, t = term.split(".")
+        field_ = NOISE_TERMS[t]
+        for k in (range(3) if sensor == "gyro" else range(3, 6)):
+            idx = channel_rows(rows, k)
+            H = rows["H"][idx]
+            Hc = H[:, np.any(H != 0, axis=0)]
+            durations = (rows["stop"][idx] - rows["start"][idx]) * dt
+            ch, rep = fit_slow_terms(replace(chans[k], **{field_: 0.0}), rows["y"][idx], Hc, durations,
+                                     1.0 / rows["weight"][idx] ** 2, span, chunk_s, [field_])
+            r = rep[field_]
+            chans[k] = replace(ch, **{field_: r["value"]})
+            report[f"{term}.{AXES[k % 3]}"] = r
+    src = (noise.source + "; " if noise.source else "") + "+ " + ", ".join(terms)
+    return NoiseModel(tuple(chans), src, noise.sigmas), report

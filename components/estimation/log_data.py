@@ -23,6 +23,9 @@ class LogData:
     segment: np.ndarray | None = None
     dt0: float | None = None
     source: dict = field(default_factory=dict)
+    # count weight of a pulse output [rad, m/s] (gyro, accelerometer), None for other outputs:
+    # the quantization term of the noise is known from it
+    count_weight: tuple = (None, None)
     _profiles: dict = field(default_factory=dict, repr=False, compare=False)
 
     def angle_profile(self, quadrature: int = 3):
@@ -51,4 +54,6 @@ class LogData:
                             latitude=log.latitude, height=log.height_m, gravity=log.gravity)
         return cls(time=log.time, angles=log.angles, gyro=log.gyro_increment(),
                    acc=log.acc_increment(), geometry=geo, temperature=log.temperature,
-                   segment=log.segment, dt0=log.dt, source={"log": log.source})
+                   segment=log.segment, dt0=log.dt, source={"log": log.source},
+                   count_weight=(log.gyro_count_rad if log.gyro_output == "counts" else None,
+                                 log.acc_count_mps if log.acc_output == "counts" else None))

@@ -17,7 +17,10 @@ understate the spread; the σ of each term is a parametric bootstrap instead: th
 simulated on the same static runs, its Allan variance refitted. A term is *present* when its
 magnitude exceeds three of its σ; otherwise it is reported absent with an upper bound (its value
 plus three σ). A Gauss–Markov term is tried where the basic terms leave a misfit larger than the
-bootstrap's 99 % quantile of the fit statistic.
+bootstrap's 99 % quantile of the fit statistic. A term must also matter: it is present only
+where it makes at least 5 % of the model's Allan variance at some observed τ (a quantization of a
+thousandth of an arc-second beside navigation-grade white noise is not a finding, however well
+determined).
 """
 from __future__ import annotations
 
@@ -34,6 +37,7 @@ from components.model.noise import ChannelNoise
 
 BASIC = ("quantization", "white", "bias_instability", "random_walk")
 PRESENT_SIGMAS = 3.0
+PRESENT_SHARE = 0.05
 
 
 def basis(term: str, tau: np.ndarray) -> np.ndarray:
@@ -171,7 +175,14 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     sigma = {k: float(np.std([v.get(k, 0.0) for v in vals], ddof=1)) if bootstrap > 1 else float("nan")
              for k in list(free) + (["gauss_markov"] if gm_tau else [])}
     value = {k: math.sqrt(max(v, 0.0)) for k, v in squares.items()}
-    present = [k for k in sigma if value.get(k, 0.0) > PRESENT_SIGMAS * sigma[k]] + list(known)
+    full = _channel({**squares, **fixed}, gm_tau, flicker_range).avar(av.tau)
+
+    def share(k):
+        part = (gm_avar_unit(av.tau / gm_tau) if k == "gauss_markov" else basis(k, av.tau)) * value.get(k, 0.0) ** 2
+        return float(np.max(part / np.maximum(full, 1e-300)))
+
+    present = [k for k in sigma if value.get(k, 0.0) > PRESENT_SIGMAS * sigma[k] and share(k) >= PRESENT_SHARE] \
+        + list(known)
     upper = {k: value.get(k, 0.0) + PRESENT_SIGMAS * sigma[k] for k in sigma if k not in present}
     kept = {k: (v**2 if k in present else 0.0) for k, v in value.items()}
     final = _channel({**kept, **fixed}, gm_tau if "gauss_markov" in present else None, flicker_range)

@@ -31,8 +31,10 @@ SLOW = ("bias_instability", "random_walk")
 
 
 def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
-                      white_var: np.ndarray, span: float, t_lo: float) -> float:
-    """ℓ of one channel's rows under *ch* (see the module docstring)."""
+                      white_var: np.ndarray, span: float, t_lo: float, restricted: bool = True) -> float:
+    """ℓ of one channel's rows under *ch* (see the module docstring); ``restricted=False``: the
+    ordinary log-likelihood at the GLS estimate, −½ [log det C + min_θ ‖y − H θ‖²_C] (the one that
+    compares models with different columns)."""
     bn = block_noise(ch, durations, white_var, span, t_lo)
     w, S = whiten_channel(np.column_stack([y, H]), bn)
     yw, Hw = w[:, 0], w[:, 1:]
@@ -43,42 +45,97 @@ def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations:
         U, s, _ = np.linalg.svd(Hw, full_matrices=False)
         keep = s > 1e-10 * s[0] if len(s) and s[0] > 0 else np.zeros(0, bool)
         proj = U[:, keep].T @ yw
-        out += 0.5 * proj @ proj - np.sum(np.log(s[keep]))
+        out += 0.5 * proj @ proj - (np.sum(np.log(s[keep])) if restricted else 0.0)
     return float(out)
 
 
 def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
-                   white_var: np.ndarray, span: float, t_lo: float, terms=SLOW) -> tuple[ChannelNoise, dict]:
-    """*ch* with the magnitudes of *terms* re-estimated by restricted maximum likelihood.
-    Returns the channel and, per term: value, σ, the likelihood ratio against the term left
-    out, and whether it is present."""
-    terms = list(terms)
-    corner = "bias_instability" in terms
+                   white_var: np.ndarray, span: float, t_lo: float, terms=SLOW,
+                   restricted: bool = True) -> tuple[ChannelNoise, dict]:
+    """*ch* with the magnitudes of *terms* re-estimated by (restricted) maximum likelihood, and
+    the terms the data do not need dropped one at a time (backward elimination: bias instability
+    and random walk can stand in for each other, so a term's likelihood ratio is taken against
+    the others refitted without it). Returns the channel and, per term: value, σ, likelihood
+    ratio, present, and for an absent term a profile upper bound; ``loglik`` at the estimate and
+    ``loglik_without`` with none of *terms*."""
     lo_min, lo_max = max(float(np.min(durations)), 1e-3), max(span / 8.0, 2 * float(np.min(durations)))
-
-    def with_logs(x):
-        kw = {t: math.exp(v) for t, v in zip(terms, x)}
-        if corner:
-            kw["flicker_range"] = (min(max(math.exp(x[len(terms)]), lo_min), lo_max), None)
-        return replace(ch, **kw)
-
-    def nll(x):
-        return -restricted_loglik(with_logs(x), y, H, durations, white_var, span, t_lo)
-
-    # start from the given values or from a level the data can show
     scale = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
-    x0 = [math.log(getattr(ch, t) or scale * (1.0 if t == "bias_instability" else 0.1 / math.sqrt(span)))
-          for t in terms]
-    if corner:
-        x0.append(math.log(min(max(10.0, lo_min), lo_max)))
-    x0 = np.array(x0)
-    best = minimize(nll, x0, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400})
-    x = best.x
-    # curvature in log magnitude -> σ of the magnitude (delta method)
-    h = 1e-2
+    base = replace(ch, **{t: 0.0 for t in terms})
+
+    def loglik(c: ChannelNoise) -> float:
+        return restricted_loglik(c, y, H, durations, white_var, span, t_lo, restricted)
+
+    def model(active: list[str], x) -> ChannelNoise:
+        kw = {t: math.exp(v) for t, v in zip(active, x)}
+        if "bias_instability" in active:
+            kw["flicker_range"] = (min(max(math.exp(x[len(active)]), lo_min), lo_max), None)
+        return replace(base, **kw)
+
+    def optimise(active: list[str]):
+        if not active:
+            return np.zeros(0), -loglik(base)
+        x0 = [math.log(getattr(ch, t) or scale * (1.0 if t == "bias_instability" else 0.1 / math.sqrt(span)))
+              for t in active]
+        if "bias_instability" in active:
+            x0.append(math.log(min(max(10.0, lo_min), lo_max)))
+        r = minimize(lambda x: -loglik(model(active, x)), np.array(x0), method="Nelder-Mead",
+                     options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400})
+        return r.x, float(r.fun)
+
+    active = list(terms)
+    x, f = optimise(active)
+    lr = {}
+    while active:
+        drops = {t: optimise([u for u in active if u != t]) for t in active}
+        lr = {t: 2 * (drops[t][1] - f) for t in active}
+        weakest = min(active, key=lambda t: lr[t])
+        if lr[weakest] > LR_CRITICAL:
+            break
+        active.remove(weakest)
+        x, f = drops[weakest]
+    out = model(active, x)
+    # σ of the magnitudes from the curvature with the flicker corner held (the likelihood is
+    # nearly flat along the corner, which would make the joint curvature singular)
+    k = len(active)
+    nll = lambda z: -loglik(model(active, np.concatenate([z, x[k:]])))  # noqa: E731
+    cov = _inverse_curvature(nll, x[:k], f)
+    report: dict = {}
+    if "bias_instability" in active:
+        report["flicker_corner_s"] = out.flicker_range[0]
+    f_none = -loglik(base)
+    for t in terms:
+        if t in active:
+            i = active.index(t)
+            value = math.exp(x[i])
+            report[t] = {"value": value, "sigma": value * math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else float("nan"),
+                         "likelihood_ratio": float(lr.get(t, 2 * (f_none - f))), "present": True}
+        else:
+            # a profile bound: the magnitude at which adding the term costs 4.5 in likelihood
+            # (three σ of a one-parameter interval), the present terms held at their estimate
+            xi = math.log(scale * 1e-4)
+            with_t = active + [t]
+            extra = [math.log(10.0)] if t == "bias_instability" and "bias_instability" not in active else []
+            f_best = f
+            for _ in range(80):
+                xi += math.log(1.5)
+                z = list(x[: len(active)]) + [xi] + list(x[len(active):]) + extra
+                val = -loglik(model(with_t, np.array(z)))
+                f_best = min(f_best, val)
+                if val - f_best > 4.5:
+                    break
+            report[t] = {"value": 0.0, "sigma": float("nan"), "likelihood_ratio": 0.0, "present": False,
+                         "upper": math.exp(xi)}
+    report["loglik"] = -f
+    report["loglik_without"] = -f_none
+    return out, report
+
+
+def _inverse_curvature(nll, x: np.ndarray, f0: float, h: float = 1e-2) -> np.ndarray:
+    """Inverse of the numerical Hessian of *nll* at its minimum *x* (NaN where not positive)."""
     n = len(x)
+    if n == 0:
+        return np.zeros((0, 0))
     Hs = np.zeros((n, n))
-    f0 = best.fun
     for i in range(n):
         for j in range(i, n):
             ei, ej = np.eye(n)[i] * h, np.eye(n)[j] * h
@@ -87,18 +144,30 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             else:
                 Hs[i, j] = Hs[j, i] = (nll(x + ei + ej) - nll(x + ei - ej) - nll(x - ei + ej) + nll(x - ei - ej)) / (4 * h**2)
     try:
-        cov = np.linalg.inv(Hs) if np.all(np.linalg.eigvalsh(Hs) > 0) else np.full((n, n), np.nan)
+        return np.linalg.inv(Hs) if np.all(np.linalg.eigvalsh(Hs) > 0) else np.full((n, n), np.nan)
     except np.linalg.LinAlgError:
-        cov = np.full((n, n), np.nan)
-    out = with_logs(x)
-    report = {}
-    if corner:
-        report["flicker_corner_s"] = out.flicker_range[0]
-    for i, t in enumerate(terms):
-        without = replace(out, **{t: 0.0})
-        lr = 2 * (f0 * -1 - restricted_loglik(without, y, H, durations, white_var, span, t_lo))
-        value = math.exp(x[i])
-        report[t] = {"value": value, "sigma": value * math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else float("nan"),
-                     "likelihood_ratio": float(lr), "present": bool(lr > LR_CRITICAL)}
-    final = replace(out, **{t: (report[t]["value"] if report[t]["present"] else 0.0) for t in terms})
-    return final, report
+        return np.full((n, n), np.nan)
+
+
+def fit_one_term(ch: ChannelNoise, term: str, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
+                 white_var: np.ndarray, span: float, t_lo: float, restricted: bool = False) -> tuple[float, float]:
+    """(magnitude, gain in log-likelihood) of one noise term added to *ch* on these rows: a
+    bounded one-dimensional maximum over the log magnitude (the flicker floor from *t_lo*). The
+    ordinary likelihood by default: the gain compares with a missing effect's ½ Δχ²."""
+    from scipy.optimize import minimize_scalar
+
+    base = restricted_loglik(ch, y, H, durations, white_var, span, t_lo, restricted)
+    level = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
+    if term == "random_walk":
+        level /= math.sqrt(span)
+    lo, hi = math.log(level * 1e-3), math.log(level * 1e3)
+
+    def nll(x):
+        return -restricted_loglik(replace(ch, **{term: math.exp(x)}), y, H, durations, white_var, span, t_lo,
+                                  restricted)
+
+    r = minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-2})
+    gain = -r.fun - base
+    if gain <= 0:
+        return 0.0, 0.0
+    return math.exp(r.x), float(gain)

@@ -173,6 +173,25 @@ class NoiseModel:
         return cls(tuple(chans), d.get("source", ""), sig)
 
 
+def describe(noise: NoiseModel | None) -> str:
+    """One line: each sensor's terms in readable units (the x axis; '…' where the axes differ)."""
+    if noise is None:
+        return "white noise"
+    parts = []
+    for sensor, off in (("gyro", 0), ("acc", 3)):
+        ch = noise.channels[off]
+        same = all(c == ch for c in noise.channels[off:off + 3])
+        items = []
+        for term, (vname, _, dunit, scale) in TERMS[sensor].items():
+            v = getattr(ch, term)
+            if v:
+                items.append(f"{vname.split('.')[-1]} {v / scale:.3g} {dunit}")
+        for s, T in ch.gauss_markov:
+            items.append(f"GM {s / GM_UNITS[sensor][2]:.3g} {GM_UNITS[sensor][1]} ({T:.3g} s)")
+        parts.append(f"{sensor} " + (", ".join(items) or "none") + ("" if same else " (x; y, z differ)"))
+    return "; ".join(parts)
+
+
 # FMU noise parameter / --noise name -> ChannelNoise field
 TERM_OF_NAME = {"arw": "white", "vrw": "white", "q": "quantization", "bi": "bias_instability",
                 "rrw": "random_walk"}
