@@ -75,6 +75,15 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
+    if args.report:
+        from components.diagnosis.compare import compare
+        from components.diagnosis.report import build_report
+
+        comp = compare(data, model, fitted_parameters=0, noise=ident.model)
+        html_path, _ = build_report(args.report, title=f"calbench noise: {args.log}", comparison=comp,
+                                    noise=ident, provenance={"log": str(args.log), "model": args.model or
+                                                             "white-noise fit of " + ", ".join(model.effects)})
+        print(f"report: {html_path}")
     return 0
 
 
@@ -89,4 +98,6 @@ def register(sub) -> None:
     n.add_argument("--bootstrap", type=int, default=30, help="parametric bootstrap replicates for the σ (30)")
     n.add_argument("--out", help="write the noise model (JSON) for --noise")
     n.add_argument("--json", help="write the Allan deviations and the model as JSON")
+    n.add_argument("--report", metavar="PAGE.html", help="write the HTML page: the model against the log under the "
+                                                         "identified noise, the Allan deviations with the model")
     n.set_defaults(func=_cmd_noise)

@@ -80,6 +80,7 @@ class Comparison:
     rows: dict                     # block rows: z, sensor, axis, start, stop, moving
     per_segment: dict = field(default_factory=dict)
     conditions: dict = field(default_factory=dict)
+    coloured: bool = False         # the block residuals are whitened with a coloured noise model
 
     @property
     def chi2_per_dof(self) -> float:
@@ -179,6 +180,7 @@ def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: i
         }
     comp = Comparison(data.time, data.segment, motion.static, resid, pred, sigma, channels, chi2,
                       dof, rows)
+    comp.coloured = noise is not None and noise.coloured
     comp.per_segment = _per_segment(data, rows)
     comp.conditions = _conditions(data, motion, rows)
     return comp

@@ -136,6 +136,32 @@ def ladder_plot(ladder: list[dict]) -> str:
     return svg_of(fig)
 
 
+def allan_plot(identification) -> str:
+    """Allan deviation of each channel's residual (68 % interval) with the identified model."""
+    from components.model.noise import CHANNELS as NAMES
+    from components.model.noise import TERMS, sensor_of
+
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 3, figsize=(10, 5.5), sharex=True)
+    for k, c in enumerate(identification.channels):
+        ax = axes[k // 3, k % 3]
+        av = c.fast.allan
+        lo, hi = av.interval()
+        _, _, dunit, scale = TERMS[sensor_of(k)]["bias_instability"]
+        ax.fill_between(av.tau, lo / scale, hi / scale, color="#9ecae1", alpha=0.6, lw=0, label="68 % interval")
+        ax.loglog(av.tau, av.adev / scale, "o", ms=3, color="#08519c", label="residual")
+        tau = np.geomspace(av.tau[0], av.tau[-1] * 30, 80)
+        ax.loglog(tau, np.sqrt(c.noise.avar(tau)) / scale, "-", color="#d95f02", label="identified model")
+        ax.set_title(NAMES[k], fontsize=9)
+        ax.set_ylabel(f"ADEV [{dunit}]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if k >= 3:
+            ax.set_xlabel("τ [s]", fontsize=8)
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    return svg_of(fig)
+
+
 def _table(header: list[str], rows: list[list], left: int = 1) -> str:
     h = "".join(f'<th class="{"l" if i < left else ""}">{html.escape(str(c))}</th>' for i, c in enumerate(header))
     body = []
@@ -149,8 +175,9 @@ def _fmt(x, spec=".4g") -> str:
 
 
 def build_report(path: str | Path, *, title: str, comparison, diagnosis=None, ladder=None,
-                 provenance: dict | None = None) -> tuple[Path, Path]:
-    """Write <path>.html and <path>.json (path without suffix or with .html)."""
+                 provenance: dict | None = None, noise=None) -> tuple[Path, Path]:
+    """Write <path>.html and <path>.json (path without suffix or with .html). ``noise``: a noise
+    identification (components.diagnosis.noise_id) to show: Allan deviation and model."""
     path = Path(path)
     if path.suffix == ".html":
         path = path.with_suffix("")
@@ -166,7 +193,8 @@ def build_report(path: str | Path, *, title: str, comparison, diagnosis=None, la
         parts.append(_table(["model", "χ²/dof"] + [f"{c} rms/noise" for c in CHANNELS], rows))
         parts.append(f"<figure>{ladder_plot(ladder)}</figure>")
     parts.append("<h2>Model against measurement</h2>")
-    parts.append(f"<p>χ²/dof of block sums against the white-noise level: <b>{comparison.chi2_per_dof:.3f}</b> "
+    against = "whitened with the noise model" if getattr(comparison, "coloured", False) else "against the white-noise level"
+    parts.append(f"<p>χ²/dof of block sums {against}: <b>{comparison.chi2_per_dof:.3f}</b> "
                  f"({comparison.dof} dof; a correct model scores 1 ± {np.sqrt(2 / max(comparison.dof, 1)):.3f}).</p>")
     rows = [[c, _fmt(v["rms"]), _fmt(v["noise_floor"]), _fmt(v["rms"] / v["noise_floor"], ".3f"),
              _fmt(v["chi2_per_dof"], ".3f"), _fmt(v["fit_percent"], ".4f"), _fmt(v["whiteness_p"], ".3f")]
@@ -180,9 +208,12 @@ def build_report(path: str | Path, *, title: str, comparison, diagnosis=None, la
     if diagnosis is not None:
         parts.append("<h2>Diagnosis: which effect is missing</h2>")
         verdict = diagnosis.verdict or "no significant effect is missing"
+        if diagnosis.verdict_kind == "noise":
+            verdict = f"the noise model is too simple: {diagnosis.verdict} (a stochastic term, not an effect)"
         parts.append(f"<p>Verdict: <b>{html.escape(verdict)}</b>"
                      + (f" — found in turn: {html.escape(', '.join(diagnosis.found))}" if len(diagnosis.found) > 1 else "")
-                     + f" (Holm-corrected F-test at α = {diagnosis.alpha}, and ΔBIC &lt; 0)</p>")
+                     + f" (Holm-corrected F-test at α = {diagnosis.alpha} on the whitened rows; ΔBIC shown, not "
+                     "required)</p>")
         rows = []
         for i, c in enumerate(diagnosis.ranking[:12], 1):
             unit, scale = EFFECTS[c.effect].display
@@ -198,6 +229,12 @@ def build_report(path: str | Path, *, title: str, comparison, diagnosis=None, la
             parts.append(f"<figure class='plot' style='display:inline-block'>{signature_plot(c)}"
                          f"<figcaption>signature of {html.escape(c.effect)}</figcaption></figure>")
         parts.append("</div>")
+    if noise is not None:
+        parts.append("<h2>Noise: Allan deviation of the residual and the identified model</h2>")
+        parts.append(f"<figure class='plot'>{allan_plot(noise)}<figcaption>Overlapping Allan deviation of the "
+                     "residual in the static runs (dots), its 68 % interval from the equivalent degrees of freedom "
+                     "(band) and the identified composite model (line).</figcaption></figure>")
+        parts.append("<pre>" + html.escape("\n".join(noise.table())) + "</pre>")
     parts.append("<h2>Provenance</h2><pre>" + html.escape(json.dumps(provenance or {}, indent=1)) + "</pre>")
     parts.append("</body></html>")
     html_path = path.with_suffix(".html")
@@ -205,6 +242,7 @@ def build_report(path: str | Path, *, title: str, comparison, diagnosis=None, la
     html_path.write_text("".join(parts))
     twin = {"title": title, "ladder": ladder, "comparison": comparison.summary(),
             "diagnosis": diagnosis.to_json() if diagnosis is not None else None,
+            "noise": noise.model.to_dict() if noise is not None else None,
             "provenance": provenance or {}}
     json_path = path.with_suffix(".json")
     json_path.write_text(json.dumps(twin, indent=1, default=float))
