@@ -569,6 +569,45 @@ def test_white_noise_bits_match_documented_generator(imu_fmu):
     assert np.array_equal(y, expect)
 
 
+def test_flicker_draws_match_documented_streams(imu_fmu):
+    """White noise plus the flicker bias instability: the white part as above from the gyro and
+    accelerometer streams, the flicker terms (components/model/flicker.py) from their own
+    streams, the gyro stream after two and three jumps: per axis per term one start draw, then
+    per step per axis per term one normal; each term x1 = phi x0 + s sqrt(1 - phi^2) v,
+    contribution (x0 + x1)/2 h. Equal to rounding: the FMU's exp and log are its own."""
+    from components.model.flicker import flicker_terms
+
+    N_g, N_a, h, seed, n = 3e-6, 7e-5, 0.05, 2024, 40  # white and flicker of like size
+    flick = {"gyro": (2e-5, 10.0, 3600.0), "acc": (3e-4, 1.0, 100.0)}  # B, bi_tau, bi_tau_max
+    p = {"gyro.noise.arw": N_g, "acc.noise.vrw": N_a, "seed": seed}
+    for sensor, (B, lo, hi) in flick.items():
+        p.update({f"{sensor}.noise.bi": B, f"{sensor}.noise.bi_tau": lo, f"{sensor}.noise.bi_tau_max": hi})
+    _, y = run(imu_fmu, p, None, h, n)
+    gy = PyXoshiro.seeded(seed)
+    acc = gy.jumped()
+    fgy = acc.jumped()
+    streams, fstreams = [gy, acc], [fgy, fgy.jumped()]
+    terms = [flicker_terms(*flick["gyro"]), flicker_terms(*flick["acc"])]
+    for s in streams:
+        for _ in range(3):
+            s.gauss()
+    x = [[[sg * f.gauss() for sg, _ in tm] for _ in range(3)] for f, tm in zip(fstreams, terms)]
+    expect = np.empty((n, 6))
+    for k in range(n):
+        for si, dens in enumerate((N_g, N_a)):
+            for i in range(3):
+                w = [streams[si].gauss() for _ in range(4)]
+                fl = 0.0
+                for j, (sg, T) in enumerate(terms[si]):
+                    phi = math.exp(-h / T)
+                    x1 = phi * x[si][i][j] + sg * math.sqrt(1 - phi * phi) * fstreams[si].gauss()
+                    fl += 0.5 * (x[si][i][j] + x1) * h
+                    x[si][i][j] = x1
+                expect[k, 3 * si + i] = dens * math.sqrt(h) * w[0] + fl
+    scale = np.abs(expect).max(0)
+    np.testing.assert_allclose(y / scale, expect / scale, rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("timing", [0, 1])
 def test_master_input_derivatives_used(imu_fmu, timing):
     """fmi2SetRealInputDerivatives: omega = b t^2/2 (alpha = b t, omega'' = b from the master)

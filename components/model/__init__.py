@@ -3,6 +3,7 @@ module:
 
 - :mod:`.effects`          the effect vocabulary: names, units, typical magnitudes, regressors
 - :mod:`.quantities`       values with units as files write them, converted to SI
+- :mod:`.flicker`          flicker bias instability as a sum of Gauss-Markov terms (as the IMU FMU)
 - :mod:`.geometry`         the table's gimbal chain, base tilt, site: attitude and plate motion
 - :mod:`.table_parameters` table effects of the vocabulary as fields of the geometry
 - :mod:`.motion`           the plate's motion interpolated from logged angles, ideal increments

@@ -24,10 +24,12 @@ NOISE_UNITS = {
     "gyro.noise.arw": ("rad/sqrt(s)", {"deg/sqrt(h)": DEG / 60.0, "rad/sqrt(s)": 1.0}),
     "gyro.noise.bi": ("rad/s", UNITS["rad/s"]),
     "gyro.noise.bi_tau": ("s", UNITS["s"]),
+    "gyro.noise.bi_tau_max": ("s", UNITS["s"]),
     "gyro.noise.rrw": ("rad/s/sqrt(s)", {"rad/s/sqrt(s)": 1.0, "deg/h/sqrt(h)": DEG_H / 60.0}),
     "acc.noise.vrw": ("m/s/sqrt(s)", {"m/s/sqrt(s)": 1.0, "ug/sqrt(Hz)": UG, "m/s/sqrt(h)": 1 / 60.0}),
     "acc.noise.bi": ("m/s2", UNITS["m/s2"]),
     "acc.noise.bi_tau": ("s", UNITS["s"]),
+    "acc.noise.bi_tau_max": ("s", UNITS["s"]),
     "acc.noise.rrw": ("m/s2/sqrt(s)", {"m/s2/sqrt(s)": 1.0, "ug/sqrt(s)": UG, "ug/sqrt(h)": UG / 60.0}),
 }
 # the terms of a noise model given by hand (calbench --noise): the FMU's densities without their

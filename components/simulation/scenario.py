@@ -43,6 +43,9 @@ A scenario file (TOML)::
     [imu.noise]
     "gyro.noise.arw" = "0.001 deg/sqrt(h)"
     "acc.noise.vrw" = "5 ug/sqrt(Hz)"
+    "acc.noise.bi" = "20 ug"
+    "acc.noise.bi_tau" = 10.0        # with bi_tau_max: flicker bias instability from 10 s to 1 h
+    "acc.noise.bi_tau_max" = 3600.0  # (components/model/flicker.py); without: one Gauss-Markov
     [imu.parameters]             # any other FMU parameter
 
 Values are SI numbers or strings "<number> <unit>" with a unit of the parameter's dimension

@@ -10,7 +10,7 @@ enum { GYRO = 0, ACC = 1 };
 /* Parameters shared in form by both sensors, by first value reference. */
 typedef struct {
     int sf, sf_asym, mis, bias, temp, sf_temp, drift;
-    int white, bi, bi_tau, rrw, output, count_weight, out;
+    int white, bi, bi_tau, bi_tau_max, rrw, output, count_weight, out;
 } SensorVr;
 
 /* gyro, accelerometer (model.c) */
@@ -35,6 +35,8 @@ double temperature_at(const ModelInstance *m, double s);
 void seed_streams(ModelInstance *m);
 double gauss(ImuRng *g);
 double gm_sigma(const ModelInstance *m, int sensor);
+int flicker_count(double t_lo, double t_hi);
+void flicker_init(ModelInstance *m);
 double noise_increment(ModelInstance *m, int sensor, int i, double h);
 
 #endif

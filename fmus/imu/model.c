@@ -61,10 +61,11 @@ _Static_assert(VR_omega_int_z == VR_omega_int_x + 2 && VR_f_int_z == VR_f_int_x 
 const SensorVr SENSOR_VR[2] = {
     {VR_gyro_sf_x, VR_gyro_sf_asym_x, VR_gyro_mis_xy, VR_gyro_bias_x, VR_gyro_temp_x,
      VR_gyro_sf_temp_x, VR_gyro_drift_x, VR_gyro_noise_arw, VR_gyro_noise_bi,
-     VR_gyro_noise_bi_tau, VR_gyro_noise_rrw, VR_gyro_output, VR_gyro_count_weight, VR_gyro_x},
+     VR_gyro_noise_bi_tau, VR_gyro_noise_bi_tau_max, VR_gyro_noise_rrw, VR_gyro_output,
+     VR_gyro_count_weight, VR_gyro_x},
     {VR_acc_sf_x, VR_acc_sf_asym_x, VR_acc_mis_xy, VR_acc_bias_x, VR_acc_temp_x,
      VR_acc_sf_temp_x, VR_acc_drift_x, VR_acc_noise_vrw, VR_acc_noise_bi, VR_acc_noise_bi_tau,
-     VR_acc_noise_rrw, VR_acc_output, VR_acc_count_weight, VR_acc_x},
+     VR_acc_noise_bi_tau_max, VR_acc_noise_rrw, VR_acc_output, VR_acc_count_weight, VR_acc_x},
 };
 
 /* 4-point Gauss-Legendre on [-1, 1] (cubic pieces) */
@@ -204,6 +205,16 @@ static ModelStatus check_parameters(ModelInstance *m) {
             model_log(m, MS_ERROR, "parameter %s = %g: expected a correlation time > 0",
                       REAL_NAME[v->bi_tau], R(v->bi_tau));
             st = MS_ERROR;
+        } else if (R(v->bi_tau_max) > R(v->bi_tau) &&
+                   flicker_count(R(v->bi_tau), R(v->bi_tau_max)) == 0) {
+            model_log(m, MS_ERROR,
+                      "parameter %s = %g: flicker range too wide: expected %s / %s <= %.7g "
+                      "(ceil(2 log10(4 bi_tau_max / bi_tau)) + 1 <= %d Gauss-Markov terms), "
+                      "got %g",
+                      REAL_NAME[v->bi_tau_max], R(v->bi_tau_max), REAL_NAME[v->bi_tau_max],
+                      REAL_NAME[v->bi_tau], sqrt(1e15) / 4.0, IMU_FLICKER_MAX,
+                      R(v->bi_tau_max) / R(v->bi_tau));
+            st = MS_ERROR;
         }
         st = worst(st, check_integer(m, v->output, 0, 2,
                                      "0 (increment), 1 (rate) or 2 (counts)"));
@@ -256,6 +267,7 @@ ModelStatus model_initialize(ModelInstance *m) {
             p->nsub = NSUB;
     for (int s = 0; s < 2; s++)
         for (int i = 0; i < 3; i++) p->gm[s][i] = gm_sigma(m, s) * gauss(&p->rng[s]);
+    flicker_init(m);
     ImuKnot k;
     knot_from_inputs(m, m->s.time, &k);
     push_knot(p, &k, 0.0);

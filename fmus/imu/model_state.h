@@ -23,6 +23,9 @@ typedef struct {
     double cw[3], cf[3];
 } ImuKnot;
 
+/* Most Gauss-Markov terms of the flicker bias instability (noise.c) */
+#define IMU_FLICKER_MAX 16
+
 /* xoshiro256** state */
 typedef struct {
     uint64_t s[4];
@@ -34,6 +37,17 @@ typedef struct {
     ImuRng rng[2];      /* [0] gyro stream, [1] accelerometer stream */
     double gm[2][3];    /* Gauss-Markov bias-instability state at the current time */
     double rw[2][3];    /* rate / acceleration random-walk bias at the current time */
+    /* flicker bias instability (bi_tau_max > bi_tau): nflick Gauss-Markov terms per sensor
+     * (0: off, the single process gm above), common standard deviation fsigma, correlation
+     * times ftau, states fx[sensor][axis][term]; fphi and fq = fsigma sqrt(1 - fphi^2) are
+     * those of the step length fh (0 before the first step) */
+    ImuRng frng[2];     /* flicker streams: the gyro stream after 2 jumps (gyro), 3 (acc) */
+    int nflick[2];
+    double fsigma[2];
+    double ftau[2][IMU_FLICKER_MAX];
+    double fx[2][3][IMU_FLICKER_MAX];
+    double fh[2];
+    double fphi[2][IMU_FLICKER_MAX], fq[2][IMU_FLICKER_MAX];
     double resid[2][3]; /* count residual carried to the next sample (output kind 2) */
     int nsub;           /* Gauss-Legendre sub-intervals per piece (1 when the model is exact
                            with one: see integrate_piece) */

@@ -59,13 +59,25 @@ def _noise_parameters() -> list:
     return [
         real("gyro.noise.arw", "parameter", 0.0, "rad/sqrt(s)", "angle random walk (white rate noise density)"),
         real("gyro.noise.bi", "parameter", 0.0, "rad/s",
-             "bias instability B (Allan floor 0.664 B), as a Gauss-Markov process"),
-        real("gyro.noise.bi_tau", "parameter", 100.0, "s", "correlation time of that process"),
+             "bias instability B (Allan floor 0.664 B), as one Gauss-Markov process or, with "
+             "bi_tau_max, a sum of them"),
+        real("gyro.noise.bi_tau", "parameter", 100.0, "s",
+             "correlation time of that process; with bi_tau_max, the low end of the flicker range"),
+        real("gyro.noise.bi_tau_max", "parameter", 0.0, "s",
+             "flicker bias instability: when > bi_tau, the bias instability is a sum of Gauss-Markov "
+             "terms whose Allan deviation stays near 0.664 B from bi_tau to bi_tau_max (noise.c); "
+             "<= bi_tau: the single Gauss-Markov process"),
         real("gyro.noise.rrw", "parameter", 0.0, "rad/s/sqrt(s)", "rate random walk"),
         real("acc.noise.vrw", "parameter", 0.0, "m/s/sqrt(s)", "velocity random walk (white noise density)"),
         real("acc.noise.bi", "parameter", 0.0, "m/s2",
-             "bias instability B (Allan floor 0.664 B), as a Gauss-Markov process"),
-        real("acc.noise.bi_tau", "parameter", 100.0, "s", "correlation time of that process"),
+             "bias instability B (Allan floor 0.664 B), as one Gauss-Markov process or, with "
+             "bi_tau_max, a sum of them"),
+        real("acc.noise.bi_tau", "parameter", 100.0, "s",
+             "correlation time of that process; with bi_tau_max, the low end of the flicker range"),
+        real("acc.noise.bi_tau_max", "parameter", 0.0, "s",
+             "flicker bias instability: when > bi_tau, the bias instability is a sum of Gauss-Markov "
+             "terms whose Allan deviation stays near 0.664 B from bi_tau to bi_tau_max (noise.c); "
+             "<= bi_tau: the single Gauss-Markov process"),
         real("acc.noise.rrw", "parameter", 0.0, "m/s2/sqrt(s)", "acceleration random walk"),
         integer("seed", "parameter", 1, "seed of this instance's noise generator"),
     ]
