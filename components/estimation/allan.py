@@ -58,6 +58,16 @@ def octave_factors(longest: int) -> np.ndarray:
     return np.array(m)
 
 
+def _edf(alpha: int, m: int, n_phase: int) -> float:
+    """Equivalent degrees of freedom of one run's overlapping Allan variance (Greenhall); where
+    allantools has no formula (white phase noise at the longest averaging times of a run) the
+    simple approximation of IEEE Std 1139 / NIST SP 1065 (allantools.edf_simple)."""
+    try:
+        return float(allantools.edf_greenhall(alpha=alpha, d=2, m=m, N=n_phase, overlapping=True))
+    except (NotImplementedError, AssertionError, ValueError, ZeroDivisionError):
+        return float(max(allantools.edf_simple(n_phase, m, alpha), 1.0))
+
+
 def pooled_allan(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, alpha_of=None) -> AllanVariance:
     """Overlapping Allan variance of *rate* (per-sample mean rate, e.g. increment / dt) over the
     *runs*. ``alpha_of(tau)`` → allantools noise exponent dominating at each τ (array), for the
@@ -84,7 +94,6 @@ def pooled_allan(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, alpha
             d, nn = got[int(ms[k])]
             acc[k] += nn * d**2
             terms[k] += nn
-            edf[k] += allantools.edf_greenhall(alpha=int(alphas[k]), d=2, m=int(ms[k]), N=len(x) + 1,
-                                               overlapping=True)
+            edf[k] += _edf(int(alphas[k]), int(ms[k]), len(x) + 1)
     ok = terms > 0
     return AllanVariance(taus[ok], acc[ok] / terms[ok], terms[ok], edf[ok])
