@@ -66,6 +66,10 @@ def run_demo(out_dir: str | Path = "calbench-demo", seed: int | None = None, dwe
         if diag.verdict is None:
             print(f"4.{step} diagnose: no significant effect is missing")
             break
+        if diag.verdict_kind == "noise":
+            print(f"4.{step} diagnose: the noise model is too simple ({diag.verdict} explains the residual better "
+                  "than any effect): identify it with `calbench noise`")
+            break
         win = diag.ranking[0]
         unit, scale = EFFECTS[win.effect].display
         mags = ", ".join(f"{p} = {v / scale:+.3g} ± {s / scale:.2g} {unit}" for p, (v, s) in win.parameters.items()
