@@ -4,6 +4,11 @@
 - :mod:`.blocks`       observation blocks: 1 s static chunks and rest-to-rest moves
 - :mod:`.rest_angles`  the encoder's count: how far the table really rests from its reading
 - :mod:`.design`       the observation model (stacked block rows, weights), shared by all below
+- :mod:`.whitening`    generalised least squares in linear time: the block rows whitened by a
+                       Kalman filter of the noise model
+- :mod:`.allan`        pooled overlapping Allan variance of residuals, with degrees of freedom
+- :mod:`.noise_fit`    the fast noise terms fitted to the Allan variance (bootstrap σ)
+- :mod:`.noise_likelihood` the slow noise terms by (restricted) maximum likelihood on the block rows
 - :mod:`.lsq`          general weighted least squares over any effects (Gauss–Newton on the table)
 - :mod:`.crb`          the Cramér–Rao bound of a schedule for a noise model
 """
