@@ -5,7 +5,6 @@ module:
 - :mod:`.quantities`       values with units as files write them, converted to SI
 - :mod:`.noise`            the composite noise of a channel (IEEE 952/1554 terms) and its block form
 - :mod:`.flicker`          bias instability as a Gauss–Markov sum (the FMU's and the estimators')
-- :mod:`.flicker`          flicker bias instability as a sum of Gauss-Markov terms (as the IMU FMU)
 - :mod:`.geometry`         the table's gimbal chain, base tilt, site: attitude and plate motion
 - :mod:`.table_parameters` table effects of the vocabulary as fields of the geometry
 - :mod:`.motion`           the plate's motion interpolated from logged angles, ideal increments
