@@ -36,7 +36,15 @@ def _procedure(proc: dict, log):
 
     data = LogData.from_log(log)
     if proc["method"] == "lsq":
-        fit = calibrate(data, list(proc["effects"]), **proc.get("options", {}))
+        opts = dict(proc.get("options", {}))
+        if "noise" in opts:
+            # the procedure's noise model (--noise specifications: identify, a grade, NAME=VALUE ...)
+            from components.diagnosis.noise_choice import choose_noise
+
+            specs = opts.pop("noise")
+            opts["noise"] = choose_noise([specs] if isinstance(specs, str) else list(specs), data,
+                                         effects=list(proc["effects"]), bootstrap=10)[0]
+        fit = calibrate(data, list(proc["effects"]), **opts)
         return data, result_from_fit(fit, list(proc["effects"]), data)
     from components import procedures
 
@@ -51,16 +59,18 @@ def _crb(data, model, noise: dict) -> dict:
 
     from components.estimation.crb import cramer_rao
     from components.model.effects import EFFECTS
-    from components.model.noise import NoiseModel
+    from components.model.noise import from_fmu_parameters
 
     arw = noise.get("gyro.noise.arw") or float(np.mean(model.noise.get("gyro_arw_rad_per_sqrt_s", [0.0])))
     vrw = noise.get("acc.noise.vrw") or float(np.mean(model.noise.get("acc_vrw_mps_per_sqrt_s", [0.0])))
     effects = [e for e in model.effects if e in EFFECTS]
     if not effects or not (arw > 0 and vrw > 0):
         return {}
+    # the bound under the noise injected (bias instability, random walk too), white levels
+    # from the fit where the truth has none
+    injected = from_fmu_parameters({**noise, "gyro.noise.arw": arw, "acc.noise.vrw": vrw})
     try:
-        return cramer_rao(data, effects, NoiseModel.per_sensor({"white": arw}, {"white": vrw}),
-                          rest_angle_sigma=model.noise.get("rest_angle_sigma_rad"))
+        return cramer_rao(data, effects, injected, rest_angle_sigma=model.noise.get("rest_angle_sigma_rad"))
     except Exception:  # noqa: BLE001  (a bound we cannot compute is reported as missing)
         return {}
 

@@ -32,6 +32,7 @@
     [procedures.lsq]         # method: lsq (effects), cwccw, tilt, tilt_ignored
     method = "lsq"
     effects = ["gyro.bias", "gyro.sf", "gyro.mis", "acc.bias", "acc.sf", "acc.mis"]
+    options = { noise = ["identify"] }   # lsq: the noise model, as calbench --noise (default white)
 
     [variations."acc.bias.x"]          # a grid: every value is a grid point (cartesian product)
     values = ["-100 ug", "100 ug"]
