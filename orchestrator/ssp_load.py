@@ -21,7 +21,6 @@ What is read from ``SystemStructure.ssd`` (namespaces of SSP 1.0):
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -44,6 +43,7 @@ from orchestrator.ssp_common import (
     ssv,
 )
 from orchestrator.system import ALGORITHMS, Connection, System, UnitSpec
+from orchestrator.units import sha256_file
 
 DEFAULT_STEP = 0.005
 _DOUBLE = re.compile(r"^\s*([+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?|[+-]?INF|NaN)\s*$")
@@ -53,14 +53,6 @@ _INT = re.compile(r"^\s*[+-]?\d+\s*$")
 def cache_root() -> Path:
     root = os.environ.get("CALBENCH_CACHE")
     return (Path(root) if root else Path.home() / ".cache" / "calbench") / "ssp"
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def load_ssp(path: str | Path, stop: float | None = None) -> System:
@@ -217,7 +209,7 @@ def _member(src: str, names: set[str], where: str) -> str:
 
 def _extract(p: Path, names: set[str]) -> Path:
     """Extract the archive's files (but the SSD) to a folder keyed by its SHA-256, once."""
-    digest = _sha256(p)
+    digest = sha256_file(p)
     dest = cache_root() / digest
     if (dest / ".complete").exists():
         return dest

@@ -4,7 +4,6 @@ fit statistics, the schedule and the data it came from. SI units; ratios as plai
 No wall-clock time is written: the same log and options give a byte-identical file."""
 from __future__ import annotations
 
-import hashlib
 import json
 import platform
 from dataclasses import dataclass, field
@@ -14,6 +13,7 @@ import numpy as np
 
 from components.errors import ResultFormatError
 from components.model.effects import EFFECTS, effect_of
+from orchestrator.units import sha256_file as file_sha256  # noqa: F401  (one implementation; re-exported)
 
 FORMAT = "calbench-result/1"
 
@@ -130,15 +130,6 @@ def _software() -> dict:
         cb = "unknown"
     return {"calbench": cb, "python": platform.python_version(), "numpy": numpy.__version__,
             "scipy": scipy.__version__}
-
-
-def file_sha256(path: str | Path) -> str:
-    """SHA-256 of a file's bytes, read in 1 MiB pieces (logs and FMUs can be large)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def schedule_of(time: np.ndarray, segment: np.ndarray | None) -> list:
