@@ -8,7 +8,7 @@ import pytest
 from scipy.linalg import cholesky, solve_triangular
 
 from components.estimation.whitening import whiten_channel
-from components.model.noise import ChannelNoise, block_noise
+from components.model.noise import ChannelNoise, block_noise, flicker_upper
 
 
 def dense_covariance(ch: ChannelNoise, edges: np.ndarray, white_var: np.ndarray, span: float, t_lo: float):
@@ -19,7 +19,7 @@ def dense_covariance(ch: ChannelNoise, edges: np.ndarray, white_var: np.ndarray,
     d = b - a
     n = len(d)
     C = np.diag(np.asarray(white_var, float)).copy()
-    for s, T in ch.gm_terms(t_lo, max(span, 2 * t_lo)):
+    for s, T in ch.gm_terms(t_lo, flicker_upper(span, t_lo)):
         for k in range(n):
             C[k, k] += 2 * s**2 * T * (d[k] - T * (1 - math.exp(-d[k] / T)))
             for m in range(k + 1, n):

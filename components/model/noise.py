@@ -270,18 +270,31 @@ class BlockNoise:
         return self.p0.shape[0]
 
 
+# The bias-instability floor of a sensor runs on past the end of any one log: the slow part of it
+# is an offset that stays over the log and is indistinguishable from the bias itself, and the
+# bias estimated there carries it. A floor with no upper end would give that offset an unbounded
+# variance, so an identified floor is taken to run to an hour (the averaging times datasheets
+# state it over), or to the log's length if that is longer.
+FLICKER_HORIZON = 3600.0
+
+
+def flicker_upper(span: float, t_lo: float) -> float:
+    """Where a floor without a range of its own is taken to end, on a log of *span* seconds."""
+    return max(span, FLICKER_HORIZON, 2 * t_lo)
+
+
 def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, span: float,
                 t_lo: float) -> BlockNoise:
     """The discrete form of *ch* on blocks of *durations* [s] (contiguous, in time order).
     ``white_var`` (B,): the block sums' variance from white noise and anything else independent
-    per block (rest angles); ``span`` [s]: the log's duration (the flicker floor is realised up to
-    it and the random walk's starting value has that much wander); ``t_lo`` [s]: the shortest
-    time scale the flicker floor is realised from."""
+    per block (rest angles); ``span`` [s]: the log's duration (a floor without a range of its own
+    is realised up to :func:`flicker_upper`, and the random walk's starting value has that much
+    wander); ``t_lo`` [s]: the shortest time scale the flicker floor is realised from."""
     d = np.asarray(durations, float)
     nb = len(d)
     cols_phi, cols_q, cols_c, cols_x, p0 = [], [], [], [], []
     rest = np.asarray(white_var, float).copy()
-    for s, T in ch.gm_terms(t_lo, max(span, 2 * t_lo)):
+    for s, T in ch.gm_terms(t_lo, flicker_upper(span, t_lo)):
         phi = np.exp(-d / T)
         cols_phi.append(phi)
         cols_q.append(s**2 * (1 - phi**2))
