@@ -315,7 +315,7 @@ def parse_kinds(kinds: dict) -> dict:
     allowed = {"static": {"kind", "up"}, "rotation": {"kind", "axis", "angle_deg"}, "excluded": {"kind"}}
     out = {}
     for label, d in kinds.items():
-        w = f"segment {label!r}"
+        w = f"segment {str(label)!r}"
         if not isinstance(d, dict) or d.get("kind") not in allowed:
             raise EstimationError(f"{w}: expected {{'kind': 'static' | 'rotation' | 'excluded', ...}}, got {d!r}")
         k = d["kind"]
