@@ -354,3 +354,31 @@ def test_gaps_and_the_missing_latitude(session):
     fit = _fit(session, latitude=None)
     assert any("Earth rate" in n and "not modelled" in n for n in fit.notes)
     assert all(p.north is None for p in fit.positions)
+
+
+def test_the_result_corrects_a_log_with_calbenchs_own_correction(session):
+    """The result file is an ordinary calibration model: components.model.correct applies it,
+    after which every rest reads gravity's magnitude and every turn its angle plus the Earth's
+    share, to the noise."""
+    from components.model.correct import correct_increments
+
+    fit = _fit(session)
+    t = session["time"]
+    dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+    g_inc, a_inc = correct_increments(fit.to_result(), session["gyro"], session["acc"], dt, None, 0.0)
+    seg, g = session["segment"], session["gravity"]
+    raw = []
+    for lab in sorted(set(seg)):
+        if lab.startswith("pos"):
+            m = seg == lab
+            T = dt[m].sum()
+            raw.append(np.linalg.norm(session["acc"][m].sum(axis=0)) / T - g)
+            fixed = np.linalg.norm(a_inc[m].sum(axis=0)) / T - g
+            assert abs(fixed) < 4 * VRW / math.sqrt(T), (lab, fixed)
+    assert np.max(np.abs(raw)) > 0.04                          # 4 mg before
+    earth = {r.name: r.earth for r in fit.rotations}
+    for _, _, rl, axis, angle in TURNS.values():
+        m = seg == rl
+        k = "xyz".index(axis)
+        turned = g_inc[m].sum(axis=0)[k]
+        assert abs(turned - angle * DEG - earth[rl][k]) < 4 * ARW * math.sqrt(dt[m].sum()), (rl, turned)
