@@ -40,3 +40,9 @@ class CampaignError(CalbenchError, ValueError):
 
 class ScheduleFault(CalbenchError, RuntimeError):
     """The table did not do what the schedule asked (e.g. never settled): names the step."""
+
+
+class EstimationError(CalbenchError, ValueError):
+    """The data cannot give what was asked of an estimator (too few attitudes for the parameters,
+    a segment description the data contradict): names the segment or parameter and what is
+    needed."""

@@ -11,4 +11,6 @@
 - :mod:`.noise_likelihood` the slow noise terms by (restricted) maximum likelihood on the block rows
 - :mod:`.lsq`          general weighted least squares over any effects (Gauss–Newton on the table)
 - :mod:`.crb`          the Cramér–Rao bound of a schedule for a noise model
+- :mod:`.positions`    calibration without a turntable: rests of unknown attitude, turns of a
+                       known angle about a body axis (docs/positions.md)
 """

@@ -1,0 +1,830 @@
+"""Calibration without a turntable: a multi-position session (Ferraris et al. 1995; Tedaldi et
+al. 2014), by hand or on any rig that logs no angles.
+
+The IMU rests in N attitudes the calibration is not told (or told only roughly which body axis is
+up), is moved by hand in between (those samples are excluded), and is turned from rest to rest
+through a known total angle about a body axis (e.g. 360° about x). All inputs are explicit arrays
+in SI, so any log reader can feed it: time, increments per sample, a segment label per sample,
+what each label is (``kinds``, the ``segments`` block of docs/measurement-log.md, version 2) and
+an optional mask of usable samples.
+
+Sensor model (components.model.effects, the IMU FMU): y = (I + K) x + b per sensor, with K's
+diagonal the scale factors (``*.sf.i``) and K_ij (i ≠ j) the misalignments (``*.mis.ij``, axis i's
+sensitivity to x_j); A = K of the accelerometers, G = K of the gyros.
+
+Rows (block sums of increments, white noise per sample):
+
+- a static position p, over each chunk of about ``chunk_s`` [s] of duration T_c:
+  accelerometer  Σ Δv = T_c [(I + A) g u_p + b_a],  u_p = C_pᵀ e_up the body-frame up vector;
+  gyro           Σ Δθ = T_c [(I + G) C_pᵀ Ω_n + b_g],  Ω_n = Ω (0, cos L, sin L) in ENU.
+  C_p (body → ENU) is a nuisance attitude per position: its tilt (2 angles) always, its heading
+  (1 angle) only when the latitude is given; g is the site's gravity, known.
+- a rotation r about the body axis a by the known angle θ, summed from the last rest sample
+  before it to the first rest sample after it (duration T_r):
+  Σ Δθ = (I + G) (θ a + M_r C_qᵀ Ω_n) + b_g T_r,  M_r = Σ_k R(a, θ_k)ᵀ Δt_k,
+  q the static position before it, θ_k the angle turned at sample k (from the gyro itself: its
+  errors change M_r by ~1e-9 rad). For a rotation about an axis fixed in the body this is exact
+  and linear in G and b_g (∫ω dt = θ a for a single-axis turn, whatever its rate profile).
+
+  What is approximated is the turn itself: the axis is the reference of the gyro misalignments.
+  An axis off the stated one by δ [rad] moves the off-axis components θ G_ia one for one (δ =
+  0.1° is 360″ of misalignment) and the scale factor by δ²/2 (1.5 ppm at 0.1°). A hand that does
+  not turn about a fixed axis adds the coning term ½∫φ × ω dt, second order in the wobble. All
+  three components of the summed increments are fitted, not their norm: the norm alone,
+  2π √((1 + G_aa)² + G_ya² + G_za²), couples the two misalignments of a 360° turn into the scale
+  factor by 2π (G_ya² + G_za²)/2, 24 ppm at 1000″ each.
+
+Estimation: Gauss–Newton on the calibration parameters and the attitudes jointly, rows whitened
+by the white noise: per-sample σ from the static data (consecutive differences,
+components.estimation.blocks.white_noise_sigma) or the white part of a given noise model. With
+white noise the chunk sums of a position enter the estimate only through their total, so the fit
+runs on one sum per position and sensor (the same estimate and covariance) and χ² is taken over
+the chunks (its within-position part does not depend on the parameters). Covariance (JᵀJ)⁻¹ of
+the whitened Jacobian at the solution; χ²/dof with dof = chunk and rotation rows − parameters.
+
+The gauge (what no data of this kind can tell): gravity's direction is free at every position,
+so a common rotation of the accelerometer triad is invisible — only its non-orthogonality is
+observable; a 360° turn returns to its start, so it does not tie the accelerometers to the turn's
+axis either. The body frame B is therefore the frame the rotations' axes (and ``up`` hints) are
+stated in, and the accelerometer triad is taken lower-triangular in it:
+
+    acc x sensitive axis ∥ B x,  acc y sensitive axis in B's x–y plane:
+    acc.mis.xy = acc.mis.xz = acc.mis.yz ≡ 0,   I + A lower triangular.
+
+A true triad I + A_t is reported as the lower-triangular factor L of I + A_t = L Q (Q a rotation,
+L with a positive diagonal); to first order acc.mis.yx → yx + xy, zx → zx + xz, zy → zy + yz
+(the sums are the non-orthogonality), the biases and scale factors unchanged, the attitudes u_p
+rotated by Q. The gyro parameters are relative to B (the turns' axes), so a gyro triad's
+misalignment is observable from turns about several axes and only about the axes turned about.
+The gauge's price is the Earth rate: it is placed along the accelerometer's up vector, which is
+off by Q's angle ρ, an error ≤ Ω ρ in the gyro rows (0.07 deg/h at ρ = 1000″).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from components.errors import EstimationError
+from components.estimation.blocks import white_noise_sigma
+from components.estimation.design import noise_floor
+from components.model.effects import AX, DEFAULT_EFFECTS, effect_of, parse_effects
+from components.model.geometry import EARTH_RATE, normal_gravity, rodrigues, rotvec, skew
+from components.model.result import schedule_of
+
+SUPPORTED = DEFAULT_EFFECTS  # gyro.bias, gyro.sf, gyro.mis, acc.bias, acc.sf, acc.mis
+GAUGE_HELD = ("acc.mis.xy", "acc.mis.xz", "acc.mis.yz")
+GAUGE = ("body frame B = the frame the rotations' axes and 'up' hints are given in; the accelerometer "
+         "triad is lower-triangular in B (acc x along B x, acc y in the B x-y plane): acc.mis.xy = "
+         "acc.mis.xz = acc.mis.yz = 0 by convention; gyro parameters relative to B")
+HELD_WHY = "held at 0 by the gauge (a common rotation of the accelerometer triad is not observable)"
+HINT_LIMIT_DEG = 45.0     # a stated 'up' further than this from the measured one is a wrong label
+SAME_ATTITUDE_DEG = 2.0   # positions closer than this count as one attitude
+ANGLE_TOL = (0.1, 5.0)    # a turn's gyro angle within 10 % + 5° of the stated one
+STEP_TOL = 1e-4           # iterations stop when no parameter moves by this fraction of its σ
+INDEPENDENT = 1e-6        # fraction of a column not explained by the others, below: undetermined
+
+# internal parameter layout: gyro bias (3), G (9, row-major), acc bias (3), A (9), then attitudes
+_GB, _G, _AB, _A, _NCAL = 0, 3, 12, 15, 24
+
+
+def _cal_names() -> list[str]:
+    names = [f"gyro.bias.{c}" for c in AX]
+    names += [f"gyro.sf.{AX[i]}" if i == j else f"gyro.mis.{AX[i]}{AX[j]}" for i in range(3) for j in range(3)]
+    names += [f"acc.bias.{c}" for c in AX]
+    names += [f"acc.sf.{AX[i]}" if i == j else f"acc.mis.{AX[i]}{AX[j]}" for i in range(3) for j in range(3)]
+    return names
+
+
+CAL_NAMES = _cal_names()
+
+
+# ----------------------------------------------------------------------------- results
+@dataclass
+class PositionResult:
+    """One static position: its estimated attitude and what is left of its rows."""
+
+    name: str                 # the label, or label#k for the k-th run of a label used twice
+    label: str
+    start: int                # sample range [start, stop) of the run
+    stop: int
+    samples: int              # samples used
+    duration: float           # s used
+    up: np.ndarray            # body-frame unit vector pointing up (gravity's reaction), in B
+    up_covariance: np.ndarray  # (3, 3) [rad²]
+    up_hint: np.ndarray | None
+    hint_angle_deg: float | None  # angle between the stated and the estimated up
+    north: np.ndarray | None  # body-frame north (latitude given)
+    heading_sigma_deg: float | None
+    acc_residual: np.ndarray  # mean specific-force residual [m/s²]
+    gyro_residual: np.ndarray  # mean rate residual [rad/s]
+    chi2: float
+    rows: int
+
+    @property
+    def up_sigma_deg(self) -> float:
+        return math.degrees(math.sqrt(max(float(np.trace(self.up_covariance)), 0.0)))
+
+
+@dataclass
+class RotationResult:
+    """One rotation segment and its fit."""
+
+    name: str
+    label: str
+    start: int                # summed samples [start, stop) (with the rest sample on each side)
+    stop: int
+    axis: np.ndarray          # unit, body frame B
+    angle: float              # rad, stated
+    duration: float
+    before: str               # position names on either side
+    after: str
+    measured: np.ndarray      # Σ gyro increments [rad]
+    earth: np.ndarray         # M_r C_qᵀ Ω_n [rad] (0 without latitude)
+    residual: np.ndarray      # measured − model [rad]
+    normalized: np.ndarray    # residual / σ
+    end_mismatch_deg: float   # angle between R(a, θ)ᵀ u_before and u_after
+
+    @property
+    def chi2(self) -> float:
+        return float(self.normalized @ self.normalized)
+
+
+@dataclass
+class PositionsFit:
+    """A multi-position calibration (see the module docstring for the model and the gauge)."""
+
+    effects: list[str]
+    parameters: list[str]          # estimated, vocabulary names
+    value: np.ndarray
+    covariance: np.ndarray
+    held: dict[str, str]           # parameter -> why it is held at 0 (the gauge)
+    undetermined: list[str]        # requested but not determined by these data: held at 0, no σ
+    chi2: float
+    dof: int
+    positions: list[PositionResult]
+    rotations: list[RotationResult]
+    sigma_gyro: np.ndarray         # per-sample white σ [rad]
+    sigma_acc: np.ndarray          # [m/s]
+    sample_interval: float
+    noise_source: str
+    latitude: float | None
+    gravity: float
+    iterations: int
+    excluded: dict = field(default_factory=dict)   # label -> samples left out ('(valid = False)': masked)
+    notes: list[str] = field(default_factory=list)
+    schedule: list = field(default_factory=list)   # [(label, t_start, t_end)]
+    samples: int = 0
+    duration: float = 0.0
+    gauge: str = GAUGE
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance))
+
+    @property
+    def chi2_per_dof(self) -> float:
+        return self.chi2 / self.dof if self.dof > 0 else float("nan")
+
+    def chi2_band(self, level: float = 0.999) -> tuple[float, float]:
+        """The two-sided band of χ²/dof that a correct model and noise model fall in with
+        probability *level*."""
+        from scipy.stats import chi2
+
+        a = (1 - level) / 2
+        return float(chi2.ppf(a, self.dof) / self.dof), float(chi2.ppf(1 - a, self.dof) / self.dof)
+
+    def values(self) -> dict[str, float]:
+        return dict(zip(self.parameters, map(float, self.value)))
+
+    def sigmas(self) -> dict[str, float]:
+        return dict(zip(self.parameters, map(float, self.sigma)))
+
+    def correlation(self) -> np.ndarray:
+        s = self.sigma
+        return self.covariance / np.outer(s, s)
+
+    def lines(self) -> list[str]:
+        """A printable summary: estimated parameters with σ; held and undetermined ones named,
+        never with a σ."""
+        out = [f"{'parameter':18s} {'value':>12s} {'sigma':>10s}  unit"]
+        for p, v, s in zip(self.parameters, self.value, self.sigma):
+            unit, k = effect_of(p).display
+            out.append(f"{p:18s} {v / k:+12.5g} {s / k:10.3g}  {unit}")
+        if self.held:
+            out.append(f"held by the gauge (not estimated): {', '.join(self.held)}")
+        if self.undetermined:
+            out.append(f"not determined by these data (not estimated): {', '.join(self.undetermined)}")
+        lo, hi = self.chi2_band()
+        out.append(f"chi2/dof = {self.chi2_per_dof:.3f} ({self.dof} dof; 99.9 % band {lo:.3f}-{hi:.3f}), "
+                   f"{len(self.positions)} positions, {len(self.rotations)} rotations")
+        out += [f"note: {n}" for n in self.notes]
+        return out
+
+    def to_result(self, source: str | Path | None = None):
+        """A components.model.result.CalibrationResult (method "positions"). Held and
+        undetermined parameters are not among its values (a model reads them as 0) and are
+        listed in its ``positions`` block. ``source``: the log the data came from (its files'
+        SHA-256 are recorded)."""
+        from components.model.result import CalibrationResult, file_sha256
+
+        dt = self.sample_interval
+        noise = {
+            "model": f"white noise per sample ({self.noise_source})",
+            "sample_interval_s": dt,
+            "gyro_sigma_rad": [float(x) for x in self.sigma_gyro],
+            "acc_sigma_mps": [float(x) for x in self.sigma_acc],
+            "gyro_arw_rad_per_sqrt_s": [float(x / math.sqrt(dt)) for x in self.sigma_gyro],
+            "acc_vrw_mps_per_sqrt_s": [float(x / math.sqrt(dt)) for x in self.sigma_acc],
+        }
+        lo, hi = self.chi2_band()
+        fit = {"chi2": float(self.chi2), "dof": int(self.dof), "chi2_per_dof": float(self.chi2_per_dof),
+               "chi2_per_dof_band_999": [lo, hi], "iterations": int(self.iterations),
+               "observations": "static chunks (accelerometer and gyro) per position, one summed row "
+                               "per rotation; attitudes estimated (2 tilt angles per position, "
+                               "+ heading with the latitude)"}
+        data = {"samples": int(self.samples), "duration_s": float(self.duration)}
+        if source is not None:
+            stem = Path(source).with_suffix("")
+            data["log"] = str(stem)
+            for suffix in (".csv", ".parquet", ".json"):
+                f = stem.with_suffix(suffix)
+                if f.exists():
+                    data[f"{suffix[1:]}_sha256"] = file_sha256(f)
+        block = {
+            "gauge": self.gauge,
+            "held": dict(self.held),
+            "undetermined": list(self.undetermined),
+            "latitude_deg": None if self.latitude is None else math.degrees(self.latitude),
+            "gravity_mps2": self.gravity,
+            "attitudes": [{"name": p.name, "label": p.label, "samples": p.samples,
+                           "up": [float(x) for x in p.up], "up_sigma_deg": p.up_sigma_deg,
+                           "hint_angle_deg": p.hint_angle_deg,
+                           "north": None if p.north is None else [float(x) for x in p.north],
+                           "heading_sigma_deg": p.heading_sigma_deg,
+                           "acc_residual_mps2": [float(x) for x in p.acc_residual],
+                           "gyro_residual_rps": [float(x) for x in p.gyro_residual],
+                           "chi2": p.chi2, "rows": p.rows} for p in self.positions],
+            "rotations": [{"name": r.name, "label": r.label, "axis": [float(x) for x in r.axis],
+                           "angle_deg": math.degrees(r.angle), "duration_s": r.duration,
+                           "before": r.before, "after": r.after,
+                           "residual_rad": [float(x) for x in r.residual],
+                           "normalized": [float(x) for x in r.normalized],
+                           "earth_rad": [float(x) for x in r.earth],
+                           "end_mismatch_deg": r.end_mismatch_deg} for r in self.rotations],
+            "excluded_samples": dict(self.excluded),
+            "notes": list(self.notes),
+        }
+        return CalibrationResult(
+            effects=list(self.effects), values=self.values(), sigmas=self.sigmas(),
+            correlation=self.correlation() if len(self.parameters) else None, noise=noise, fit=fit,
+            temperature_ref=None, schedule=[list(s) for s in self.schedule], data=data,
+            method="positions", extra={"positions": block})
+
+
+# ----------------------------------------------------------------------------- input checks
+def _vector(v, where: str) -> np.ndarray:
+    """A body axis: "x", "-y", "+z" or a unit vector [x, y, z]."""
+    if isinstance(v, str):
+        s = v.strip().lower()
+        sign = -1.0 if s.startswith("-") else 1.0
+        s = s.lstrip("+-")
+        if s not in ("x", "y", "z"):
+            raise EstimationError(f"{where} = {v!r}: expected a body axis 'x', '-y', ... or a unit vector [x, y, z]")
+        out = np.zeros(3)
+        out[AX.index(s)] = sign
+        return out
+    try:
+        out = np.asarray(v, float)
+    except (TypeError, ValueError):
+        out = None
+    if out is None or out.shape != (3,) or not np.all(np.isfinite(out)):
+        raise EstimationError(f"{where} = {v!r}: expected a body axis 'x', '-y', ... or a unit vector [x, y, z]")
+    if abs(np.linalg.norm(out) - 1.0) > 1e-6:
+        raise EstimationError(f"{where} = {v!r}: expected a unit vector (its length is {np.linalg.norm(out):.6g})")
+    return out / np.linalg.norm(out)
+
+
+def parse_kinds(kinds: dict) -> dict:
+    """``{label: {"kind": "static"[, "up": ...]} | {"kind": "rotation", "axis": ..., "angle_deg": ...}
+    | {"kind": "excluded"}}`` checked -> {label: {"kind", "up" (vector or None), "axis", "angle" [rad]}}."""
+    if not isinstance(kinds, dict):
+        raise EstimationError(f"kinds: expected a dict label -> segment description, got {type(kinds).__name__}")
+    allowed = {"static": {"kind", "up"}, "rotation": {"kind", "axis", "angle_deg"}, "excluded": {"kind"}}
+    out = {}
+    for label, d in kinds.items():
+        w = f"segment {str(label)!r}"
+        if not isinstance(d, dict) or d.get("kind") not in allowed:
+            raise EstimationError(f"{w}: expected {{'kind': 'static' | 'rotation' | 'excluded', ...}}, got {d!r}")
+        k = d["kind"]
+        extra = set(d) - allowed[k]
+        if extra:
+            raise EstimationError(f"{w}: unknown key(s) {sorted(extra)} for kind {k!r}; expected some of "
+                                  f"{sorted(allowed[k])}")
+        e = {"kind": k}
+        if k == "static":
+            e["up"] = _vector(d["up"], f"{w}: up") if d.get("up") is not None else None
+        elif k == "rotation":
+            if "axis" not in d or "angle_deg" not in d:
+                raise EstimationError(f"{w}: a rotation needs 'axis' (a body axis) and 'angle_deg' (its total angle)")
+            e["axis"] = _vector(d["axis"], f"{w}: axis")
+            a = d["angle_deg"]
+            if isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a) or a == 0:
+                raise EstimationError(f"{w}: angle_deg = {a!r}: expected a non-zero number of degrees")
+            e["angle"] = math.radians(a)
+        out[str(label)] = e
+    return out
+
+
+def _runs(labels: np.ndarray) -> list[tuple[str, int, int]]:
+    n = len(labels)
+    if n == 0:
+        return []
+    change = np.nonzero(labels[1:] != labels[:-1])[0] + 1
+    starts = np.concatenate([[0], change])
+    stops = np.concatenate([change, [n]])
+    return [(str(labels[a]), int(a), int(b)) for a, b in zip(starts, stops)]
+
+
+def _stretches(mask: np.ndarray, a: int, b: int) -> list[tuple[int, int]]:
+    """Contiguous runs of True in mask[a:b] as absolute [start, stop)."""
+    m = np.concatenate([[False], mask[a:b], [False]]).astype(np.int8)
+    d = np.diff(m)
+    return [(a + int(s), a + int(e)) for s, e in zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0])]
+
+
+def _chunks(a: int, b: int, n: int) -> list[tuple[int, int]]:
+    k = max(1, int(math.ceil((b - a) / n)))
+    edges = np.linspace(a, b, k + 1).round().astype(int)
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def _frame(up: np.ndarray, north: np.ndarray | None) -> np.ndarray:
+    """C (body -> ENU) whose rows are east, north and up in the body frame."""
+    u = up / np.linalg.norm(up)
+    if north is None or np.linalg.norm(north - (north @ u) * u) < 1e-9:
+        e = np.zeros(3)
+        e[int(np.argmin(np.abs(u)))] = 1.0
+        north = e
+    n = north - (north @ u) * u
+    n /= np.linalg.norm(n)
+    return np.vstack([np.cross(n, u), n, u])
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    c = float(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
+    return math.degrees(math.acos(c))
+
+
+# ----------------------------------------------------------------------------- the fit
+def calibrate_positions(time, gyro_inc, acc_inc, segment, kinds, *, effects=DEFAULT_EFFECTS, valid=None,
+                        latitude: float | None = None, height: float = 0.0, gravity: float | None = None,
+                        noise=None, chunk_s: float = 1.0, max_iterations: int = 50) -> PositionsFit:
+    """Calibrate from static positions of unknown attitude and rotations of known angle.
+
+    ``time`` (N,) [s] end of each sample's interval; ``gyro_inc`` (N, 3) [rad], ``acc_inc`` (N, 3)
+    [m/s] increments per sample; ``segment`` (N,) a label per sample; ``kinds`` what each label
+    is (:func:`parse_kinds`; a label it does not list is excluded, and said so); ``valid`` (N,)
+    bool, False for samples to leave out (gaps, a mask); ``latitude`` [rad]: with it the Earth
+    rate is modelled (its vertical part known, a heading per position estimated), without it
+    ignored; ``gravity`` [m/s²], default WGS-84 normal gravity at ``latitude`` and ``height``
+    [m]; ``noise`` a components.model.noise.NoiseModel whose white part weights the rows
+    (default: white σ from the static data); ``chunk_s`` [s] the static blocks of χ².
+    ``effects``: a subset of gyro/acc bias, sf, mis. Raises EstimationError for what the data
+    cannot give (too few attitudes, a rotation not between rests, a label the data contradict)."""
+    t = np.asarray(time, float)
+    yg = np.asarray(gyro_inc, float)
+    ya = np.asarray(acc_inc, float)
+    n = len(t)
+    if t.ndim != 1 or yg.shape != (n, 3) or ya.shape != (n, 3):
+        raise EstimationError(f"time (N,), gyro_inc (N, 3), acc_inc (N, 3) expected; got {t.shape}, "
+                              f"{yg.shape}, {ya.shape}")
+    seg = np.asarray(segment).astype(str)
+    if seg.shape != (n,):
+        raise EstimationError(f"segment: expected one label per sample ({n}), got shape {seg.shape}")
+    ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
+    if ok.shape != (n,):
+        raise EstimationError(f"valid: expected one flag per sample ({n}), got shape {ok.shape}")
+    if n < 2 or np.any(np.diff(t) <= 0):
+        raise EstimationError("time: expected at least two samples, strictly increasing")
+    bad = ok & ~(np.all(np.isfinite(yg), axis=1) & np.all(np.isfinite(ya), axis=1))
+    if np.any(bad):
+        raise EstimationError(f"increments not finite at {int(bad.sum())} usable sample(s), the first at "
+                              f"t = {t[np.argmax(bad)]:.6g} s: mark them in 'valid'")
+    try:
+        effects = parse_effects(effects)
+    except ValueError as e:
+        raise EstimationError(f"effects: {e}") from None
+    unsupported = [e for e in effects if e not in SUPPORTED]
+    if unsupported:
+        raise EstimationError(f"effects {unsupported}: the positions method fits only {', '.join(SUPPORTED)}")
+    desc = parse_kinds(kinds)
+    notes: list[str] = []
+
+    dt_all = np.diff(t)
+    dt_med = float(np.median(dt_all))
+    dt = np.concatenate([[dt_med], dt_all])
+    if gravity is None:
+        if latitude is None:
+            raise EstimationError("the magnitude of gravity is needed (it sets the accelerometer scale): "
+                                  "give gravity [m/s²] or the latitude (and height) for normal gravity")
+        gravity = normal_gravity(latitude, height)
+    g = float(gravity)
+    if latitude is None:
+        Om = np.zeros(3)
+        notes.append("no latitude: the Earth rate (15.04 deg/h) is not modelled; the gyro bias takes its mean "
+                     "over the positions, and each turn's share of it (up to Ω T) goes into the gyro "
+                     "scale factors and misalignments")
+    else:
+        Om = EARTH_RATE * np.array([0.0, math.cos(latitude), math.sin(latitude)])
+    use_heading = latitude is not None and abs(math.cos(latitude)) > 1e-6
+    na = 3 if use_heading else 2
+
+    # ---- segments: positions, rotations, excluded
+    runs = _runs(seg)
+    count = {}
+    for lab, _, _ in runs:
+        count[lab] = count.get(lab, 0) + 1
+    seen: dict[str, int] = {}
+    items = []   # (kind, name, label, a, b)
+    excluded: dict[str, int] = {}
+    unlisted = set()
+    for lab, a, b in runs:
+        seen[lab] = seen.get(lab, 0) + 1
+        name = lab if count[lab] == 1 else f"{lab}#{seen[lab]}"
+        k = desc.get(lab, {"kind": "excluded"})
+        if lab not in desc:
+            unlisted.add(lab)
+        if k["kind"] == "excluded":
+            excluded[lab] = excluded.get(lab, 0) + (b - a)
+        items.append((k["kind"], name, lab, a, b))
+    if unlisted:
+        notes.append(f"labels not described, excluded: {', '.join(sorted(unlisted))}")
+    if not np.all(ok):
+        excluded["(valid = False)"] = int((~ok).sum())
+
+    use = np.zeros(n, bool)     # samples of static rows
+    for kind, _, _, a, b in items:
+        if kind == "static":
+            use[a:b] = ok[a:b]
+    # rotations: the run plus the rest sample on each side, which then leaves the static rows
+    rot_specs = []
+    for idx, (kind, name, lab, a, b) in enumerate(items):
+        if kind != "rotation":
+            continue
+        prev = items[idx - 1] if idx > 0 else None
+        nxt = items[idx + 1] if idx + 1 < len(items) else None
+        for side, nb in (("before", prev), ("after", nxt)):
+            if nb is None or nb[0] != "static":
+                what = "the log's " + ("start" if side == "before" else "end") if nb is None else \
+                    f"segment {nb[2]!r} ({nb[0]})"
+                raise EstimationError(f"rotation {name!r} (t = {t[a]:.6g}-{t[b - 1]:.6g} s): {side} it comes {what}: "
+                                      "a rotation must go from rest to rest, with a static segment on each side")
+        if not np.all(ok[a:b]):
+            notes.append(f"rotation {name!r} left out: {int((~ok[a:b]).sum())} of its samples are left out "
+                         "(gap or mask), so its integral is unknown")
+            continue
+        lo = a - 1 if ok[a - 1] else a
+        hi = b + 1 if ok[b] else b
+        use[lo:a] = False
+        use[b:hi] = False
+        rot_specs.append((name, lab, lo, hi, desc[lab]["axis"], desc[lab]["angle"], prev[1], nxt[1]))
+
+    # ---- positions and their chunks
+    n_chunk = max(1, int(round(chunk_s / dt_med)))
+    pos_names, pos_label, pos_range, chunk_list = [], [], [], []
+    for kind, name, lab, a, b in items:
+        if kind != "static":
+            continue
+        st = _stretches(use, a, b)
+        if sum(e - s for s, e in st) < 2:
+            notes.append(f"static {name!r} left out: fewer than two usable samples")
+            continue
+        p = len(pos_names)
+        pos_names.append(name)
+        pos_label.append(lab)
+        pos_range.append((a, b))
+        for s, e in st:
+            chunk_list += [(p, c0, c1) for c0, c1 in _chunks(s, e, n_chunk)]
+    P = len(pos_names)
+    if P == 0:
+        raise EstimationError("no static segment with usable samples: the positions method needs the IMU at "
+                              "rest in several attitudes (segments of kind 'static')")
+    ch_p = np.array([c[0] for c in chunk_list])
+    ch_a = np.array([c[1] for c in chunk_list])
+    ch_b = np.array([c[2] for c in chunk_list])
+    cdt = np.concatenate([[0.0], np.cumsum(dt)])
+    cg = np.vstack([np.zeros(3), np.cumsum(yg, axis=0)])
+    ca = np.vstack([np.zeros(3), np.cumsum(ya, axis=0)])
+    ch_T = cdt[ch_b] - cdt[ch_a]
+    ch_g = cg[ch_b] - cg[ch_a]
+    ch_acc = ca[ch_b] - ca[ch_a]
+    T_p = np.bincount(ch_p, ch_T, P)
+    S_g = np.column_stack([np.bincount(ch_p, ch_g[:, i], P) for i in range(3)])
+    S_a = np.column_stack([np.bincount(ch_p, ch_acc[:, i], P) for i in range(3)])
+    n_used = np.bincount(ch_p, ch_b - ch_a, P)
+
+    # ---- noise
+    if noise is not None:
+        white = np.asarray(noise.white_sigma(dt_med), float)
+        est = white_noise_sigma(np.hstack([yg, ya]), use)
+        missing = ~(white > 0)
+        if np.any(missing):
+            white = np.where(missing, est, white)
+            notes.append("the noise model has no white term on some channels: their σ is estimated from "
+                         "the static data")
+        source = f"white part of the given noise model ({noise.source or 'given'})"
+        if noise.coloured:
+            notes.append("the noise model's coloured terms are not used by the positions method (white part only)")
+    else:
+        white = white_noise_sigma(np.hstack([yg, ya]), use)
+        source = "estimated from the static data"
+    sg = noise_floor(white[:3], 7.3e-5 * dt_med)
+    sa = noise_floor(white[3:], 9.8 * dt_med)
+    dens_g, dens_a = sg / math.sqrt(dt_med), sa / math.sqrt(dt_med)   # per √s
+
+    # ---- initial attitudes, hints, distinct attitudes
+    U0 = S_a / np.linalg.norm(S_a, axis=1)[:, None]
+    hints = [None] * P
+    for p in range(P):
+        h = desc[pos_label[p]].get("up")
+        if h is not None:
+            hints[p] = h
+            ang = _angle_deg(h, U0[p])
+            if ang > HINT_LIMIT_DEG:
+                raise EstimationError(
+                    f"static {pos_names[p]!r}: the accelerometers' mean points {ang:.0f}° from the stated up "
+                    f"{np.round(h, 3).tolist()} (along {np.round(U0[p], 3).tolist()}): check the segment's 'up'")
+    reps: list[np.ndarray] = []
+    for u in U0:
+        if all(_angle_deg(u, r) > SAME_ATTITUDE_DEG for r in reps):
+            reps.append(u)
+    held = {p: HELD_WHY for p in GAUGE_HELD if "acc.mis" in effects}
+    requested = [p for p in CAL_NAMES if effect_of(p).name in effects and p not in held]
+    n_acc = sum(1 for p in requested if p.startswith("acc."))
+    if len(reps) < n_acc:
+        raise EstimationError(
+            f"{len(reps)} distinct attitude(s) ({P} static segment(s)) determine at most {len(reps)} accelerometer "
+            f"parameters: each position's unknown direction of gravity takes 2 of its 3 equations. The "
+            f"{n_acc} accelerometer parameters of {', '.join(e for e in effects if e.startswith('acc.'))} need "
+            f"at least {n_acc} positions in different attitudes (more than {SAME_ATTITUDE_DEG:g}° apart; 12 or "
+            f"more recommended), or fewer effects")
+
+    # ---- rotations: sums, angle profiles, M_r
+    pidx = {nm: i for i, nm in enumerate(pos_names)}
+    rots = []
+    for name, lab, lo, hi, axis, angle, before, after in rot_specs:
+        if before not in pidx or after not in pidx:
+            raise EstimationError(f"rotation {name!r}: the static segment on each side needs usable samples")
+        s = yg[lo:hi] @ axis
+        total = float(s.sum())
+        if abs(total - angle) > ANGLE_TOL[0] * abs(angle) + math.radians(ANGLE_TOL[1]):
+            raise EstimationError(f"rotation {name!r}: the gyros turn {math.degrees(total):+.1f}° about "
+                                  f"{np.round(axis, 3).tolist()}, the segment says {math.degrees(angle):+.1f}°: "
+                                  "check its axis and angle")
+        theta = (np.cumsum(s) - s / 2) * (angle / total)
+        R = rodrigues(axis, theta)
+        M = np.einsum("k,kji->ij", dt[lo:hi], R)   # Σ R(a, θ_k)ᵀ Δt_k
+        rots.append({"name": name, "label": lab, "lo": lo, "hi": hi, "axis": axis, "angle": angle,
+                     "T": float(dt[lo:hi].sum()), "sum": yg[lo:hi].sum(axis=0), "M": M,
+                     "q": pidx[before], "before": before, "after": after})
+    NR = len(rots)
+
+    # ---- initial headings (latitude given): alternate bias and per-position north
+    north0 = [None] * P
+    if use_heading:
+        rate = S_g / T_p[:, None]
+        vert = Om[2] * U0
+        bg = np.average(rate - vert, axis=0, weights=T_p)
+        for _ in range(30):
+            hor = rate - bg - vert
+            hor -= np.sum(hor * U0, axis=1)[:, None] * U0
+            nb = np.linalg.norm(hor, axis=1)
+            nvec = np.where(nb[:, None] > 0, hor / np.where(nb > 0, nb, 1.0)[:, None], 0.0)
+            bg = np.average(rate - vert - Om[1] * nvec, axis=0, weights=T_p)
+        north0 = [v if np.linalg.norm(v) > 0 else None for v in nvec]
+    C = np.array([_frame(U0[p], north0[p]) for p in range(P)])
+    theta_cal = np.zeros(_NCAL)
+
+    # ---- the model
+    ez_x = skew(np.array([0.0, 0.0, 1.0]))
+    om_x = skew(Om)
+    nrow = 6 * P + 3 * NR
+    sig_row = np.concatenate([(dens_a[None, :] * np.sqrt(T_p)[:, None]).ravel(),
+                              (dens_g[None, :] * np.sqrt(T_p)[:, None]).ravel(),
+                              np.concatenate([dens_g * math.sqrt(r["T"]) for r in rots]) if NR else []])
+    y_obs = np.concatenate([S_a.ravel(), S_g.ravel()] + [r["sum"] for r in rots])
+    ncol = _NCAL + na * P
+
+    def unpack(th):
+        return th[_GB:_GB + 3], th[_G:_G + 9].reshape(3, 3), th[_AB:_AB + 3], th[_A:_A + 9].reshape(3, 3)
+
+    def model(th, C, jac=True, determinability=False):
+        bg, G, ba, A = unpack(th)
+        Kg, Ka = np.eye(3) + G, np.eye(3) + A
+        U = C[:, 2, :]
+        Ob = np.einsum("pij,i->pj", C, Om)
+        f = g * U
+        pa = T_p[:, None] * (f @ Ka.T + ba)
+        pg = T_p[:, None] * (Ob @ Kg.T + bg)
+        v = [r["angle"] * r["axis"] + r["M"] @ Ob[r["q"]] for r in rots]
+        pr = [Kg @ vr + bg * r["T"] for vr, r in zip(v, rots)]
+        pred = np.concatenate([pa.ravel(), pg.ravel()] + pr)
+        if not jac:
+            return pred, None
+        J = np.zeros((nrow, ncol))
+        for p in range(P):
+            att = slice(_NCAL + na * p, _NCAL + na * (p + 1))
+            Da = Ka @ (g * C[p].T @ ez_x)
+            Dg = Kg @ (C[p].T @ om_x)
+            for i in range(3):
+                ra, rg = 3 * p + i, 3 * P + 3 * p + i
+                J[ra, _AB + i] = T_p[p]
+                J[ra, _A + 3 * i:_A + 3 * i + 3] = T_p[p] * f[p]
+                J[ra, att] = T_p[p] * Da[i, :na]
+                J[rg, _GB + i] = T_p[p]
+                if not determinability:
+                    J[rg, _G + 3 * i:_G + 3 * i + 3] = T_p[p] * Ob[p]
+                J[rg, att] = T_p[p] * Dg[i, :na]
+        for k, r in enumerate(rots):
+            q = r["q"]
+            att = slice(_NCAL + na * q, _NCAL + na * (q + 1))
+            Dr = Kg @ (r["M"] @ C[q].T @ om_x)
+            vr = r["angle"] * r["axis"] if determinability else v[k]
+            for i in range(3):
+                row = 6 * P + 3 * k + i
+                J[row, _GB + i] = r["T"]
+                J[row, _G + 3 * i:_G + 3 * i + 3] = vr
+                J[row, att] = Dr[i, :na]
+        return pred, J / sig_row[:, None]
+
+    # ---- which requested parameters the data determine (pivoted QR after the attitudes)
+    req_cols = [CAL_NAMES.index(p) for p in requested]
+    att_cols = list(range(_NCAL, ncol))
+    _, Jd = model(theta_cal, C, determinability=True)
+    undetermined = _undetermined(Jd, req_cols, att_cols)
+    if undetermined:
+        names = [CAL_NAMES[c] for c in undetermined]
+        notes.append(f"not determined by these data, held at 0: {', '.join(names)}")
+    free = [c for c in req_cols if c not in undetermined]
+    cols = free + att_cols
+
+    # ---- Gauss-Newton
+    def chi2_of(th, C):
+        pred, _ = model(th, C, jac=False)
+        r = (y_obs - pred) / sig_row
+        return float(r @ r)
+
+    def step_to(th, C, d):
+        th2 = th.copy()
+        th2[free] += d[:len(free)]
+        phi = d[len(free):].reshape(P, na)
+        if na == 2:
+            phi = np.hstack([phi, np.zeros((P, 1))])
+        C2 = np.einsum("pij,pjk->pik", rotvec(phi), C)
+        return th2, C2
+
+    Om_h = np.array([Om[0], Om[1], 0.0])
+    head = [len(free) + na * p + 2 for p in range(P)] if use_heading else []
+
+    def heading_curvature(th, C, r):
+        """Σ_i r_i ∂²(pred_i/σ_i)/∂ψ_p² per position's heading ψ_p with the sign of the cost's
+        Hessian: a heading turns the horizontal Earth rate, ∂²(C_pᵀ Ω_n)/∂ψ² = −C_pᵀ Ω_h."""
+        _, G, _, _ = unpack(th)
+        Kg = np.eye(3) + G
+        out = np.zeros(P)
+        for p in range(P):
+            rows = slice(3 * P + 3 * p, 3 * P + 3 * p + 3)
+            out[p] += r[rows] @ (T_p[p] * Kg @ C[p].T @ Om_h / sig_row[rows])
+        for k, rt in enumerate(rots):
+            rows = slice(6 * P + 3 * k, 6 * P + 3 * k + 3)
+            out[rt["q"]] += r[rows] @ (Kg @ rt["M"] @ C[rt["q"]].T @ Om_h / sig_row[rows])
+        return out
+
+    # Gauss-Newton, with Newton's curvature for the headings: a heading known to ~15° (MEMS gyros)
+    # has a residual curvature comparable to its information, and Gauss-Newton alone then
+    # crawls (steps shrinking by 0.9 per iteration were seen) or overshoots
+    it = 0
+    for it in range(1, max_iterations + 1):
+        pred, J = model(theta_cal, C)
+        r = (y_obs - pred) / sig_row
+        Js = J[:, cols]
+        sc = np.linalg.norm(Js, axis=0)
+        sc[sc == 0] = 1.0
+        Jn = Js / sc
+        H = Jn.T @ Jn
+        grad = Jn.T @ r
+        if head:
+            curv = heading_curvature(theta_cal, C, r) / sc[head] ** 2
+            H[head, head] += np.maximum(curv, -0.5 * H[head, head])
+        try:
+            d = np.linalg.solve(H, grad)
+        except np.linalg.LinAlgError:
+            d, *_ = np.linalg.lstsq(Jn, r, rcond=None)
+        size = float(np.max(np.abs(d))) if len(d) else 0.0
+        d = d / sc
+        old = float(r @ r)
+        lam = 1.0
+        for _ in range(30):
+            th2, C2 = step_to(theta_cal, C, lam * d)
+            if chi2_of(th2, C2) <= old * (1 + 1e-12) + 1e-12:
+                break
+            lam /= 2
+        theta_cal, C = th2, C2
+        if size * lam < STEP_TOL:
+            break
+    else:
+        notes.append(f"Gauss-Newton stopped after {max_iterations} iterations without converging")
+
+    pred, J = model(theta_cal, C)
+    Js = J[:, cols]
+    sc = np.linalg.norm(Js, axis=0)
+    sc[sc == 0] = 1.0
+    cov_all = np.linalg.pinv((Js / sc).T @ (Js / sc)) / np.outer(sc, sc)
+    nf = len(free)
+    cov = cov_all[:nf, :nf]
+
+    # ---- χ² on the chunks, residuals per position and rotation
+    bg, G, ba, A = unpack(theta_cal)
+    Kg, Ka = np.eye(3) + G, np.eye(3) + A
+    U = C[:, 2, :]
+    Ob = np.einsum("pij,i->pj", C, Om)
+    mu_a = g * U @ Ka.T + ba        # per position, rate units
+    mu_g = Ob @ Kg.T + bg
+    res_a = ch_acc - ch_T[:, None] * mu_a[ch_p]
+    res_g = ch_g - ch_T[:, None] * mu_g[ch_p]
+    wa = res_a / (dens_a[None, :] * np.sqrt(ch_T)[:, None])
+    wg = res_g / (dens_g[None, :] * np.sqrt(ch_T)[:, None])
+    chi_c = np.sum(wa**2, axis=1) + np.sum(wg**2, axis=1)
+    chi_pos = np.bincount(ch_p, chi_c, P)
+    rot_out = []
+    for k, r in enumerate(rots):
+        res = r["sum"] - pred[6 * P + 3 * k:6 * P + 3 * k + 3]
+        nrm = res / sig_row[6 * P + 3 * k:6 * P + 3 * k + 3]
+        after = pidx[r["after"]]
+        u_pred = rodrigues(r["axis"], r["angle"]).T @ U[r["q"]]
+        rot_out.append(RotationResult(
+            name=r["name"], label=r["label"], start=r["lo"], stop=r["hi"], axis=r["axis"], angle=r["angle"],
+            duration=r["T"], before=r["before"], after=r["after"], measured=r["sum"],
+            earth=r["M"] @ Ob[r["q"]], residual=res, normalized=nrm, end_mismatch_deg=_angle_deg(u_pred, U[after])))
+    chi2 = float(chi_pos.sum() + sum(ro.chi2 for ro in rot_out))
+    dof = 6 * len(ch_p) + 3 * NR - len(cols)
+    for ro in rot_out:
+        if ro.end_mismatch_deg > 2.0:
+            notes.append(f"rotation {ro.name!r}: the attitude after it is {ro.end_mismatch_deg:.1f}° from the one "
+                         "the stated turn predicts: check its axis and angle, and that it is about a body axis")
+
+    pos_out = []
+    for p in range(P):
+        s = slice(nf + na * p, nf + na * (p + 1))
+        Cp = cov_all[s, s]
+        Ju = (C[p].T @ ez_x)[:, :na]
+        ucov = Ju @ Cp @ Ju.T
+        a, b = pos_range[p]
+        sel = ch_p == p
+        pos_out.append(PositionResult(
+            name=pos_names[p], label=pos_label[p], start=a, stop=b, samples=int(n_used[p]), duration=float(T_p[p]),
+            up=U[p].copy(), up_covariance=ucov, up_hint=hints[p],
+            hint_angle_deg=None if hints[p] is None else _angle_deg(hints[p], U[p]),
+            north=C[p, 1].copy() if use_heading else None,
+            heading_sigma_deg=math.degrees(math.sqrt(max(Cp[2, 2], 0.0))) if use_heading else None,
+            acc_residual=res_a[sel].sum(axis=0) / T_p[p], gyro_residual=res_g[sel].sum(axis=0) / T_p[p],
+            chi2=float(chi_pos[p]), rows=int(6 * sel.sum())))
+
+    if "acc.mis" in effects:
+        notes.append("gauge: acc.mis.xy, acc.mis.xz, acc.mis.yz held at 0 (the accelerometer triad defines the "
+                     "body frame's x axis and x-y plane; see docs/positions.md)")
+    return PositionsFit(
+        effects=list(effects), parameters=[CAL_NAMES[c] for c in free], value=theta_cal[free].copy(),
+        covariance=cov, held=held, undetermined=[CAL_NAMES[c] for c in undetermined], chi2=chi2, dof=dof,
+        positions=pos_out, rotations=rot_out, sigma_gyro=sg, sigma_acc=sa, sample_interval=dt_med,
+        noise_source=source, latitude=latitude, gravity=g, iterations=it, excluded=excluded, notes=notes,
+        schedule=schedule_of(t, seg), samples=n, duration=float(t[-1] - t[0] + dt_med))
+
+
+def _undetermined(J: np.ndarray, req: list[int], nuisance: list[int]) -> list[int]:
+    """Requested columns the rows cannot determine: with every column scaled to unit length,
+    the attitude columns projected out, a column-pivoted QR; a column with less than
+    INDEPENDENT of its length outside the span of the ones before it is undetermined."""
+    from scipy.linalg import qr
+
+    def unit(M):
+        s = np.linalg.norm(M, axis=0)
+        return M / np.where(s > 0, s, 1.0), s > 0
+
+    N, _ = unit(J[:, nuisance])
+    Q, R, _ = qr(N, mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    Q = Q[:, d > INDEPENDENT * (d.max() if len(d) else 1.0)]
+    X, nonzero = unit(J[:, req])
+    X = X - Q @ (Q.T @ X)
+    out = [req[k] for k in np.nonzero(~nonzero)[0]]
+    keep = [k for k in range(len(req)) if nonzero[k]]
+    if keep:
+        _, R2, piv = qr(X[:, keep], mode="economic", pivoting=True)
+        d2 = np.abs(np.diag(R2))
+        out += [req[keep[piv[k]]] for k in range(len(d2)) if d2[k] < INDEPENDENT]
+        out += [req[keep[piv[k]]] for k in range(len(d2), len(keep))]
+    return sorted(out)
