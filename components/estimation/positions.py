@@ -68,12 +68,12 @@ import numpy as np
 from components.errors import EstimationError
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.design import noise_floor
+from components.estimation.positions_input import checked_effects, checked_log, parse_kinds, split_segments
 from components.estimation.positions_result import PositionResult, PositionsFit, RotationResult
-from components.model.effects import AX, DEFAULT_EFFECTS, effect_of, parse_effects
+from components.model.effects import AX, DEFAULT_EFFECTS, effect_of
 from components.model.geometry import EARTH_RATE, normal_gravity, rodrigues, rotvec, skew
 from components.model.result import schedule_of
 
-SUPPORTED = DEFAULT_EFFECTS  # gyro.bias, gyro.sf, gyro.mis, acc.bias, acc.sf, acc.mis
 GAUGE_HELD = ("acc.mis.xy", "acc.mis.xz", "acc.mis.yz")
 HELD_WHY = "held at 0 by the gauge (a common rotation of the accelerometer triad is not observable)"
 HINT_LIMIT_DEG = 45.0     # a stated 'up' further than this from the measured one is a wrong label
@@ -97,83 +97,6 @@ def _cal_names() -> list[str]:
 CAL_NAMES = _cal_names()
 
 
-# ----------------------------------------------------------------------------- input checks
-def _vector(v, where: str) -> np.ndarray:
-    """A body axis: "x", "-y", "+z" or a unit vector [x, y, z]."""
-    if isinstance(v, str):
-        s = v.strip().lower()
-        sign = -1.0 if s.startswith("-") else 1.0
-        s = s.lstrip("+-")
-        if s not in ("x", "y", "z"):
-            raise EstimationError(f"{where} = {v!r}: expected a body axis 'x', '-y', ... or a unit vector [x, y, z]")
-        out = np.zeros(3)
-        out[AX.index(s)] = sign
-        return out
-    try:
-        out = np.asarray(v, float)
-    except (TypeError, ValueError):
-        out = None
-    if out is None or out.shape != (3,) or not np.all(np.isfinite(out)):
-        raise EstimationError(f"{where} = {v!r}: expected a body axis 'x', '-y', ... or a unit vector [x, y, z]")
-    if abs(np.linalg.norm(out) - 1.0) > 1e-6:
-        raise EstimationError(f"{where} = {v!r}: expected a unit vector (its length is {np.linalg.norm(out):.6g})")
-    return out / np.linalg.norm(out)
-
-
-def parse_kinds(kinds: dict) -> dict:
-    """``{label: {"kind": "static"[, "up": ...]} | {"kind": "rotation", "axis": ..., "angle_deg": ...}
-    | {"kind": "excluded"}}`` checked -> {label: {"kind", "up" (vector or None), "axis", "angle" [rad]}}."""
-    if not isinstance(kinds, dict):
-        raise EstimationError(f"kinds: expected a dict label -> segment description, got {type(kinds).__name__}")
-    allowed = {"static": {"kind", "up"}, "rotation": {"kind", "axis", "angle_deg"}, "excluded": {"kind"}}
-    out = {}
-    for label, d in kinds.items():
-        w = f"segment {str(label)!r}"
-        if not isinstance(d, dict) or d.get("kind") not in allowed:
-            raise EstimationError(f"{w}: expected {{'kind': 'static' | 'rotation' | 'excluded', ...}}, got {d!r}")
-        k = d["kind"]
-        extra = set(d) - allowed[k]
-        if extra:
-            raise EstimationError(f"{w}: unknown key(s) {sorted(extra)} for kind {k!r}; expected some of "
-                                  f"{sorted(allowed[k])}")
-        e = {"kind": k}
-        if k == "static":
-            e["up"] = _vector(d["up"], f"{w}: up") if d.get("up") is not None else None
-        elif k == "rotation":
-            if "axis" not in d or "angle_deg" not in d:
-                raise EstimationError(f"{w}: a rotation needs 'axis' (a body axis) and 'angle_deg' (its total angle)")
-            e["axis"] = _vector(d["axis"], f"{w}: axis")
-            a = d["angle_deg"]
-            if isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a) or a == 0:
-                raise EstimationError(f"{w}: angle_deg = {a!r}: expected a non-zero number of degrees")
-            e["angle"] = math.radians(a)
-        out[str(label)] = e
-    return out
-
-
-def _runs(labels: np.ndarray) -> list[tuple[str, int, int]]:
-    n = len(labels)
-    if n == 0:
-        return []
-    change = np.nonzero(labels[1:] != labels[:-1])[0] + 1
-    starts = np.concatenate([[0], change])
-    stops = np.concatenate([change, [n]])
-    return [(str(labels[a]), int(a), int(b)) for a, b in zip(starts, stops)]
-
-
-def _stretches(mask: np.ndarray, a: int, b: int) -> list[tuple[int, int]]:
-    """Contiguous runs of True in mask[a:b] as absolute [start, stop)."""
-    m = np.concatenate([[False], mask[a:b], [False]]).astype(np.int8)
-    d = np.diff(m)
-    return [(a + int(s), a + int(e)) for s, e in zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0])]
-
-
-def _chunks(a: int, b: int, n: int) -> list[tuple[int, int]]:
-    k = max(1, int(math.ceil((b - a) / n)))
-    edges = np.linspace(a, b, k + 1).round().astype(int)
-    return list(zip(edges[:-1], edges[1:]))
-
-
 def _frame(up: np.ndarray, north: np.ndarray | None) -> np.ndarray:
     """C (body -> ENU) whose rows are east, north and up in the body frame."""
     u = up / np.linalg.norm(up)
@@ -191,7 +114,6 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.acos(c))
 
 
-# ----------------------------------------------------------------------------- the fit
 def calibrate_positions(time, gyro_inc, acc_inc, segment, kinds, *, effects=DEFAULT_EFFECTS, valid=None,
                         latitude: float | None = None, height: float = 0.0, gravity: float | None = None,
                         noise=None, chunk_s: float = 1.0, max_iterations: int = 50) -> PositionsFit:
@@ -207,32 +129,9 @@ def calibrate_positions(time, gyro_inc, acc_inc, segment, kinds, *, effects=DEFA
     (default: white σ from the static data); ``chunk_s`` [s] the static blocks of χ².
     ``effects``: a subset of gyro/acc bias, sf, mis. Raises EstimationError for what the data
     cannot give (too few attitudes, a rotation not between rests, a label the data contradict)."""
-    t = np.asarray(time, float)
-    yg = np.asarray(gyro_inc, float)
-    ya = np.asarray(acc_inc, float)
+    t, yg, ya, seg, ok = checked_log(time, gyro_inc, acc_inc, segment, valid)
     n = len(t)
-    if t.ndim != 1 or yg.shape != (n, 3) or ya.shape != (n, 3):
-        raise EstimationError(f"time (N,), gyro_inc (N, 3), acc_inc (N, 3) expected; got {t.shape}, "
-                              f"{yg.shape}, {ya.shape}")
-    seg = np.asarray(segment).astype(str)
-    if seg.shape != (n,):
-        raise EstimationError(f"segment: expected one label per sample ({n}), got shape {seg.shape}")
-    ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
-    if ok.shape != (n,):
-        raise EstimationError(f"valid: expected one flag per sample ({n}), got shape {ok.shape}")
-    if n < 2 or np.any(np.diff(t) <= 0):
-        raise EstimationError("time: expected at least two samples, strictly increasing")
-    bad = ok & ~(np.all(np.isfinite(yg), axis=1) & np.all(np.isfinite(ya), axis=1))
-    if np.any(bad):
-        raise EstimationError(f"increments not finite at {int(bad.sum())} usable sample(s), the first at "
-                              f"t = {t[np.argmax(bad)]:.6g} s: mark them in 'valid'")
-    try:
-        effects = parse_effects(effects)
-    except ValueError as e:
-        raise EstimationError(f"effects: {e}") from None
-    unsupported = [e for e in effects if e not in SUPPORTED]
-    if unsupported:
-        raise EstimationError(f"effects {unsupported}: the positions method fits only {', '.join(SUPPORTED)}")
+    effects = checked_effects(effects)
     desc = parse_kinds(kinds)
     notes: list[str] = []
 
@@ -255,76 +154,11 @@ def calibrate_positions(time, gyro_inc, acc_inc, segment, kinds, *, effects=DEFA
     use_heading = latitude is not None and abs(math.cos(latitude)) > 1e-6
     na = 3 if use_heading else 2
 
-    # ---- segments: positions, rotations, excluded
-    runs = _runs(seg)
-    count = {}
-    for lab, _, _ in runs:
-        count[lab] = count.get(lab, 0) + 1
-    seen: dict[str, int] = {}
-    items = []   # (kind, name, label, a, b)
-    excluded: dict[str, int] = {}
-    unlisted = set()
-    for lab, a, b in runs:
-        seen[lab] = seen.get(lab, 0) + 1
-        name = lab if count[lab] == 1 else f"{lab}#{seen[lab]}"
-        k = desc.get(lab, {"kind": "excluded"})
-        if lab not in desc:
-            unlisted.add(lab)
-        if k["kind"] == "excluded":
-            excluded[lab] = excluded.get(lab, 0) + (b - a)
-        items.append((k["kind"], name, lab, a, b))
-    if unlisted:
-        notes.append(f"labels not described, excluded: {', '.join(sorted(unlisted))}")
-    if not np.all(ok):
-        excluded["(valid = False)"] = int((~ok).sum())
-
-    use = np.zeros(n, bool)     # samples of static rows
-    for kind, _, _, a, b in items:
-        if kind == "static":
-            use[a:b] = ok[a:b]
-    # rotations: the run plus the rest sample on each side, which then leaves the static rows
-    rot_specs = []
-    for idx, (kind, name, lab, a, b) in enumerate(items):
-        if kind != "rotation":
-            continue
-        prev = items[idx - 1] if idx > 0 else None
-        nxt = items[idx + 1] if idx + 1 < len(items) else None
-        for side, nb in (("before", prev), ("after", nxt)):
-            if nb is None or nb[0] != "static":
-                what = "the log's " + ("start" if side == "before" else "end") if nb is None else \
-                    f"segment {nb[2]!r} ({nb[0]})"
-                raise EstimationError(f"rotation {name!r} (t = {t[a]:.6g}-{t[b - 1]:.6g} s): {side} it comes {what}: "
-                                      "a rotation must go from rest to rest, with a static segment on each side")
-        if not np.all(ok[a:b]):
-            notes.append(f"rotation {name!r} left out: {int((~ok[a:b]).sum())} of its samples are left out "
-                         "(gap or mask), so its integral is unknown")
-            continue
-        lo = a - 1 if ok[a - 1] else a
-        hi = b + 1 if ok[b] else b
-        use[lo:a] = False
-        use[b:hi] = False
-        rot_specs.append((name, lab, lo, hi, desc[lab]["axis"], desc[lab]["angle"], prev[1], nxt[1]))
-
-    # ---- positions and their chunks
-    n_chunk = max(1, int(round(chunk_s / dt_med)))
-    pos_names, pos_label, pos_range, chunk_list = [], [], [], []
-    for kind, name, lab, a, b in items:
-        if kind != "static":
-            continue
-        st = _stretches(use, a, b)
-        if sum(e - s for s, e in st) < 2:
-            notes.append(f"static {name!r} left out: fewer than two usable samples")
-            continue
-        p = len(pos_names)
-        pos_names.append(name)
-        pos_label.append(lab)
-        pos_range.append((a, b))
-        for s, e in st:
-            chunk_list += [(p, c0, c1) for c0, c1 in _chunks(s, e, n_chunk)]
+    # ---- segments: positions (in chunks), rotations, excluded
+    segs = split_segments(seg, ok, desc, t, dt_med, chunk_s, notes)
+    pos_names, pos_label, pos_range, chunk_list = segs.names, segs.labels, segs.ranges, segs.chunks
+    use, excluded = segs.use, segs.excluded
     P = len(pos_names)
-    if P == 0:
-        raise EstimationError("no static segment with usable samples: the positions method needs the IMU at "
-                              "rest in several attitudes (segments of kind 'static')")
     ch_p = np.array([c[0] for c in chunk_list])
     ch_a = np.array([c[1] for c in chunk_list])
     ch_b = np.array([c[2] for c in chunk_list])
@@ -388,7 +222,9 @@ def calibrate_positions(time, gyro_inc, acc_inc, segment, kinds, *, effects=DEFA
     # ---- rotations: sums, angle profiles, M_r
     pidx = {nm: i for i, nm in enumerate(pos_names)}
     rots = []
-    for name, lab, lo, hi, axis, angle, before, after in rot_specs:
+    for sp in segs.turns:
+        name, lab, lo, hi, axis, angle, before, after = (sp.name, sp.label, sp.lo, sp.hi, sp.axis, sp.angle,
+                                                         sp.before, sp.after)
         if before not in pidx or after not in pidx:
             raise EstimationError(f"rotation {name!r}: the static segment on each side needs usable samples")
         s = yg[lo:hi] @ axis
