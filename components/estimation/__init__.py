@@ -12,5 +12,9 @@
 - :mod:`.lsq`          general weighted least squares over any effects (Gauss–Newton on the table)
 - :mod:`.crb`          the Cramér–Rao bound of a schedule for a noise model
 - :mod:`.positions`    calibration without a turntable: rests of unknown attitude, turns of a
-                       known angle about a body axis (docs/positions.md)
+                       known angle about a body axis (docs/positions.md); its entry point, in
+                       steps: :mod:`.positions_input` (the segments described and sorted),
+                       :mod:`.positions_observations` (the rows), :mod:`.positions_model` (their
+                       prediction and Jacobian), :mod:`.positions_solve` (Gauss–Newton,
+                       covariance, what is undetermined), :mod:`.positions_result` (the fit)
 """
