@@ -274,8 +274,10 @@ CASES = {
     "counts not whole": (_json_case(lambda m: m["imu"].update(gyro_output="counts", gyro_count_rad=1e-7)), "csv",
                          r"data row 1 \(line 2\), column 'gyro_y'.*not a whole number"),
     # metadata
-    "format v2": (_json_case(lambda m: m.update(format="calbench-log/2")), "json",
-                  r"key 'format' = 'calbench-log/2': expected 'calbench-log/1'"),
+    "format v3": (_json_case(lambda m: m.update(format="calbench-log/3")), "json",
+                  r"key 'format' = 'calbench-log/3': expected 'calbench-log/1' or 'calbench-log/2' \(a newer"),
+    "v2 key in v1": (_json_case(lambda m: m.update(exclude=[[0, 1]])), "json",
+                     r"key 'exclude' \(what to leave out\) belongs to 'calbench-log/2'"),
     "format missing": (_json_case(lambda m: m.pop("format")), "json", r"missing key 'format'"),
     "latitude missing": (_json_case(lambda m: m["site"].pop("latitude_deg")), "json",
                          r"missing key 'site.latitude_deg'"),

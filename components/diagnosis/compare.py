@@ -95,7 +95,7 @@ class Comparison:
 def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
     dt = float(np.median(np.diff(data.time)))
     n_chunk = max(1, int(round(chunk_s / dt)))
-    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
     zs, vs, sens, axis, start, stop, moving = [], [], [], [], [], [], []
     for blocks, sl, name in ((gb, slice(0, 3), "gyro"), (ab, slice(3, 6), "acc")):
         s = blocks.sum(residual[:, sl])
@@ -150,10 +150,10 @@ def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: i
     (a calibration result, or a supplier's IMU FMU replayed on the log's motion)."""
     meas = np.hstack([data.gyro, data.acc])
     resid = meas - pred
-    sigma = white_noise_sigma(resid, motion.static)
+    sigma = white_noise_sigma(resid, motion.static & data.usable)
     floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(motion.dt))
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
-    rest = rest_sigma(data.angles, rest_angle_sigma)
+    rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if noise is not None and noise.coloured:
         white = noise.white_sigma(float(np.median(motion.dt)))
         sigma = np.where(white > 0, white, sigma)

@@ -140,16 +140,16 @@ class _Design:
         motion = motion_for(geo)
         dt = float(np.median(np.diff(data.time)))
         n_chunk = max(1, int(round(chunk_s / dt)))
-        gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
+        gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
         # noise from the high-frequency content of the data (differences remove the model)
-        sg = white_noise_sigma(data.gyro, motion.static)
-        sa = white_noise_sigma(data.acc, motion.static)
+        sg = white_noise_sigma(data.gyro, motion.static & data.usable)
+        sa = white_noise_sigma(data.acc, motion.static & data.usable)
         if noise is not None and noise.coloured:
             white = noise.white_sigma(dt)
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
         sg = np.where(np.isfinite(sg) & (sg > 0), sg, 0.0) + 1e-13 * 7.3e-5 * dt
         sa = np.where(np.isfinite(sa) & (sa > 0), sa, 0.0) + 1e-13 * 9.8 * dt
-        rest = rest_sigma(data.angles, rest_angle_sigma)
+        rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
         y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, rest, geo, table_params, motion_for)
         span = float(data.time[-1] - data.time[0] + dt)
         yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)

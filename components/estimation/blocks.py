@@ -24,6 +24,7 @@ class Blocks:
     start: np.ndarray
     stop: np.ndarray
     moving: np.ndarray  # bool per block
+    whole_moves: bool = False  # a moving block is a whole rest-to-rest move (gyro rows)
 
     def __len__(self) -> int:
         return len(self.start)
@@ -45,19 +46,47 @@ def _chunks(a: int, b: int, n: int) -> list[tuple[int, int]]:
 
 
 def observation_blocks(static: np.ndarray, angles: np.ndarray,
-                       samples_per_chunk: int) -> tuple[Blocks, Blocks]:
+                       samples_per_chunk: int, valid: np.ndarray | None = None) -> tuple[Blocks, Blocks]:
     """(gyro blocks, accelerometer blocks) of a log. A log whose table already moves at its first
     sample (a window cut out of a schedule) has neither the angle at the start of that sample's
     interval nor the rate at its first angle: the interpolation takes the table at rest there,
     which is wrong through the whole first move (at 10 cm off the centre, a block residual of
-    1.6e-3 m/s that pulled the time offset by 9 us). That move is left out."""
+    1.6e-3 m/s that pulled the time offset by 9 us). That move is left out.
+
+    ``valid`` (N,) bool: samples left out (a gap, a mask, an exclusion) leave every block: a
+    static chunk or an accelerometer chunk keeps its usable stretches, a rest-to-rest gyro move
+    with a left-out sample is dropped (its integral is no longer the rotation between the rests)."""
     first = 0
     if len(angles) > 1 and np.any(angles[1] != angles[0]):
         runs = moving_runs(static)
         first = runs[0][1] if runs and runs[0][0] <= 1 else 1
-    return (make_blocks(static, samples_per_chunk, whole_moves=True, start=first),
-            make_blocks(static, samples_per_chunk, whole_moves=False, start=first,
-                        cut_cost=_jerk_near(angles)))
+    gb = make_blocks(static, samples_per_chunk, whole_moves=True, start=first)
+    ab = make_blocks(static, samples_per_chunk, whole_moves=False, start=first, cut_cost=_jerk_near(angles))
+    if valid is None or np.all(valid):
+        return gb, ab
+    return restrict(gb, valid), restrict(ab, valid)
+
+
+def restrict(blocks: Blocks, valid: np.ndarray) -> Blocks:
+    """*blocks* without the samples that are not *valid*: a moving block of whole moves (gyro) is
+    dropped, any other block keeps its stretches of valid samples."""
+    c = np.concatenate([[0], np.cumsum(~np.asarray(valid, bool))])
+    starts, stops, moving = [], [], []
+    for a, b, mv in zip(blocks.start, blocks.stop, blocks.moving):
+        if c[b] == c[a]:
+            starts.append(a)
+            stops.append(b)
+            moving.append(mv)
+            continue
+        if mv and blocks.whole_moves:
+            continue
+        m = np.concatenate([[False], valid[a:b], [False]]).astype(np.int8)
+        d = np.diff(m)
+        for s, e in zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]):
+            starts.append(a + int(s))
+            stops.append(a + int(e))
+            moving.append(mv)
+    return Blocks(np.array(starts, int), np.array(stops, int), np.array(moving, bool), blocks.whole_moves)
 
 
 def _jerk_near(angles: np.ndarray) -> np.ndarray:
@@ -116,7 +145,7 @@ def make_blocks(static: np.ndarray, samples_per_chunk: int, whole_moves: bool,
     if pos < n:
         spans += [(s, e, False) for s, e in _chunks(pos, n, samples_per_chunk)]
     arr = np.array(spans, dtype=object) if spans else np.zeros((0, 3), dtype=object)
-    return Blocks(arr[:, 0].astype(int), arr[:, 1].astype(int), arr[:, 2].astype(bool))
+    return Blocks(arr[:, 0].astype(int), arr[:, 1].astype(int), arr[:, 2].astype(bool), whole_moves)
 
 
 def white_noise_sigma(increments: np.ndarray, static: np.ndarray) -> np.ndarray:

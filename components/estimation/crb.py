@@ -30,10 +30,10 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     dt = float(np.median(np.diff(data.time)))
     motion = data.motion(geo)
     n_chunk = max(1, int(round(chunk_s / dt)))
-    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
     white = noise.white_sigma(dt)
     sg, sa = np.maximum(white[:3], 1e-30), np.maximum(white[3:], 1e-30)
-    q = rest_sigma(data.angles, rest_angle_sigma)
+    q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     # the design needs a measurement only for its residual: use the ideal one
     ideal = LogData(data.time, data.angles, motion.ideal_gyro, motion.ideal_acc, geo,
                     data.temperature, data.segment, data.dt0)

@@ -26,7 +26,26 @@ class LogData:
     # count weight of a pulse output [rad, m/s] (gyro, accelerometer), None for other outputs:
     # the quantization term of the noise is known from it
     count_weight: tuple = (None, None)
+    # samples that enter estimates (False: a gap, the mask, an exclusion); None: all
+    valid: np.ndarray | None = None
+    # why samples are left out: reason -> count (shown by every command)
+    left_out: dict = field(default_factory=dict)
+    # one encoder count per axis [rad], "exact", or None (not stated: the smallest logged step)
+    encoder_resolution: object = None
+    # what each segment label is (components.logs.segments), for logs without table angles
+    segment_kinds: dict | None = None
+    # the log's own noise model (calbench-noise/1 form) if its metadata states one
+    noise: dict | None = None
     _profiles: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def has_table(self) -> bool:
+        return self.angles.shape[1] > 0
+
+    @property
+    def usable(self) -> np.ndarray:
+        """(N,) bool: the samples that enter estimates."""
+        return np.ones(len(self.time), bool) if self.valid is None else self.valid
 
     def angle_profile(self, quadrature: int = 3):
         """The interpolated gimbal angles (cached: they do not depend on the geometry)."""
@@ -44,16 +63,32 @@ class LogData:
         cut = lambda x: None if x is None else x[a:b]  # noqa: E731
         return replace(self, time=self.time[a:b], angles=self.angles[a:b], gyro=self.gyro[a:b],
                        acc=self.acc[a:b], temperature=cut(self.temperature),
-                       segment=cut(self.segment), _profiles={})
+                       segment=cut(self.segment), valid=cut(self.valid), _profiles={})
 
     @classmethod
-    def from_log(cls, log) -> "LogData":
-        """From a components.logs.logfile.MeasurementLog."""
+    def from_log(cls, log, exclude: list | None = None) -> "LogData":
+        """From a components.logs.logfile.MeasurementLog; ``exclude``: more time ranges
+        [t0, t1] and segment labels to leave out (the command line's ``--exclude``)."""
         geo = TableGeometry(tuple(Stage(n, tuple(float(x) for x in v))
                                   for n, v in zip(log.axis_names, log.axis_vectors)),
                             latitude=log.latitude, height=log.height_m, gravity=log.gravity)
+        reasons = log.left_out(exclude)
+        valid = None
+        if reasons:
+            valid = np.ones(log.n, bool)
+            for m in reasons.values():
+                valid &= ~m
         return cls(time=log.time, angles=log.angles, gyro=log.gyro_increment(),
                    acc=log.acc_increment(), geometry=geo, temperature=log.temperature,
                    segment=log.segment, dt0=log.dt, source={"log": log.source},
                    count_weight=(log.gyro_count_rad if log.gyro_output == "counts" else None,
-                                 log.acc_count_mps if log.acc_output == "counts" else None))
+                                 log.acc_count_mps if log.acc_output == "counts" else None),
+                   valid=valid, left_out={k: int(m.sum()) for k, m in reasons.items()},
+                   encoder_resolution=log.encoder_resolution,
+                   segment_kinds=log.segments and _kinds(log.segments), noise=log.noise)
+
+
+def _kinds(segments: dict) -> dict:
+    from components.logs.segments import parse_segments
+
+    return parse_segments(segments)

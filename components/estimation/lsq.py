@@ -87,7 +87,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         return data.motion(g, temperature_ref, quadrature)
 
     motion = motion_for(geo)
-    gb, ab = observation_blocks(motion.static, data.angles, n_chunk)
+    gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
     if noise is not None:
         white = noise.white_sigma(dt_mean)
         if sigma_gyro is None and np.all(white[:3] > 0):
@@ -103,12 +103,12 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         return yw, Hw
 
     sg = noise_floor(np.asarray(sigma_gyro if sigma_gyro is not None
-                                 else white_noise_sigma(data.gyro, motion.static), float),
+                                 else white_noise_sigma(data.gyro, motion.static & data.usable), float),
                       7.3e-5 * dt_mean)
     sa = noise_floor(np.asarray(sigma_acc if sigma_acc is not None
-                                 else white_noise_sigma(data.acc, motion.static), float),
+                                 else white_noise_sigma(data.acc, motion.static & data.usable), float),
                       9.8 * dt_mean)
-    q = rest_sigma(data.angles, rest_angle_sigma)
+    q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if rest_angle_sigma is None and np.any(q):
         q = _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
     value = np.array([(fixed or {}).get(p, 0.0) if effect_of(p).target == "table"

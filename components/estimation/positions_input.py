@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.errors import EstimationError
-from components.model.effects import AX, DEFAULT_EFFECTS, parse_effects
+from components.logs.segments import parse_segments
+from components.model.effects import DEFAULT_EFFECTS, parse_effects
 
 SUPPORTED = DEFAULT_EFFECTS  # gyro.bias, gyro.sf, gyro.mis, acc.bias, acc.sf, acc.mis
 
@@ -51,57 +52,11 @@ def checked_effects(effects) -> list[str]:
     return effects
 
 
-def _vector(v, where: str) -> np.ndarray:
-    """A body axis: "x", "-y", "+z" or a unit vector [x, y, z]."""
-    if isinstance(v, str):
-        s = v.strip().lower()
-        sign = -1.0 if s.startswith("-") else 1.0
-        s = s.lstrip("+-")
-        if s not in ("x", "y", "z"):
-            raise EstimationError(f"{where} = {v!r}: expected a body axis 'x', '-y', ... or a unit vector [x, y, z]")
-        out = np.zeros(3)
-        out[AX.index(s)] = sign
-        return out
-    try:
-        out = np.asarray(v, float)
-    except (TypeError, ValueError):
-        out = None
-    if out is None or out.shape != (3,) or not np.all(np.isfinite(out)):
-        raise EstimationError(f"{where} = {v!r}: expected a body axis 'x', '-y', ... or a unit vector [x, y, z]")
-    if abs(np.linalg.norm(out) - 1.0) > 1e-6:
-        raise EstimationError(f"{where} = {v!r}: expected a unit vector (its length is {np.linalg.norm(out):.6g})")
-    return out / np.linalg.norm(out)
-
-
 def parse_kinds(kinds: dict) -> dict:
     """``{label: {"kind": "static"[, "up": ...]} | {"kind": "rotation", "axis": ..., "angle_deg": ...}
-    | {"kind": "excluded"}}`` checked -> {label: {"kind", "up" (vector or None), "axis", "angle" [rad]}}."""
-    if not isinstance(kinds, dict):
-        raise EstimationError(f"kinds: expected a dict label -> segment description, got {type(kinds).__name__}")
-    allowed = {"static": {"kind", "up"}, "rotation": {"kind", "axis", "angle_deg"}, "excluded": {"kind"}}
-    out = {}
-    for label, d in kinds.items():
-        w = f"segment {str(label)!r}"
-        if not isinstance(d, dict) or d.get("kind") not in allowed:
-            raise EstimationError(f"{w}: expected {{'kind': 'static' | 'rotation' | 'excluded', ...}}, got {d!r}")
-        k = d["kind"]
-        extra = set(d) - allowed[k]
-        if extra:
-            raise EstimationError(f"{w}: unknown key(s) {sorted(extra)} for kind {k!r}; expected some of "
-                                  f"{sorted(allowed[k])}")
-        e = {"kind": k}
-        if k == "static":
-            e["up"] = _vector(d["up"], f"{w}: up") if d.get("up") is not None else None
-        elif k == "rotation":
-            if "axis" not in d or "angle_deg" not in d:
-                raise EstimationError(f"{w}: a rotation needs 'axis' (a body axis) and 'angle_deg' (its total angle)")
-            e["axis"] = _vector(d["axis"], f"{w}: axis")
-            a = d["angle_deg"]
-            if isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a) or a == 0:
-                raise EstimationError(f"{w}: angle_deg = {a!r}: expected a non-zero number of degrees")
-            e["angle"] = math.radians(a)
-        out[str(label)] = e
-    return out
+    | {"kind": "excluded"}}`` checked -> {label: {"kind", "up" (vector or None), "axis", "angle" [rad]}}
+    (components.logs.segments, with the estimator's error)."""
+    return parse_segments(kinds, "kinds", EstimationError)
 
 
 def _runs(labels: np.ndarray) -> list[tuple[str, int, int]]:

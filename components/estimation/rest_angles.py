@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from components.errors import EstimationError
 from components.estimation.blocks import Blocks
 from components.model.geometry import TableGeometry
 
@@ -35,11 +36,43 @@ def rest_variance(data, geo: TableGeometry, gb: Blocks, rest: np.ndarray) -> np.
     return var
 
 
-def rest_sigma(angles: np.ndarray, given=None) -> np.ndarray:
-    """Per-axis σ of the true angle at rest: *given*, or a uniform count q/√12."""
+# a smallest logged angle step beyond this is not an encoder count (a log of nominal attitudes on
+# a 90° grid would otherwise allow tens of degrees of rest-angle error and hide any misfit)
+GUESSED_COUNT_LIMIT = 1e-3  # rad (0.057°)
+
+
+def rest_sigma(angles: np.ndarray, given=None, resolution=None) -> np.ndarray:
+    """Per-axis σ of the true angle at rest: *given*; else one count uniform (q/√12) with q the
+    log's stated encoder *resolution* (per axis [rad], or "exact": 0); else q the smallest logged
+    step, refused where that cannot be an encoder count."""
+    n_ax = angles.shape[1]
     if given is not None:
-        return np.broadcast_to(np.asarray(given, float), (angles.shape[1],)).copy()
-    return encoder_quantum(angles) / np.sqrt(12.0)
+        return np.broadcast_to(np.asarray(given, float), (n_ax,)).copy()
+    if isinstance(resolution, str) and resolution == "exact":
+        return np.zeros(n_ax)
+    if resolution is not None:
+        return np.broadcast_to(np.asarray(resolution, float), (n_ax,)) / np.sqrt(12.0)
+    q = encoder_quantum(angles)
+    if np.any(q > GUESSED_COUNT_LIMIT):
+        k = int(np.argmax(q))
+        raise EstimationError(
+            f"the table's encoder resolution is not stated and the smallest step between logged angles of axis "
+            f"{k + 1} is {np.degrees(q[k]):.4g}°, which is not an encoder count: state it as "
+            "'table.encoder_resolution_rad' in the log's metadata (a number [rad], one per axis, or \"exact\" "
+            "when the logged angles at rest are the true ones; calbench-log/2)")
+    return q / np.sqrt(12.0)
+
+
+def resolution_note(angles: np.ndarray, resolution) -> str:
+    """What the rest angles' uncertainty is taken from, for the command's printout."""
+    if isinstance(resolution, str) and resolution == "exact":
+        return "encoder: rest angles exact (log metadata)"
+    if resolution is not None:
+        return "encoder: one count = " + ", ".join(f"{np.degrees(x) * 3600:.4g}\"" for x in
+                                                   np.atleast_1d(resolution)) + " (log metadata)"
+    q = encoder_quantum(angles)
+    return ("encoder: resolution not stated, assumed one count = the smallest logged angle step ("
+            + ", ".join(f"{np.degrees(x) * 3600:.4g}\"" for x in q) + ")")
 
 
 def encoder_quantum(angles: np.ndarray) -> np.ndarray:

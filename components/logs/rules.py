@@ -1,7 +1,12 @@
-"""The rules of the ``calbench-log/1`` format (docs/measurement-log.md), checked on
-metadata and sample columns; every broken rule raises :class:`LogFormatError` naming the file,
-the key or the data row and what was expected. Choices the spec leaves open are stated in
-components/logs/logfile.py."""
+"""The rules of the ``calbench-log/1`` and ``calbench-log/2`` formats (docs/measurement-log.md),
+checked on metadata and sample columns; every broken rule raises :class:`LogFormatError` naming
+the file, the key or the data row and what was expected. Choices the spec leaves open are stated
+in components/logs/logfile.py.
+
+Version 2 adds what logs of other rigs need, all optional: no table angles (``table.axes`` = []),
+the encoder resolution, measured timing with gaps, what each segment label is, time ranges and
+labels to leave out, the noise if known, and a ``mask`` column. A key of version 2 in a file that
+says version 1 is refused (it would otherwise be kept and ignored without a word)."""
 from __future__ import annotations
 
 import math
@@ -12,6 +17,14 @@ import numpy as np
 from components.errors import LogFormatError
 
 FORMAT = "calbench-log/1"
+FORMAT_V2 = "calbench-log/2"
+FORMATS = (FORMAT, FORMAT_V2)
+TIMINGS = ("nominal", "measured")
+# keys only version 2 gives a meaning to: (path, what it is)
+V2_KEYS = (("table.encoder_resolution_rad", "the encoder resolution"), ("imu.timing", "the timing rule"),
+           ("imu.max_interval_s", "the longest interval that is not a gap"), ("imu.noise", "the noise model"),
+           ("segments", "what each segment label is"), ("exclude", "what to leave out"))
+MAX_METADATA_DEPTH = 32
 GYRO_OUTPUTS = {"rate": "rad/s", "increment": "rad", "counts": "counts of gyro_count_rad"}
 ACC_OUTPUTS = {"specific_force": "m/s²", "increment": "m/s", "counts": "counts of acc_count_mps"}
 GAP_REL_TOL = 0.01
@@ -45,12 +58,19 @@ def _number(v, path: str, where: str, expected: str) -> float:
 def parse_metadata(meta, where: str) -> dict:
     if not isinstance(meta, dict):
         raise LogFormatError(f"{where}: expected a JSON object at the top level")
-    fmt = _key(meta, "format", where, f'"{FORMAT}"')
-    if fmt != FORMAT:
+    _check_depth(meta, where)
+    fmt = _key(meta, "format", where, f'"{FORMAT}" or "{FORMAT_V2}"')
+    if fmt not in FORMATS:
         hint = " (a newer version of the format: update calbench)" if isinstance(fmt, str) and \
             fmt.startswith("calbench-log/") else ""
-        raise LogFormatError(f"{where}: key 'format' = {fmt!r}: expected {FORMAT!r}{hint}")
-    out: dict = {}
+        raise LogFormatError(f"{where}: key 'format' = {fmt!r}: expected {FORMAT!r} or {FORMAT_V2!r}{hint}")
+    v2 = fmt == FORMAT_V2
+    if not v2:
+        for path, what in V2_KEYS:
+            if _key(meta, path, where, "", required=False) is not None:
+                raise LogFormatError(f"{where}: key {path!r} ({what}) belongs to {FORMAT_V2!r}, but 'format' is "
+                                     f"{FORMAT!r}; set 'format' to {FORMAT_V2!r}")
+    out: dict = {"format": fmt}
     lat = _number(_key(meta, "site.latitude_deg", where, "a latitude in degrees"), "site.latitude_deg",
                   where, "a latitude in degrees")
     if not -90.0 <= lat <= 90.0:
@@ -66,8 +86,10 @@ def parse_metadata(meta, where: str) -> dict:
                                  "[m/s²] or null (normal gravity)")
     out["gravity_mps2"] = g
     axes = _key(meta, "table.axes", where, "a list of {name, axis}")
-    if not isinstance(axes, list) or not axes:
-        raise LogFormatError(f"{where}: key 'table.axes' = {axes!r}: expected a non-empty list of {{name, axis}}")
+    if not isinstance(axes, list) or (not axes and not v2):
+        expected = "a list of {name, axis} ([] for a log without table angles)" if v2 else \
+            f"a non-empty list of {{name, axis}} (a log without table angles is {FORMAT_V2!r} with 'axes': [])"
+        raise LogFormatError(f"{where}: key 'table.axes' = {axes!r}: expected {expected}")
     names, vecs = [], []
     for i, a in enumerate(axes):
         k = f"table.axes[{i}]"
@@ -123,8 +145,110 @@ def parse_metadata(meta, where: str) -> dict:
     if not isinstance(d, str):
         raise LogFormatError(f"{where}: key 'description' = {d!r}: expected text")
     out["description"] = d
+    out.update(_parse_v2(meta, out, where) if v2 else
+               {"encoder_resolution": None, "timing": "nominal", "max_interval_s": None, "segments": None,
+                "segment_kinds": None, "exclude": [], "noise": None})
     out["extra_metadata"] = {k: v for k, v in meta.items()
-                             if k not in ("format", "site", "table", "imu", "description")}
+                             if k not in ("format", "site", "table", "imu", "description", "segments", "exclude")}
+    return out
+
+
+def _check_depth(meta, where: str) -> None:
+    """Metadata nested deeper than any real file (a hostile or broken one) is refused before
+    anything recurses through it."""
+    stack = [(meta, 1)]
+    while stack:
+        node, d = stack.pop()
+        if d > MAX_METADATA_DEPTH:
+            raise LogFormatError(f"{where}: metadata nested deeper than {MAX_METADATA_DEPTH} levels; expected the "
+                                 "flat object of docs/measurement-log.md")
+        if isinstance(node, dict):
+            stack.extend((v, d + 1) for v in node.values())
+        elif isinstance(node, list):
+            stack.extend((v, d + 1) for v in node)
+
+
+def _parse_v2(meta: dict, out: dict, where: str) -> dict:
+    """The optional keys of version 2, checked (docs/measurement-log.md, "Version 2")."""
+    from components.logs.segments import parse_segments
+
+    v2: dict = {}
+    n_axes = len(out["axis_names"])
+    res = _key(meta, "table.encoder_resolution_rad", where, "", required=False)
+    if res is not None:
+        expected = ("one count of the encoders [rad]: a positive number, a list of one per axis, or \"exact\" "
+                    "(the logged angles at rest are the true ones)")
+        if res == "exact":
+            pass
+        elif isinstance(res, list):
+            if len(res) != n_axes:
+                raise LogFormatError(f"{where}: key 'table.encoder_resolution_rad' has {len(res)} value(s) for "
+                                     f"{n_axes} axes; expected {expected}")
+            res = np.array([_number(x, "table.encoder_resolution_rad", where, expected) for x in res])
+        else:
+            res = np.full(n_axes, _number(res, "table.encoder_resolution_rad", where, expected))
+        if not isinstance(res, str) and np.any(res <= 0):
+            raise LogFormatError(f"{where}: key 'table.encoder_resolution_rad' = {res.tolist()!r}: expected {expected}")
+        if n_axes == 0:
+            raise LogFormatError(f"{where}: key 'table.encoder_resolution_rad' is given but 'table.axes' is []: "
+                                 "a log without table angles has no encoder")
+    v2["encoder_resolution"] = res
+    timing = _key(meta, "imu.timing", where, "", required=False)
+    if timing is None:
+        timing = "nominal"
+    if timing not in TIMINGS:
+        raise LogFormatError(f"{where}: key 'imu.timing' = {timing!r}: expected 'nominal' (every interval is "
+                             "1/sample_rate_hz) or 'measured' (each sample's own interval, gaps allowed)")
+    v2["timing"] = timing
+    mx = _key(meta, "imu.max_interval_s", where, "", required=False)
+    if mx is not None:
+        mx = _number(mx, "imu.max_interval_s", where, "the longest interval that is not a gap [s]")
+        if timing != "measured":
+            raise LogFormatError(f"{where}: key 'imu.max_interval_s' is given but 'imu.timing' is 'nominal': gaps "
+                                 "are allowed only with 'imu.timing': 'measured'")
+        if mx * out["sample_rate_hz"] <= 1.0:
+            raise LogFormatError(f"{where}: key 'imu.max_interval_s' = {mx!r}: expected more than the nominal "
+                                 f"interval 1/sample_rate_hz = {1.0 / out['sample_rate_hz']!r} s")
+    v2["max_interval_s"] = mx
+    segs = meta.get("segments")
+    v2["segments"] = segs
+    v2["segment_kinds"] = parse_segments(segs, f"{where}: key 'segments'") if segs is not None else None
+    if n_axes == 0 and not v2["segment_kinds"]:
+        raise LogFormatError(f"{where}: 'table.axes' is [] (no table angles) but there is no 'segments' key: "
+                             "expected what each segment label is ({\"pos1\": {\"kind\": \"static\"}, \"rotX\": "
+                             "{\"kind\": \"rotation\", \"axis\": \"x\", \"angle_deg\": 360}, ...})")
+    v2["exclude"] = parse_exclude(meta.get("exclude", []), f"{where}: key 'exclude'")
+    noise = _key(meta, "imu.noise", where, "", required=False)
+    if noise is not None:
+        from components.model.noise import NoiseModel
+
+        try:
+            if not isinstance(noise, dict) or not isinstance(noise.get("channels"), dict):
+                raise TypeError("no 'channels' object")
+            NoiseModel.from_dict(noise)
+        except (TypeError, KeyError, ValueError) as e:
+            raise LogFormatError(f"{where}: key 'imu.noise': {e}; expected a calbench-noise/1 model (its "
+                                 "'channels' block, as `calbench noise --out` writes)") from None
+    v2["noise"] = noise
+    return v2
+
+
+def parse_exclude(items, where: str) -> list:
+    """``[[t0, t1], "label", ...]`` checked -> the same list with float ranges (t0 < t1, s)."""
+    if not isinstance(items, list):
+        raise LogFormatError(f"{where} = {items!r}: expected a list of time ranges [t0, t1] [s] and/or segment "
+                             "labels")
+    out = []
+    for i, it in enumerate(items):
+        if isinstance(it, str):
+            out.append(it)
+            continue
+        ok = isinstance(it, list) and len(it) == 2 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in it)
+        if not ok or not it[0] < it[1]:
+            raise LogFormatError(f"{where}[{i}] = {it!r}: expected a time range [t0, t1] with t0 < t1 [s] or a "
+                                 "segment label")
+        out.append([float(it[0]), float(it[1])])
     return out
 
 
@@ -132,6 +256,8 @@ def parse_metadata(meta, where: str) -> dict:
 def numeric_columns(header: list[str], meta: dict) -> list[str]:
     known = ["time"] + [c for c in header if c.startswith(("gimbal_", "command_"))]
     known += [f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ] + ["temperature"]
+    if meta.get("format") == FORMAT_V2:
+        known.append("mask")
     return [c for c in header if c in known]
 
 
@@ -147,6 +273,9 @@ def check_columns(header: list[str], meta: dict, where: str) -> None:
         if c not in seen:
             why = f" (table.axes names axis {c[7:]!r})" if c.startswith("gimbal_") else ""
             raise LogFormatError(f"{where}: missing column {c!r}{why}; the header has: {', '.join(header)}")
+    if not axes and "segment" not in seen:
+        raise LogFormatError(f"{where}: missing column 'segment': a log without table angles ('table.axes' = []) "
+                             f"needs a segment label per sample; the header has: {', '.join(header)}")
     for c in header:
         for prefix in ("gimbal_", "command_"):
             if c.startswith(prefix) and c[len(prefix):] not in axes:
@@ -176,11 +305,19 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labe
     h = 1.0 / meta["sample_rate_hz"]
     tol = max(GAP_REL_TOL * h, GAP_ABS_TOL)
     off = np.abs(dt - h) > tol
-    if off.any():
+    if off.any() and meta.get("timing", "nominal") == "nominal":
         i = int(np.argmax(off)) + 1
         raise LogFormatError(
             f"{where}: {row(i)}, column 'time': interval {float(dt[i - 1])!r} s from the previous sample (t = {float(t[i - 1])!r} s"
-            f" to {float(t[i])!r} s); expected 1/sample_rate_hz = {h!r} s within {tol:g} s (a gap or a wrong sample rate)")
+            f" to {float(t[i])!r} s); expected 1/sample_rate_hz = {h!r} s within {tol:g} s (a gap or a wrong sample rate;"
+            " a logger's own clock with jitter and gaps is 'imu.timing': 'measured' in calbench-log/2)")
+    mask = cols.get("mask")
+    if mask is not None:
+        bad = (mask != 0) & (mask != 1)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise LogFormatError(f"{where}: {row(i)}, column 'mask': {float(mask[i])!r}; expected 1 (use the sample) "
+                                 "or 0 (leave it out)")
     for sensor in ("gyro", "acc"):
         if meta[f"{sensor}_output"] != "counts":
             continue
