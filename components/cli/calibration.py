@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from components.cli import noise_option
+from components.cli import log_option, noise_option
 
 
 def _print_result(res) -> None:
@@ -24,9 +24,7 @@ def _print_result(res) -> None:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
-    from components.estimation.log_data import LogData
     from components.estimation.lsq import calibrate
-    from components.logs.logfile import read_log
     from components.model.effects import DEFAULT_EFFECTS, parse_effects
     from components.model.result import result_from_fit
 
@@ -34,14 +32,30 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         effects = parse_effects(args.effects) if args.effects else list(DEFAULT_EFFECTS)
     except ValueError as e:
         raise UserError(f"--effects: {e}") from None
-    log = read_log(args.log)
-    data = LogData.from_log(log)
+    log, data = log_option.read(args)
     noise, said, _ = choose_noise(args.noise, data, effects=effects)
     print(f"noise: {said}")
+    if not data.has_table:
+        return _calibrate_positions(args, log, data, effects, noise)
     fit = calibrate(data, effects, chunk_s=args.chunk, noise=noise)
     res = result_from_fit(fit, effects, data, log)
     res.save(args.out)
     _print_result(res)
+    print(f"-> {args.out}")
+    return 0
+
+
+def _calibrate_positions(args, log, data, effects, noise) -> int:
+    """A log without table angles: rests of unknown attitude and turns of known angle
+    (docs/positions.md)."""
+    from components.estimation.positions_effects import fit_positions
+
+    print("no table angles: the positions method (rests of unknown attitude, turns of known angle; "
+          "docs/positions.md)")
+    fit = fit_positions(data, effects, noise=noise, chunk_s=args.chunk)
+    res = fit.to_result(source=log.source)
+    res.save(args.out)
+    print("\n".join(fit.lines()))
     print(f"-> {args.out}")
     return 0
 
@@ -68,6 +82,7 @@ def register(sub) -> None:
                                      "misalignment of gyro and accelerometer)")
     c.add_argument("--chunk", type=float, default=1.0, help="static block length [s]")
     noise_option.add(c)
+    log_option.add(c)
     c.set_defaults(func=_cmd_calibrate)
 
     a = sub.add_parser("apply", help="correct a raw log with a calibration result")

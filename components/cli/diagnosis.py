@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from components.cli import noise_option
+from components.cli import log_option, noise_option
 
 
 def _load_model(path: str):
@@ -37,13 +37,23 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from components.diagnosis.compare import compare
     from components.diagnosis.noise_choice import choose_noise
     from components.diagnosis.residual_export import write_residuals
-    from components.estimation.log_data import LogData
-    from components.logs.logfile import read_log
+    from components.errors import UserError
     from components.model.result import fitted_on
 
-    log = read_log(args.log)
-    data = LogData.from_log(log)
-    if args.model.endswith((".toml", ".ssp")):
+    log, data = log_option.read(args)
+    if not data.has_table:
+        from components.diagnosis.compare_positions import compare_positions
+
+        if args.model.endswith((".toml", ".ssp")) or args.servo is not None:
+            raise UserError("compare: a log without table angles cannot drive an IMU or turntable FMU (its motion "
+                            "between rests is not known); give a calibration result")
+        model = _load_model(args.model)
+        noise, said, _ = choose_noise(args.noise, data, model)
+        print(f"noise: {said}")
+        c = compare_positions(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0,
+                              noise=noise)
+        print("model: the rests' attitudes fitted with the model's parameters held (no table angles)")
+    elif args.model.endswith((".toml", ".ssp")):
         # a system: its IMU unit (ours or a supplier's FMU) replayed on the log's motion
         from components.diagnosis.compare import assess
         from components.simulation.replay import replay_imu
@@ -92,12 +102,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from components.diagnosis.diagnose import NOISE_CANDIDATES, diagnose
     from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
-    from components.estimation.log_data import LogData
-    from components.logs.logfile import read_log
     from components.model.effects import EFFECTS, parse_effects
 
-    log = read_log(args.log)
-    data = LogData.from_log(log)
+    log, data = log_option.read(args)
     model = _load_model(args.model)
     cands = None
     if args.candidates:
@@ -150,14 +157,11 @@ def _cmd_add(args: argparse.Namespace) -> int:
     from components.diagnosis.noise_choice import choose_noise
     from components.diagnosis.noise_id import add_noise_terms
     from components.errors import UserError
-    from components.estimation.log_data import LogData
     from components.estimation.lsq import calibrate
-    from components.logs.logfile import read_log
     from components.model.effects import parse_effects
     from components.model.result import result_from_fit
 
-    log = read_log(args.log)
-    data = LogData.from_log(log)
+    log, data = log_option.read(args)
     model = _load_model(args.model)
     names = [c.strip() for c in args.effect.split(",") if c.strip()]
     noise_terms = [c for c in names if c in NOISE_CANDIDATES]
@@ -169,6 +173,8 @@ def _cmd_add(args: argparse.Namespace) -> int:
     print(f"noise: {said}")
     effects = list(dict.fromkeys(list(model.effects) + new))
     ladder = list(model.extra.get("ladder", []))
+    if not data.has_table:
+        return _add_positions(args, log, data, model, effects, new, noise_terms, noise, ladder)
     if not ladder:
         ladder.append(ladder_entry(compare(data, model, fitted_parameters=len(model.values), noise=noise),
                                    model.effects))
@@ -188,6 +194,31 @@ def _cmd_add(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_positions(args, log, data, model, effects, new, noise_terms, noise, ladder) -> int:
+    """``add`` on a log without table angles: the positions method with the effect added."""
+    from components.diagnosis.compare_positions import compare_positions
+    from components.diagnosis.ladder import ladder_entry, ladder_lines
+    from components.errors import UserError
+    from components.estimation.positions_effects import fit_positions
+
+    if noise_terms:
+        raise UserError(f"add {', '.join(noise_terms)}: noise terms are added on logs with table angles; on a log "
+                        "without them give the noise with --noise (a grade, a noise file or NAME=VALUE terms)")
+    if not ladder:
+        ladder.append(ladder_entry(compare_positions(data, model, fitted_parameters=len(model.values), noise=noise),
+                                   model.effects))
+    fit = fit_positions(data, effects, noise=noise, temperature_ref=model.temperature_ref)
+    res = fit.to_result(source=log.source)
+    ladder.append(ladder_entry(compare_positions(data, res, fitted_parameters=len(res.values), noise=noise), effects,
+                               f"+ {', '.join(new)}"))
+    res.extra["ladder"] = ladder
+    res.save(args.out)
+    print("\n".join(fit.lines()))
+    print("\n".join(ladder_lines(ladder)))
+    print(f"-> {args.out}")
+    return 0
+
+
 def register(sub) -> None:
     c = sub.add_parser("compare", help="replay a log's motion through a model: residuals, "
                                        "chi2/dof, fit, whiteness, where it fails")
@@ -200,6 +231,7 @@ def register(sub) -> None:
     c.add_argument("--json", help="write the per-channel figures as JSON")
     c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units)")
     noise_option.add(c)
+    log_option.add(c)
     c.set_defaults(func=_cmd_compare)
 
     d = sub.add_parser("diagnose", help="which effect of the vocabulary is missing from the model")
@@ -210,6 +242,7 @@ def register(sub) -> None:
     d.add_argument("--candidates", help="comma list of effects to test (default: all not in the model)")
     d.add_argument("--top", type=int, default=10, help="ranking lines to print")
     noise_option.add(d)
+    log_option.add(d)
     d.set_defaults(func=_cmd_diagnose)
 
     a = sub.add_parser("add", help="add an effect to a model and refit all parameters")
@@ -219,4 +252,5 @@ def register(sub) -> None:
                                                    "gyro.noise.rrw, ...) adds it to the noise model")
     a.add_argument("--out", required=True, help="the new model (JSON), with the ladder")
     noise_option.add(a)
+    log_option.add(a)
     a.set_defaults(func=_cmd_add)

@@ -124,10 +124,25 @@ class Diagnosis:
 
 
 class _Design:
-    """Whitened block design of all parameters of the model and of every candidate."""
+    """Whitened block design of all parameters of the model and of every candidate (and, on a
+    log without table angles, of the rests' attitudes, always in the base)."""
 
-    def __init__(self, data: LogData, model: CalibrationResult, params: list[str],
-                 chunk_s: float, rest_angle_sigma, noise: NoiseModel | None = None):
+    def __init__(self, y, H, params: list[str], raw, noise: NoiseModel | None, dt: float, span: float,
+                 t_lo: float, white_sigma: np.ndarray, rows: dict, motion, nuisance: list[str] | None = None):
+        self.params = params
+        self.index = {p: k for k, p in enumerate(params)}
+        self.y, self.H, self.raw, self.noise = y, H, raw, noise
+        self.dt, self.span, self.t_lo = dt, span, t_lo
+        self.white_sigma = white_sigma
+        self.rows = rows
+        self.n = len(y)
+        self.motion = motion
+        self.nuisance = list(nuisance or [])
+
+    @classmethod
+    def on_table_log(cls, data: LogData, model: CalibrationResult, params: list[str],
+                     chunk_s: float, rest_angle_sigma, noise: NoiseModel | None = None) -> "_Design":
+        """The block rows of a log with table angles at the model's geometry."""
         from components.diagnosis.compare import model_geometry
 
         geo = model_geometry(data, model)
@@ -155,17 +170,31 @@ class _Design:
         yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
         # table columns are derivatives at the model's geometry: the model's table values are
         # already in the motion, so their unknowns here are corrections (start at 0)
-        self.params = params
-        self.index = {p: k for k, p in enumerate(params)}
-        self.y = yw
-        self.H = Hw
-        self.noise = noise
-        self.raw = (y, H, w, rows)
-        self.dt, self.span, self.t_lo = dt, span, chunk_s
-        self.white_sigma = np.concatenate([sg, sa])
-        self.rows = rows
-        self.n = len(y)
-        self.motion = motion
+        return cls(yw, Hw, params, (y, H, w, rows), noise, dt, span, chunk_s, np.concatenate([sg, sa]), rows,
+                   motion)
+
+    @classmethod
+    def on_positions_log(cls, data: LogData, model: CalibrationResult, params: list[str], chunk_s: float,
+                         noise: NoiseModel | None = None) -> "_Design":
+        """The rows of a log without table angles (components.estimation.positions_design),
+        linearised at the attitudes that fit it best with the model's parameters refitted on it;
+        the attitudes' columns join the parameters as nuisances."""
+        from components.estimation.positions_design import PositionsDesign
+        from components.estimation.positions_effects import fit_positions
+
+        base = [p for p in params if p in model.values or effect_of(p).name in model.effects]
+        refit = fit_positions(data, list(model.effects), noise=noise, chunk_s=chunk_s,
+                              temperature_ref=model.temperature_ref)
+        values = refit.values()
+        theta = np.array([values.get(p, 0.0) if p in base else 0.0 for p in params])
+        pd = PositionsDesign(data, chunk_s=chunk_s, noise=noise, temperature_ref=model.temperature_ref)
+        r = pd.rows(refit.attitudes, params, theta)
+        names = pd.attitude_names
+        info = dict(r.info)
+        dt = pd.dt_med
+        span = float(data.time[-1] - data.time[0] + dt)
+        return cls(r.y, np.hstack([r.H, r.A]), params + names, None, noise, dt, span, chunk_s,
+                   np.concatenate([pd.sg, pd.sa]), info, pd.motion(refit.attitudes), nuisance=names)
 
     def rewhiten(self, noise: NoiseModel | None) -> None:
         """Whiten the same rows with another noise model (a noise term added)."""
@@ -239,9 +268,15 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     stage_names = set(data.geometry.names)
     params = [p for p in params if not (effect_of(p).target == "table" and p.split(".")[2] not in
                                         stage_names and not p.startswith("table.base_tilt"))]
-    design = _Design(data, model, params, chunk_s, rest_angle_sigma, noise)
+    if data.has_table:
+        design = _Design.on_table_log(data, model, params, chunk_s, rest_angle_sigma, noise)
+    else:
+        held = set(model.extra.get("positions", {}).get("held", {}))
+        params = [p for p in params if effect_of(p).target != "table" and p not in held]
+        noise_asked = []  # the noise terms' likelihood needs the table log's rows in time (see docs/positions.md)
+        design = _Design.on_positions_log(data, model, params, chunk_s, noise)
     available = {c: [p for p in EFFECTS[c].parameters if p in design.index] for c in cands}
-    base = [p for p in parameters_of(base_effects) if p in design.index]
+    base = [p for p in parameters_of(base_effects) if p in design.index] + design.nuisance
     found: list[str] = []
     steps: list[dict] = []
     first_ranking: list[Candidate] | None = None

@@ -90,7 +90,10 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
     if not specs:
         if model is not None and model.noise_model() is not None:
             return model.noise_model(), f"the model's own: {model.noise_model().source}", None
-        if any(data.count_weight):
+        if data is not None and getattr(data, "noise", None):
+            own = NoiseModel.from_dict(data.noise)
+            return NoiseModel(own.channels, "the log's own (imu.noise)", own.sigmas), "the log's own (imu.noise)", None
+        if any(data.count_weight) and data.has_table:
             specs = ["identify"]
             lead = "pulse counts: quantization from the count weights, the rest "
         else:
@@ -109,6 +112,12 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             said.append(f"{s} grade (given)")
         elif s == "identify":
             from components.diagnosis.noise_id import identify_noise
+
+            if not data.has_table:
+                raise UserError("--noise identify: noise identification needs a log with table angles (it works on "
+                                "the residual of a fit over the whole log); on a log without them give the noise: "
+                                "a grade, a noise file (calbench noise --out on a table log of the same IMU) or "
+                                "NAME=VALUE terms")
 
             base = model if model is not None else white_fit(data, effects)
             try:

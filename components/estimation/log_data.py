@@ -32,8 +32,8 @@ class LogData:
     left_out: dict = field(default_factory=dict)
     # one encoder count per axis [rad], "exact", or None (not stated: the smallest logged step)
     encoder_resolution: object = None
-    # what each segment label is (components.logs.segments), for logs without table angles
-    segment_kinds: dict | None = None
+    # what each segment label is, as in the log's metadata (components.logs.segments)
+    segments: dict | None = None
     # the log's own noise model (calbench-noise/1 form) if its metadata states one
     noise: dict | None = None
     _profiles: dict = field(default_factory=dict, repr=False, compare=False)
@@ -41,6 +41,15 @@ class LogData:
     @property
     def has_table(self) -> bool:
         return self.angles.shape[1] > 0
+
+    @property
+    def segment_kinds(self) -> dict | None:
+        """The segment descriptions checked (components.logs.segments.parse_segments)."""
+        if not self.segments:
+            return None
+        from components.logs.segments import parse_segments
+
+        return parse_segments(self.segments)
 
     @property
     def usable(self) -> np.ndarray:
@@ -85,10 +94,4 @@ class LogData:
                                  log.acc_count_mps if log.acc_output == "counts" else None),
                    valid=valid, left_out={k: int(m.sum()) for k, m in reasons.items()},
                    encoder_resolution=log.encoder_resolution,
-                   segment_kinds=log.segments and _kinds(log.segments), noise=log.noise)
-
-
-def _kinds(segments: dict) -> dict:
-    from components.logs.segments import parse_segments
-
-    return parse_segments(segments)
+                   segments=log.segments, noise=log.noise)

@@ -152,7 +152,7 @@ def calibrate_positions(time, gyro_inc, acc_inc, segment, kinds, *, effects=DEFA
         covariance=cov_all[:nf, :nf], held=held, undetermined=[CAL_NAMES[c] for c in undetermined], chi2=chi2,
         dof=dof, positions=pos_out, rotations=rot_out, sigma_gyro=sg, sigma_acc=sa, sample_interval=dt_med,
         noise_source=source, latitude=latitude, gravity=g, iterations=it, excluded=segs.excluded, notes=notes,
-        schedule=schedule_of(t, seg), samples=len(t), duration=float(t[-1] - t[0] + dt_med))
+        schedule=schedule_of(t, seg), samples=len(t), duration=float(t[-1] - t[0] + dt_med), attitudes=C)
 
 
 def _gravity_and_earth_rate(latitude: float | None, height: float, gravity: float | None,

@@ -79,8 +79,12 @@ def reduce_turns(segs: Segments, yg: np.ndarray, dt: np.ndarray) -> list[Turn]:
     rots = []
     for sp in segs.turns:
         name, axis, angle, lo, hi = sp.name, sp.axis, sp.angle, sp.lo, sp.hi
-        if sp.before not in pidx or sp.after not in pidx:
-            raise EstimationError(f"rotation {name!r}: the static segment on each side needs usable samples")
+        missing = [(side, nm) for side, nm in (("before", sp.before), ("after", sp.after)) if nm not in pidx]
+        if missing:
+            side, nm = missing[0]
+            raise EstimationError(f"rotation {name!r}: the static segment {side} it ({nm!r}) has no usable samples "
+                                  "(left out by the mask, an exclusion or gaps): a turn's row needs the rest on "
+                                  "each side; leave the rotation out too, or keep that rest")
         s = yg[lo:hi] @ axis
         total = float(s.sum())
         if abs(total - angle) > ANGLE_TOL[0] * abs(angle) + math.radians(ANGLE_TOL[1]):

@@ -94,6 +94,8 @@ class PositionsFit:
     samples: int = 0
     duration: float = 0.0
     gauge: str = GAUGE
+    attitudes: np.ndarray | None = None  # (P, 3, 3) body -> ENU per rest, in the order of `positions`
+    temperature_ref: float | None = None  # °C, T0 of temperature effects (None: no temperature effect)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -195,5 +197,5 @@ class PositionsFit:
         return CalibrationResult(
             effects=list(self.effects), values=self.values(), sigmas=self.sigmas(),
             correlation=self.correlation() if len(self.parameters) else None, noise=noise, fit=fit,
-            temperature_ref=None, schedule=[list(s) for s in self.schedule], data=data,
+            temperature_ref=self.temperature_ref, schedule=[list(s) for s in self.schedule], data=data,
             method="positions", extra={"positions": block})

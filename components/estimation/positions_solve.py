@@ -17,7 +17,7 @@ def determined(model: Model, th: np.ndarray, C: np.ndarray, requested: list[str]
     Jacobian at the start after the attitudes' columns; the undetermined are held at 0."""
     req_cols = [CAL_NAMES.index(p) for p in requested]
     Jd = model.jacobian(th, C, determinability=True)
-    undetermined = _undetermined(Jd, req_cols, model.attitude_columns)
+    undetermined = undetermined_columns(Jd, req_cols, model.attitude_columns)
     if undetermined:
         names = [CAL_NAMES[c] for c in undetermined]
         notes.append(f"not determined by these data, held at 0: {', '.join(names)}")
@@ -25,7 +25,7 @@ def determined(model: Model, th: np.ndarray, C: np.ndarray, requested: list[str]
     return free, undetermined
 
 
-def _undetermined(J: np.ndarray, req: list[int], nuisance: list[int]) -> list[int]:
+def undetermined_columns(J: np.ndarray, req: list[int], nuisance: list[int]) -> list[int]:
     """Requested columns the rows cannot determine: with every column scaled to unit length,
     the attitude columns projected out, a column-pivoted QR; a column with less than
     INDEPENDENT of its length outside the span of the ones before it is undetermined."""
