@@ -80,3 +80,27 @@ def test_apply_then_recalibrate_gives_zero(tmp_path, example_fit, conformance):
     refit = calibrate(LogData.from_log(read_log(tmp_path / "corr")), list(DEFAULT_EFFECTS))
     # the corrected data hold no error left: every re-estimate is far inside its σ
     assert np.max(np.abs(refit.value / refit.sigma)) < 1e-3
+
+
+def test_left_out_samples_leave_the_fit_and_the_rest_still_finds_the_truth(conformance, example_fit):
+    """A time range over a move and a dwell, and a mask over part of a rest: the gyro move
+    through the range is dropped (its integral is no longer the rest-to-rest rotation), the
+    other rows keep their samples, and the estimate is still the truth within σ."""
+    log = read_log(conformance / "example")
+    seg = np.asarray(log.segment).astype(str)
+    moves = np.nonzero(np.char.startswith(seg, "move"))[0]
+    t0, t1 = float(log.time[moves[0]]), float(log.time[moves[0]] + 20.0)
+    log.mask = np.ones(log.n, bool)
+    log.mask[int(0.6 * log.n):int(0.6 * log.n) + 400] = False
+    data = LogData.from_log(log, exclude=[[t0, t1]])
+    assert data.left_out["mask = 0"] == 400 and data.left_out[f"t = {t0:g}-{t1:g} s (exclude)"] > 0
+    fit = calibrate(data, list(DEFAULT_EFFECTS))
+    rows = fit.rows
+    used = np.zeros(log.n, bool)
+    for a, b in zip(rows["start"], rows["stop"]):
+        used[a:b] = True
+    assert not used[~data.usable].any() and used[data.usable].mean() > 0.95
+    assert len(rows["start"]) < len(example_fit.rows["start"])
+    truth = truth_values(conformance, "example")
+    z = np.array([(v - truth[p]) / s for p, v, s in zip(fit.parameters, fit.value, fit.sigma)])
+    assert np.max(np.abs(z)) < 4.0

@@ -94,6 +94,20 @@ def test_cwccw_static_labels_and_beta(seed003_run):
     assert res2.values["acc.sf.x"] - res.values["acc.sf.x"] == pytest.approx(-1e-4, rel=1e-3)
 
 
+def test_cwccw_refuses_one_directional_turns(seed003_run):
+    """Turns in one direction only cannot be differenced: one clear error naming them, never a
+    result without the gyro part that looks like a calibration."""
+    from components.estimation.log_data import LogData
+
+    data = LogData.from_log(seed003_run.log)
+    seg = np.asarray(data.segment).astype(str)
+    stop = int(np.nonzero(seg == "S201-y-")[0][0])          # the first CW turn, not its CCW partner
+    with pytest.raises(ValueError, match=r"one-directional \(S201-y\+ \(\+1 turn about plate"):
+        cwccw.run(data.window(0, stop))
+    res = cwccw.run(seed003_run.log, gyro=False)
+    assert "notes" not in res.extra and "gyro.sf.x" not in res.values
+
+
 # ----------------------------------------------------------------------------- tilt (seed 000)
 def _seed000(tilted: bool, noise: bool, dwell: float):
     d = tomllib.loads((SCEN / "tilted_base_seed000.toml").read_text())

@@ -75,6 +75,8 @@ def _cmd_procedure(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise UserError(f"procedure {name}: {e}") from None
     _print_values(res)
+    for note in res.extra.get("notes", []):
+        print(f"note: {note}")
     if name == "latitude":
         _print_latitude(res)
     if args.simulate:

@@ -167,6 +167,12 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
             "iterations": fit.iterations,
             "observations": "block sums: rest-to-rest gyro moves and static chunks, accelerometer chunks"}
     data_d = {"samples": int(len(data.time)), "duration_s": float(data.time[-1] - data.time[0] + dt)}
+    # what was assumed or left out, so that a result says what produced it
+    if getattr(data, "left_out", None):
+        data_d["left_out_samples"] = dict(data.left_out)
+    res = getattr(data, "encoder_resolution", None)
+    data_d["encoder_resolution_rad"] = ("exact" if isinstance(res, str) else [float(x) for x in res]) \
+        if res is not None else "not stated: one count taken as the smallest logged angle step"
     if log is not None and log.source:
         src = Path(log.source)
         stem = src.with_suffix("")

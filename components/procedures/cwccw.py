@@ -149,6 +149,14 @@ def gyro_cwccw(data, rotations, sigma_g, q):
     dt = sample_interval(data)
     groups = _gyro_groups(data, rotations, dt)
     if not groups:
+        if rotations:
+            # turns in one direction only: the bias and Earth rate do not cancel, so the closed
+            # form cannot be used; a silent skip would look like a calibration without gyro errors
+            seen = ", ".join(f"{r['label']} ({'+' if r['angle'] > 0 else '-'}{abs(r['angle']) / TWO_PI:g} turn "
+                             f"about plate {np.round(r['axis'], 3).tolist()})" for r in rotations[:6])
+            raise ValueError(f"the log's whole-turn rotations are one-directional ({seen}): the CW/CCW gyro part "
+                             "needs turns in both directions about each axis; the general least squares "
+                             "(calbench calibrate) uses one-directional turns")
         return None
     axes = np.array([g["axis"] for g in groups])
     if np.linalg.matrix_rank(axes, tol=0.1) < 3:
@@ -232,9 +240,12 @@ def run(log_or_data, *, beta: float | None = None, static_labels: str | None = N
     beta = float(beta) if beta else data.geometry.g
     names, values, blocks, used = [], [], [], {}
     effects = []
+    notes = []
     if gyro:
         rot = find_rotations(data)
         out = gyro_cwccw(data, rot, sigma_g, angle_quantum(data))
+        if out is None:
+            notes.append("gyro part not run: the log has no whole-turn rotation from rest to rest")
         if out is not None:
             v, c, labels = out
             names += _sf_mis_names("gyro")
@@ -272,5 +283,5 @@ def run(log_or_data, *, beta: float | None = None, static_labels: str | None = N
         schedule=schedule_of(data.time, data.segment),
         data={"samples": int(len(data.time)), **({"log": str(log.source)} if log is not None and log.source else {})},
         method="procedure:cwccw (seed 003 S201/S202, seed 001 steps 2-4, 7)",
-        extra={"segments_used": used})
+        extra={"segments_used": used, **({"notes": notes} if notes else {})})
     return res
