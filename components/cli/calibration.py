@@ -10,15 +10,29 @@ from components.cli import log_option, noise_option
 def _print_result(res) -> None:
     from components.model.effects import effect_of
 
+    det = res.extra.get("determinability", {})
+    weak = set(det.get("weakly_determined", []))
+    bad = det.get("implausible", {})
     print(f"{'parameter':22s} {'value':>14s} {'sigma':>12s}  unit")
     for p in res.parameters:
         e = effect_of(p)
         unit, scale = e.display
         v, s = res.values[p] / scale, res.sigmas[p] / scale
-        print(f"{p:22s} {v:+14.6g} {s:12.3g}  {unit}")
+        flag = "  IMPLAUSIBLE" if p in bad else ("  weakly determined" if p in weak else "")
+        print(f"{p:22s} {v:+14.6g} {s:12.3g}  {unit}{flag}")
+    for p, d in det.get("undetermined", {}).items():
+        print(f"{p:22s} {'not determined':>27s}  (held at 0: {d['why']}; needs {d['needs']})")
     f = res.fit
     if f:
-        print(f"chi2/dof = {f['chi2_per_dof']:.3f} ({f['dof']} dof), {f['iterations']} iteration(s)")
+        if f.get("chi2_per_dof") is None:
+            print(f"chi2/dof: none ({f['dof']} dof: {f.get('note', 'no degrees of freedom left')})")
+        else:
+            print(f"chi2/dof = {f['chi2_per_dof']:.3f} ({f['dof']} dof), {f['iterations']} iteration(s)")
+    if weak:
+        print(f"weakly determined (sigma above 10 x the magnitude expected of an IMU of this noise grade): "
+              f"{', '.join(sorted(weak))}")
+    for p, why in bad.items():
+        print(f"IMPLAUSIBLE {p}: {why}")
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
@@ -37,11 +51,19 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     print(f"noise: {said}")
     if not data.has_table:
         return _calibrate_positions(args, log, data, effects, noise)
-    fit = calibrate(data, effects, chunk_s=args.chunk, noise=noise)
+    fit = calibrate(data, effects, chunk_s=args.chunk, noise=noise, undetermined=args.undetermined)
     res = result_from_fit(fit, effects, data, log)
     res.save(args.out)
     _print_result(res)
     print(f"-> {args.out}")
+    return strict_status(args, res)
+
+
+def strict_status(args, res) -> int:
+    """Exit status: 1 with --strict when an estimate is implausible (the result is written all the same)."""
+    if getattr(args, "strict", False) and res.extra.get("determinability", {}).get("implausible"):
+        print("--strict: implausible estimates (see above): exit 1")
+        return 1
     return 0
 
 
@@ -81,6 +103,10 @@ def register(sub) -> None:
     c.add_argument("--effects", help="comma list of effects (default: bias, scale factor and "
                                      "misalignment of gyro and accelerometer)")
     c.add_argument("--chunk", type=float, default=1.0, help="static block length [s]")
+    c.add_argument("--undetermined", choices=("hold", "refuse"), default="hold",
+                   help="parameters the log does not determine: hold them at 0 and name them (default), "
+                        "or refuse the fit")
+    c.add_argument("--strict", action="store_true", help="exit 1 when an estimate is beyond any real IMU")
     noise_option.add(c)
     log_option.add(c)
     c.set_defaults(func=_cmd_calibrate)

@@ -15,15 +15,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from components.errors import EstimationError
 from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import design, noise_floor
+from components.estimation.determinability import Determinability, assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
 from components.model.effects import effect_of, parameters_of
+from components.model.excitation import needs
 from components.model.geometry import TableGeometry
 from components.model.motion import Motion
 from components.model.noise import NoiseModel
+from components.model.plausibility import grade_factor, implausible, weakly_determined
 from components.model.table_parameters import apply_table_parameter, table_parameter_value
 
 RCOND = 1e-7  # relative singular value below which a design direction is not resolved
@@ -45,6 +49,11 @@ class Fit:
     rows: dict = field(default_factory=dict)  # design of the last iteration, for diagnostics
     rest_sigma: np.ndarray | None = None  # σ of the rest angles used (estimated or given) [rad]
     noise: NoiseModel | None = None  # the noise model the rows were whitened with (None: white)
+    # requested parameters this log does not determine (held at 0 or their fixed value, not in
+    # `parameters`), those it determines weakly, and estimates no real IMU has, with the likely cause
+    determinability: Determinability | None = None
+    weak: list = field(default_factory=list)
+    implausible: dict = field(default_factory=dict)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -62,7 +71,7 @@ class Fit:
 def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
               iterations: int = 3, sigma_gyro=None, sigma_acc=None,
               temperature_ref: float | None = None, fixed: dict | None = None,
-              rest_angle_sigma=None, noise: NoiseModel | None = None) -> Fit:
+              rest_angle_sigma=None, noise: NoiseModel | None = None, undetermined: str = "hold") -> Fit:
     """Fit the parameters of *effects* jointly to *data*.
 
     ``fixed``: parameter values held (not fitted), e.g. a geometry known from elsewhere.
@@ -71,7 +80,10 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     ``sigma_acc`` are given. Without one, white noise of the σ estimated from the static data.
     ``rest_angle_sigma`` [rad, per axis]: uncertainty of the true angle at rest around the
     encoder reading, which bounds a rest-to-rest gyro block; default: one count uniform
-    (q/√12, q = the smallest logged angle step), 0 for logs whose rest angles are exact."""
+    (q/√12, q = the smallest logged angle step), 0 for logs whose rest angles are exact.
+    ``undetermined``: what to do with requested parameters the log does not determine
+    (components.estimation.determinability): "hold" them (at 0, or their fixed value, and name
+    them in ``Fit.determinability``) or "refuse" the fit (EstimationError naming them)."""
     params = parameters_of(effects)
     if not params:
         raise ValueError("no effect to fit")
@@ -102,12 +114,17 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt_mean, span, chunk_s)
         return yw, Hw
 
-    sg = noise_floor(np.asarray(sigma_gyro if sigma_gyro is not None
-                                 else white_noise_sigma(data.gyro, motion.static & data.usable), float),
-                      7.3e-5 * dt_mean)
-    sa = noise_floor(np.asarray(sigma_acc if sigma_acc is not None
-                                 else white_noise_sigma(data.acc, motion.static & data.usable), float),
-                      9.8 * dt_mean)
+    raw_g = np.asarray(sigma_gyro if sigma_gyro is not None
+                       else white_noise_sigma(data.gyro, motion.static & data.usable), float)
+    raw_a = np.asarray(sigma_acc if sigma_acc is not None
+                       else white_noise_sigma(data.acc, motion.static & data.usable), float)
+    if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
+        # no two usable static samples in a row: no σ can be given without being told the noise
+        raise EstimationError("the white-noise level cannot be estimated from this log (it has no two usable "
+                              "samples in a row at rest): give the noise (--noise: a grade, a noise file or "
+                              "NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
+    sg = noise_floor(raw_g, 7.3e-5 * dt_mean)
+    sa = noise_floor(raw_a, 9.8 * dt_mean)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if rest_angle_sigma is None and np.any(q):
         q = _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
@@ -120,10 +137,25 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     bilinear = "imu.time_offset" in params and any(effect_of(p).name == "acc.lever" for p in params)
     lin = None
     it = 0
+    det = None
     for it in range(1, iterations + 1):
         y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
         # residual relative to the current table values (Gauss–Newton on the geometry)
         yw, Hw = weighted(y, H, w, rows)
+        if det is None:
+            det = assess(Hw, params)
+            if det.undetermined:
+                if undetermined == "refuse":
+                    raise EstimationError("this log does not determine " + "; ".join(
+                        f"{p} ({det.describe(p)}; needs {needs(p)})" for p in det.undetermined))
+                keep = [k for k, p in enumerate(params) if p not in det.undetermined]
+                params = [params[k] for k in keep]
+                if not params:
+                    raise EstimationError("this log determines none of the requested parameters: " + "; ".join(
+                        f"{p} needs {needs(p)}" for p in det.undetermined))
+                H, Hw, value = H[:, keep], Hw[:, keep], value[keep]
+                table_params = [p for p in table_params if p in params]
+                bilinear = "imu.time_offset" in params and any(effect_of(p).name == "acc.lever" for p in params)
         scale = np.linalg.norm(Hw, axis=0)
         scale[scale == 0] = 1.0
         # rcond: a direction of the column-normalised design below 1e-7 of the largest is a
@@ -165,9 +197,13 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     info = (Hw / scale).T @ (Hw / scale)
     cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
     rows["residual"] = resid_vec
-    fit = Fit(params, value, cov, chi2, max(len(y) - len(params), 1), sg, sa, geo, motion, it, rows)
+    fit = Fit(params, value, cov, chi2, len(y) - len(params), sg, sa, geo, motion, it, rows)
     fit.rest_sigma = q
     fit.noise = noise if noise is not None and noise.coloured else None
+    fit.determinability = det
+    factor = grade_factor({"gyro": float(np.median(sg)) / np.sqrt(dt_mean), "acc": float(np.median(sa)) / np.sqrt(dt_mean)})
+    fit.weak = weakly_determined(dict(zip(params, fit.sigma)), factor)
+    fit.implausible = implausible(dict(zip(params, value)), dt_mean)
     return fit
 
 

@@ -15,11 +15,11 @@ import math
 import numpy as np
 
 from components.errors import EstimationError
+from components.estimation.determinability import undetermined_columns
 from components.estimation.log_data import LogData
 from components.estimation.positions import SUPPORTED, calibrate_positions
 from components.estimation.positions_design import PositionsDesign
 from components.estimation.positions_result import PositionResult, PositionsFit, RotationResult
-from components.estimation.positions_solve import undetermined_columns
 from components.model.effects import EFFECTS, parameters_of, parse_effects
 from components.model.geometry import rodrigues, skew
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from components.estimation.determinability import undetermined_columns
 from components.estimation.positions_model import CAL_NAMES, Model
 
 STEP_TOL = 1e-4           # iterations stop when no parameter moves by this fraction of its σ
-INDEPENDENT = 1e-6        # fraction of a column not explained by the others, below: undetermined
 
 
 def determined(model: Model, th: np.ndarray, C: np.ndarray, requested: list[str],
@@ -23,32 +23,6 @@ def determined(model: Model, th: np.ndarray, C: np.ndarray, requested: list[str]
         notes.append(f"not determined by these data, held at 0: {', '.join(names)}")
     free = [c for c in req_cols if c not in undetermined]
     return free, undetermined
-
-
-def undetermined_columns(J: np.ndarray, req: list[int], nuisance: list[int]) -> list[int]:
-    """Requested columns the rows cannot determine: with every column scaled to unit length,
-    the attitude columns projected out, a column-pivoted QR; a column with less than
-    INDEPENDENT of its length outside the span of the ones before it is undetermined."""
-    from scipy.linalg import qr
-
-    def unit(M):
-        s = np.linalg.norm(M, axis=0)
-        return M / np.where(s > 0, s, 1.0), s > 0
-
-    N, _ = unit(J[:, nuisance])
-    Q, R, _ = qr(N, mode="economic", pivoting=True)
-    d = np.abs(np.diag(R))
-    Q = Q[:, d > INDEPENDENT * (d.max() if len(d) else 1.0)]
-    X, nonzero = unit(J[:, req])
-    X = X - Q @ (Q.T @ X)
-    out = [req[k] for k in np.nonzero(~nonzero)[0]]
-    keep = [k for k in range(len(req)) if nonzero[k]]
-    if keep:
-        _, R2, piv = qr(X[:, keep], mode="economic", pivoting=True)
-        d2 = np.abs(np.diag(R2))
-        out += [req[keep[piv[k]]] for k in range(len(d2)) if d2[k] < INDEPENDENT]
-        out += [req[keep[piv[k]]] for k in range(len(d2), len(keep))]
-    return sorted(out)
 
 
 def gauss_newton(model: Model, th: np.ndarray, C: np.ndarray, free: list[int], max_iterations: int,

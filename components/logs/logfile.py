@@ -162,6 +162,7 @@ class MeasurementLog:
         labels = set(self.segment) if self.segment is not None else set()
         for item in list(self.exclude) + list(more or []):
             if isinstance(item, str):
+                item = str(item)    # numpy's str_ too, so that messages show the plain label
                 if item not in labels:
                     raise LogFormatError(f"{self.source or 'log'}: exclude {item!r}: no segment has this label "
                                          f"(labels: {', '.join(sorted(map(str, labels))[:20]) or 'none'})")

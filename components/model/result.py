@@ -163,9 +163,11 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
     if getattr(fit, "noise", None) is not None:
         noise["model"] = f"composite noise model ({fit.noise.source}): rows whitened with it"
         noise["composite"] = fit.noise.to_dict()
-    fitd = {"chi2": fit.chi2, "dof": fit.dof, "chi2_per_dof": fit.chi2 / fit.dof,
+    fitd = {"chi2": fit.chi2, "dof": fit.dof, "chi2_per_dof": fit.chi2 / fit.dof if fit.dof > 0 else None,
             "iterations": fit.iterations,
             "observations": "block sums: rest-to-rest gyro moves and static chunks, accelerometer chunks"}
+    if fit.dof <= 0:
+        fitd["note"] = "no degrees of freedom left: the fit cannot be checked by its chi2"
     data_d = {"samples": int(len(data.time)), "duration_s": float(data.time[-1] - data.time[0] + dt)}
     # what was assumed or left out, so that a result says what produced it
     if getattr(data, "left_out", None):
@@ -186,7 +188,25 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
         sigmas=dict(zip(fit.parameters, map(float, fit.sigma))), correlation=fit.correlation(),
         noise=noise, fit=fitd, temperature_ref=float(fit.motion.t0_temperature)
         if data.temperature is not None else None,
-        schedule=schedule_of(data.time, data.segment), data=data_d)
+        schedule=schedule_of(data.time, data.segment), data=data_d,
+        extra=determinability_block(fit))
+
+
+def determinability_block(fit) -> dict:
+    """What the log did not determine, determined weakly, or gave beyond any real IMU (see
+    components.estimation.determinability and components.model.plausibility); empty when all is well."""
+    from components.model.excitation import needs
+
+    out: dict = {}
+    det = getattr(fit, "determinability", None)
+    if det is not None and det.undetermined:
+        out["undetermined"] = {p: {"held_at": 0.0, "why": det.describe(p), "needs": needs(p)}
+                               for p in det.undetermined}
+    if getattr(fit, "weak", None):
+        out["weakly_determined"] = list(fit.weak)
+    if getattr(fit, "implausible", None):
+        out["implausible"] = dict(fit.implausible)
+    return {"determinability": out} if out else {}
 
 
 def fitted_on(model: CalibrationResult, log) -> bool:
