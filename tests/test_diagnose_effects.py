@@ -49,7 +49,9 @@ NULL_SEEDS = 40
 CASES = {
     "gyro.sf_asym": ("gyro.sf_asym.z", "3 ppm"),              # σ 0.11 ppm: 27 σ, 1.5 x typical
     "gyro.gsens": ("gyro.gsens.xy", "0.4 deg/h/g"),           # σ 0.019: 21 σ (tactical: 1 deg/h/g)
-    "gyro.g2sens": ("gyro.g2sens.x.zz", "0.3 deg/h/g2"),      # σ 0.015: 20 σ (tactical: 0.1)
+    # x.xx, x.yy and x.zz add up to |f|² = g² on a table that turns about its centre: one of the
+    # three is never determined (calibrate holds x.zz); a cross term is
+    "gyro.g2sens": ("gyro.g2sens.x.xy", "1.5 deg/h/g2"),      # σ 0.072: 20 σ
     "gyro.temp": ("gyro.temp.z", "0.08 deg/h/K"),             # σ 0.0039: 20 σ
     "gyro.sf_temp": ("gyro.sf_temp.x", "1 ppm/K"),            # σ 0.032: 31 σ, typical
     "gyro.drift": ("gyro.drift.z", "14 deg/h/h"),             # σ 0.71: 20 σ (169 s run)
@@ -74,6 +76,12 @@ CASES = {
 # pairs that a monotonic temperature ramp cannot separate (T − T0 ∝ elapsed time)
 RAMP_PAIRS = {"gyro.temp": "gyro.drift", "gyro.drift": "gyro.temp",
               "acc.temp": "acc.drift", "acc.drift": "acc.temp"}
+# pairs this schedule cannot tell apart for another reason: the outer and middle wobble's columns
+# that the log can see at a plausible magnitude span the non-orthogonality's (canonical
+# correlation 1 - 2e-13; the rest of the wobble is absorbed by the IMU's misalignment, so it is
+# not tested). Either may win; the diagnosis must say they cannot be told apart.
+SCHEDULE_PAIRS = {"table.nonorth": "table.wobble"}
+LOOK_ALIKES = {**RAMP_PAIRS, **SCHEDULE_PAIRS}
 TWO = ("acc.k2", "gyro.sf_asym")  # hidden together
 
 
@@ -164,10 +172,10 @@ def test_hidden_effect_is_found_and_fixes_the_fit(logs, effect):
     diag = _diagnose(logs, effect)
     _, _, base = _fit(logs, effect, BASELINE)
     assert base.chi2_per_dof > 1.1, "the hidden effect should show in the baseline's residual"
-    if effect in RAMP_PAIRS:
-        # the ramp makes T - T0 and t the same column: either may win; the diagnosis must say
-        # that they cannot be told apart
-        partner = RAMP_PAIRS[effect]
+    if effect in LOOK_ALIKES:
+        # the ramp makes T - T0 and t the same column (and see SCHEDULE_PAIRS): either may win;
+        # the diagnosis must say that they cannot be told apart
+        partner = LOOK_ALIKES[effect]
         assert diag.verdict in (effect, partner)
         other = partner if diag.verdict == effect else effect
         win = _candidate(diag, diag.verdict)

@@ -131,6 +131,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
               f"{100 * c.explained_fraction:7.1f}%  {mag}" + (f"  [{thr / scale:.2g}]" if thr else ""))
         for other, rho, advice in c.indistinguishable:
             print(f"       cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+    if d.unseeable:
+        print("not tested, this log cannot see them at any plausible magnitude: " + "; ".join(
+            f"{e} (needs {why})" for e, why in d.unseeable.items()))
     if d.noise_candidates:
         print("noise terms the model lacks (maximum likelihood on the same rows):")
         for n in d.noise_candidates:

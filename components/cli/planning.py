@@ -10,12 +10,15 @@ from components.cli import noise_option
 def _cmd_plan(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    import numpy as np
+
     from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
     from components.estimation.crb import cramer_rao
     from components.estimation.log_data import LogData
     from components.logs.logfile import read_log
     from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of, parse_effects
+    from components.model.excitation import needs
     from components.model.noise import describe, from_terms, grade
     from components.simulation.run import schedule_motion_log
 
@@ -50,6 +53,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     print(f"{'parameter':22s} {'sigma':>12s}  unit       {'sigma x sqrt(hours)':>20s}")
     for p, s in crb.items():
         unit, scale = effect_of(p).display
+        if not np.isfinite(s):
+            print(f"{p:22s} {'not determined':>12s}  (the schedule needs {needs(p)})")
+            continue
         print(f"{p:22s} {s / scale:12.4g}  {unit:10s} {s / scale * hours ** 0.5:20.4g}")
     if args.observability:
         from components.navigation.observability import plan_observability

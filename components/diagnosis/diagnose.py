@@ -115,11 +115,13 @@ class Diagnosis:
     noise_candidates: list = field(default_factory=list)  # the first step's noise terms (dicts)
     verdict_kind: str | None = None   # "effect" | "noise" | None
     noise: object = None              # the noise model after the selection (NoiseModel or None)
+    # candidates this log cannot see at any plausible magnitude: effect -> the motion it needs
+    unseeable: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"verdict": self.verdict, "verdict_kind": self.verdict_kind, "found": self.found,
                 "ranking": [c.to_json() for c in self.ranking], "steps": self.steps,
-                "noise_candidates": self.noise_candidates,
+                "noise_candidates": self.noise_candidates, "unseeable": dict(self.unseeable),
                 "base_chi2_per_dof": self.base_chi2_per_dof, "rows": self.rows, "alpha": self.alpha}
 
 
@@ -277,6 +279,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
         design = _Design.on_positions_log(data, model, params, chunk_s, noise)
     available = {c: [p for p in EFFECTS[c].parameters if p in design.index] for c in cands}
     base = [p for p in parameters_of(base_effects) if p in design.index] + design.nuisance
+    unseeable = _unseeable(design, base, available)
     found: list[str] = []
     steps: list[dict] = []
     first_ranking: list[Candidate] | None = None
@@ -320,7 +323,36 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     return Diagnosis(found[0] if found else None, first_ranking or [], found, steps,
                      chi2_first or float("nan"), design.n, alpha,
                      [{k: v for k, v in n.items() if k != "model"} for n in (first_noise or [])],
-                     kinds[0] if kinds else None, noise_now)
+                     kinds[0] if kinds else None, noise_now, unseeable)
+
+
+def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
+    """Candidates' parameters whose σ beyond the model's own columns exceeds anything a real IMU
+    has (components.model.plausibility) leave *available*; an effect with none left is returned
+    (effect -> the motion it needs): the log cannot see it, so it is not tested."""
+    from components.model.excitation import needs
+    from components.model.plausibility import plausible_limit
+
+    B = design.H[:, [design.index[p] for p in base]] if base else np.zeros((design.n, 0))
+    if B.shape[1]:
+        Q, R = np.linalg.qr(B / np.maximum(np.linalg.norm(B, axis=0), 1e-300))
+        Q = Q[:, np.abs(np.diag(R)) > 1e-10]
+    out = {}
+    for effect, ps in list(available.items()):
+        seen = []
+        for p in ps:
+            h = design.H[:, design.index[p]]
+            if B.shape[1]:
+                h = h - Q @ (Q.T @ h)
+            info = float(h @ h)
+            if info > 0 and 1.0 / math.sqrt(info) < plausible_limit(p):
+                seen.append(p)
+        if seen:
+            available[effect] = seen
+        else:
+            out[effect] = needs(ps[0]) if ps else "parameters this table does not have"
+            del available[effect]
+    return out
 
 
 # noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)

@@ -13,6 +13,7 @@ import numpy as np
 
 from components.estimation.blocks import observation_blocks
 from components.estimation.design import design
+from components.estimation.determinability import assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import whiten
@@ -45,7 +46,14 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     y, H, w, rows = design(ideal, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
     span = data.time[-1] - data.time[0] + dt
     _, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
-    F = Hw.T @ Hw
+    # a parameter the schedule does not determine has no bound: inf, never the min-norm σ of a
+    # pseudo-inverse (which reads as a confident number)
+    det = assess(Hw, params)
+    keep = [k for k, p in enumerate(params) if p not in det.undetermined]
+    Hk = Hw[:, keep]
+    F = Hk.T @ Hk
     scale = np.sqrt(np.clip(np.diag(F), 1e-300, None))
     cov = np.linalg.pinv(F / np.outer(scale, scale), rcond=1e-12) / np.outer(scale, scale)
-    return dict(zip(params, np.sqrt(np.clip(np.diag(cov), 0, None))))
+    out = dict.fromkeys(params, float("inf"))
+    out.update(zip([params[k] for k in keep], np.sqrt(np.clip(np.diag(cov), 0, None))))
+    return out
