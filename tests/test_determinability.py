@@ -177,3 +177,18 @@ def test_undetermined_refusal_names_the_motion(example):
     stop = [r for r in _runs(seg) if r[0].startswith("pos")][0][2]
     with pytest.raises(EstimationError, match=r"acc.sf.x \(not seen by this log; needs rests with x up"):
         calibrate(LogData.from_log(_cut(example, stop)), ACC, undetermined="refuse")
+
+
+def test_a_corrupt_value_is_one_clear_error_and_a_mask_lets_the_rest_calibrate(example, tmp_path, capsys):
+    """One 1e308 in a gyro column was an SVD failure traceback: now one line naming the sample;
+    masked, the rest of the log calibrates."""
+    g = example.gyro.copy()
+    g[1000, 0] = 1e308
+    bad = dataclasses.replace(example, gyro=g)
+    write_log(tmp_path / "huge", bad)
+    assert main(["calibrate", str(tmp_path / "huge"), "--out", str(tmp_path / "r.json")]) == 2
+    err = capsys.readouterr().err
+    assert "sample 1001 (t = 5.005 s), column gyro_x: 1e+308 per 0.005 s" in err and "Traceback" not in err
+    t = example.time[1000]
+    assert main(["calibrate", str(tmp_path / "huge"), "--out", str(tmp_path / "r.json"),
+                 "--exclude", f"{t - 1e-4}:{t + 1e-4}"]) == 0

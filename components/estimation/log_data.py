@@ -87,11 +87,38 @@ class LogData:
             valid = np.ones(log.n, bool)
             for m in reasons.values():
                 valid &= ~m
-        return cls(time=log.time, angles=log.angles, gyro=log.gyro_increment(),
-                   acc=log.acc_increment(), geometry=geo, temperature=log.temperature,
+        gyro, acc = log.gyro_increment(), log.acc_increment()
+        _check_range(log, gyro, acc, valid)
+        return cls(time=log.time, angles=log.angles, gyro=gyro,
+                   acc=acc, geometry=geo, temperature=log.temperature,
                    segment=log.segment, dt0=log.dt, source={"log": log.source},
                    count_weight=(log.gyro_count_rad if log.gyro_output == "counts" else None,
                                  log.acc_count_mps if log.acc_output == "counts" else None),
                    valid=valid, left_out={k: int(m.sum()) for k, m in reasons.items()},
                    encoder_resolution=log.encoder_resolution,
                    segments=log.segments, noise=log.noise)
+
+
+# beyond any inertial sensor's range: a corrupt value, not a measurement (an estimate would
+# overflow on it, or silently be dominated by it)
+MAX_RATE = 1.0e3      # rad/s (57 000 deg/s; the fastest MEMS gyros stop at ~70 rad/s)
+MAX_FORCE = 1.0e5     # m/s² (10 000 g)
+
+
+def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
+    from components.errors import EstimationError
+
+    dt = log.intervals()[:, None]
+    use = np.ones(log.n, bool) if valid is None else valid
+    for name, inc, limit, unit in (("gyro", gyro, MAX_RATE, "rad/s"), ("acc", acc, MAX_FORCE, "m/s²")):
+        with np.errstate(over="ignore", invalid="ignore"):
+            bad = use[:, None] & ~(np.abs(inc / dt) <= limit)
+        if bad.any():
+            i, k = np.argwhere(bad)[0]
+            with np.errstate(over="ignore"):
+                value = inc[i, k] / dt[i, 0]
+            raise EstimationError(
+                f"{log.source or 'log'}: sample {i + 1} (t = {log.time[i]:.6g} s), column {name}_{'xyz'[k]}: "
+                f"{inc[i, k]:.4g} per {dt[i, 0]:g} s ({value:.4g} {unit}) is beyond any {'gyro' if name == 'gyro' else 'accelerometer'}'s "
+                f"range (|value| <= {limit:g} {unit}): a corrupt value, or a wrong unit or count weight; mask or "
+                "exclude it, or fix the metadata")
