@@ -327,26 +327,23 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
 
 
 def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
-    """Candidates' parameters whose σ beyond the model's own columns exceeds anything a real IMU
-    has (components.model.plausibility) leave *available*; an effect with none left is returned
-    (effect -> the motion it needs): the log cannot see it, so it is not tested."""
+    """Each candidate keeps the parameters this log determines beyond the model's own columns
+    (components.estimation.determinability, in the vocabulary's order: one the log cannot tell
+    from the model's and the candidate's earlier ones, or whose σ would exceed anything a real IMU
+    has, is dropped, so no candidate shows a pseudo-inverse's value). An effect with none left is
+    returned (effect -> the motion it needs): the log cannot see it, so it is not tested."""
+    from components.estimation.determinability import undetermined_columns
     from components.model.excitation import needs
     from components.model.plausibility import plausible_limit
 
-    B = design.H[:, [design.index[p] for p in base]] if base else np.zeros((design.n, 0))
-    if B.shape[1]:
-        Q, R = np.linalg.qr(B / np.maximum(np.linalg.norm(B, axis=0), 1e-300))
-        Q = Q[:, np.abs(np.diag(R)) > 1e-10]
+    nuis = [design.index[p] for p in base]
     out = {}
     for effect, ps in list(available.items()):
-        seen = []
-        for p in ps:
-            h = design.H[:, design.index[p]]
-            if B.shape[1]:
-                h = h - Q @ (Q.T @ h)
-            info = float(h @ h)
-            if info > 0 and 1.0 / math.sqrt(info) < plausible_limit(p):
-                seen.append(p)
+        cols = [design.index[p] for p in ps]
+        J = design.H[:, cols + nuis]
+        undet = set(undetermined_columns(J, list(range(len(cols))), list(range(len(cols), len(cols) + len(nuis))),
+                                         limits=np.array([plausible_limit(p) for p in ps])))
+        seen = [p for k, p in enumerate(ps) if k not in undet]
         if seen:
             available[effect] = seen
         else:
