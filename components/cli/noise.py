@@ -22,6 +22,10 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     from components.model.result import CalibrationResult
 
     log = read_log(args.log)
+    if not log.has_table:
+        raise UserError(f"noise: {args.log} has no table angles: noise identification works on the residual of a "
+                        "fit over the whole log, which needs them; identify the IMU's noise on a table log (or give "
+                        "it with --noise / the log's imu.noise)")
     data = LogData.from_log(log)
     try:
         effects = parse_effects(args.effects) if args.effects else None

@@ -43,6 +43,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         Path(target).with_suffix(".csv").exists() or Path(target).with_suffix(".parquet").exists())
     if is_log:
         log = read_log(target)
+        if not log.has_table:
+            raise UserError(f"plan: {target} has no table angles: the bound is computed on a schedule's motion or a "
+                            "table log's; for a session without a table, plan it as the schedule of rests and turns "
+                            "it is meant to be")
     else:
         print(f"simulating schedule {target} (noise- and error-free) for its motion ...")
         log = schedule_motion_log(target, args.dwell)

@@ -209,7 +209,7 @@ def acc_plus_minus(data, positions, sigma_a, beta: float):
     missing = [f"{'+' if s > 0 else '-'}{AX[k]}" for k in range(3) for s in (1, -1) if (k, s) not in groups]
     if missing:
         raise ValueError(f"the ± static positions lack {', '.join(missing)} up (found static segments "
-                         f"{sorted({l for g in groups.values() for l in g['labels']})})")
+                         f"{', '.join(sorted({str(lab) for g in groups.values() for lab in g['labels']}))})")
     keys = [(k, s) for k in range(3) for s in (1, -1)]
     fbar = np.array([groups[k]["sum"] / (groups[k]["n"] * dt) for k in keys])   # (6, 3)
     u = np.array([groups[k]["u"] / groups[k]["n"] for k in keys])                # (6, 3)
