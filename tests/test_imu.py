@@ -246,6 +246,40 @@ def test_time_offset_linear_ramp(imu_fmu, timing, frac):
     np.testing.assert_allclose(y[:, :3], exact, rtol=1e-11, atol=1e-17)
 
 
+@pytest.mark.parametrize("timing", [0, 1])
+@pytest.mark.parametrize("dt_frac, dta_frac", [(0.0, 0.34), (0.2, -0.45), (-0.3, 0.5)])
+def test_accelerometer_time_offset_on_a_turn_with_gravity(imu_fmu, timing, dt_frac, dta_frac):
+    """A constant-rate turn about x with gravity in the y-z plane: f(t) = g (0, sin wt, cos wt),
+    omega = (w, 0, 0). The gyro sample labelled t integrates omega over (t - h + dt, t + dt], the
+    accelerometer sample f over (t - h + dt + dta, t + dt + dta] (closed form): the
+    accelerometers late by dta against the gyros, the vocabulary's acc.time_offset."""
+    g, w = 9.8, 0.7
+    h, N = 0.005, 40
+    dt, dta = dt_frac * h, dta_frac * h
+    prof = lambda t: motion([w, 0, 0], [0, g * math.sin(w * t), g * math.cos(w * t)])  # noqa: E731
+    ts, y = run(imu_fmu, {"imu.time_offset": dt, "acc.time_offset": dta}, prof, h, N, timing=timing)
+    lo, hi = ts - h + dt + dta, ts + dt + dta
+    exact_y = g * (np.cos(w * lo) - np.cos(w * hi)) / w
+    exact_z = g * (np.sin(w * hi) - np.sin(w * lo)) / w
+    # the input is interpolated between communication points (cubic Hermite, f' = -omega x f),
+    # (timing 1: its Taylor extrapolation) so the tolerance is the interpolant's error on a sine
+    # over one step; a shift error of 1 % of dta would be ~6e-7 (w g h dta / 100)
+    k = slice(2, None)   # the first samples see the motion before the start (held there)
+    np.testing.assert_allclose(y[k, 4], exact_y[k], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(y[k, 5], exact_z[k], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(y[:, 0], w * h, rtol=1e-12)
+
+
+def test_accelerometer_time_offset_bounded_by_the_step(imu_fmu):
+    s = Slave(imu_fmu, {"imu.time_offset": 0.003, "acc.time_offset": 0.003})
+    try:
+        with pytest.raises(FMICallException):
+            s.step(0.005)
+        assert any("imu.time_offset + acc.time_offset" in msg for _, msg in s.log)
+    finally:
+        s.fmu.freeInstance()
+
+
 def test_temperature_input_mode(imu_fmu):
     """Mode 2: temperature_env linear in time; the output follows it and the bias term integrates
     the (linearly interpolated) temperature."""

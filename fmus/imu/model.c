@@ -4,9 +4,12 @@
  * CONVENTIONS
  * - Axes: everything in mounting (plate) axes. Inputs omega = inertial rate [rad/s], f = specific
  *   force at the plate reference point [m/s2], alpha = d omega/dt [rad/s2].
- * - Time: "sensor time" s runs with the FMU clock. The motion seen at sensor time s is the
- *   motion of the table at tau = s + imu.time_offset (dt): the sample labelled t holds the motion
- *   of (t - h + dt, t + dt]. |dt| < h is required (checked at every step). Bias drift and
+ * - Time: "sensor time" s runs with the FMU clock. The motion the gyros see at sensor time s is
+ *   the motion of the table at tau = s + imu.time_offset (dt): the sample labelled t holds the
+ *   motion of (t - h + dt, t + dt]. The accelerometers see it at s + dt + acc.time_offset (dta,
+ *   the gyro-accelerometer asynchrony, PSINS's tGA): their samples hold (t - h + dt + dta,
+ *   t + dt + dta]; with dta != 0 the step is integrated twice, once per shift. |dt| < h and
+ *   |dt + dta| < h are required (checked at every step). Bias drift and
  *   temperature use sensor time; drift is drift_i * (s - t0), t0 = start time; temperature mode
  *   1 is T(s) = temperature.start + temperature.rate * (s - t0).
  * - Input signal between communication points: signal.c.
@@ -96,10 +99,10 @@ static double common_terms(const ModelInstance *m, int sensor, int i, const doub
 
 static const int PAIR[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
 
-/* Instantaneous sensor outputs (rad/s, m/s2) at sensor time s. */
-static void sensor_outputs(const ModelInstance *m, double s, double gyro[3], double acc[3]) {
+/* Instantaneous sensor outputs (rad/s, m/s2) at sensor time s, seeing the motion at s + shift. */
+static void sensor_outputs(const ModelInstance *m, double s, double shift, double gyro[3], double acc[3]) {
     Motion mo;
-    motion_at(m, s + R(VR_imu_time_offset), &mo);
+    motion_at(m, s + shift, &mo);
     double dT = temperature_at(m, s) - R(VR_temperature_ref);
     double tt = s - m->s.start_time;
     for (int i = 0; i < 3; i++) {
@@ -130,7 +133,8 @@ static void sensor_outputs(const ModelInstance *m, double s, double gyro[3], dou
  * a polynomial of degree <= 6 (<= 8) in them except k3 (degree 9, 12) and the asymmetry's |x|:
  * without those one 4-point (5-point) rule, exact to degree 7 (9), is already exact, so the
  * sub-division is only paid when they are present. */
-static void integrate_piece(const ModelInstance *m, double a, double b, double g[3], double f[3]) {
+static void integrate_piece(const ModelInstance *m, double a, double b, double shift, double g[3],
+                            double f[3]) {
     const int nsub = m->s.p.nsub, npts = m->s.p.npts;
     const double *gx = npts == 5 ? GL5_X : GL_X, *gw = npts == 5 ? GL5_W : GL_W;
     double hs = (b - a) / nsub;
@@ -138,7 +142,7 @@ static void integrate_piece(const ModelInstance *m, double a, double b, double g
         double c = a + (k + 0.5) * hs;
         for (int q = 0; q < npts; q++) {
             double yg[3], ya[3], w = gw[q] * hs / 2;
-            sensor_outputs(m, c + gx[q] * hs / 2, yg, ya);
+            sensor_outputs(m, c + gx[q] * hs / 2, shift, yg, ya);
             for (int i = 0; i < 3; i++) {
                 g[i] += w * yg[i];
                 f[i] += w * ya[i];
@@ -147,32 +151,32 @@ static void integrate_piece(const ModelInstance *m, double a, double b, double g
     }
 }
 
-/* Deterministic increments over [t, t+h]: split where the shifted window crosses a knot, where
- * the interpolant has a kink in its higher derivatives. A piece whose motion lies past the newest
- * knot (imu.time_offset > 0) is also returned in ahead (g, f), with its bounds; else *ahead_a =
- * *ahead_b. */
-static void integrate_step(const ModelInstance *m, double t, double h, double g[3], double f[3],
+/* Deterministic increments over [t, t+h] seeing the motion shifted by dt: split where the
+ * shifted window crosses a knot, where the interpolant has a kink in its higher derivatives. A
+ * piece whose motion lies past the newest knot (dt > 0) is also returned in ahead (g, f), with
+ * its bounds; else *ahead_a = *ahead_b. */
+static void integrate_step(const ModelInstance *m, double t, double h, double dt, double g[3], double f[3],
                            double ahead[2][3], double *ahead_a, double *ahead_b) {
     const ModelPrivate *p = &m->s.p;
-    double dt = R(VR_imu_time_offset), tol = 1e-9 * h, a = t;
+    double tol = 1e-9 * h, a = t;
     for (int i = 0; i < 3; i++) g[i] = f[i] = ahead[0][i] = ahead[1][i] = 0.0;
     for (int k = 0; k < p->nknots; k++) {
         double bp = p->knot[k].t - dt;
         if (bp > a + tol && bp < t + h - tol) {
-            integrate_piece(m, a, bp, g, f);
+            integrate_piece(m, a, bp, dt, g, f);
             a = bp;
         }
     }
     *ahead_a = *ahead_b = t + h;
     if (a + dt >= p->knot[p->nknots - 1].t - tol) { /* the last piece is extrapolated */
-        integrate_piece(m, a, t + h, ahead[0], ahead[1]);
+        integrate_piece(m, a, t + h, dt, ahead[0], ahead[1]);
         for (int i = 0; i < 3; i++) {
             g[i] += ahead[0][i];
             f[i] += ahead[1][i];
         }
         *ahead_a = a;
     } else {
-        integrate_piece(m, a, t + h, g, f);
+        integrate_piece(m, a, t + h, dt, g, f);
     }
 }
 
@@ -286,30 +290,49 @@ ModelStatus model_do_step(ModelInstance *m, double h) {
                   R(VR_imu_time_offset), h);
         return MS_ERROR;
     }
+    /* the accelerometers' shift; equal to the gyros' (one pass, the same bits as without the
+     * parameter) unless acc.time_offset != 0 */
+    const double shift[2] = {R(VR_imu_time_offset), R(VR_imu_time_offset) + R(VR_acc_time_offset)};
+    const int passes = shift[1] != shift[0] ? 2 : 1;
+    if (!(fabs(shift[1]) < h)) {
+        model_log(m, MS_ERROR,
+                  "parameters imu.time_offset + acc.time_offset = %g: expected |sum| < the "
+                  "communication step %g (the accelerometers' shift)",
+                  shift[1], h);
+        return MS_ERROR;
+    }
     ImuKnot k;
     int timing1 = I(VR_input_timing) == 1;
     knot_from_inputs(m, timing1 ? t : t + h, &k);
     push_knot(&m->s.p, &k, 1e-9 * h);
     set_bump(m, &m->s.p);
 
-    double inc[2][3], ahead[2][3], a0, a1;
+    double inc[2][3];
     ModelPrivate *p = &m->s.p;
-    integrate_step(m, t, h, inc[GYRO], inc[ACC], ahead, &a0, &a1);
-    if (p->ahead_set) {
-        /* what the last step extrapolated, now interpolated: the difference joins this sample,
-         * so the samples' sums (angle, velocity) stay the true motion's and the extrapolation
-         * error does not pile up index after index (at 10 cm off the centre, 0.2 ms late:
-         * 2e-5 m/s per index) */
-        double again[2][3] = {{0.0}};
-        integrate_piece(m, p->ahead_a, p->ahead_b, again[GYRO], again[ACC]);
+    for (int q = 0; q < passes; q++) {
+        double part[2][3], ahead[2][3], a0, a1;
+        integrate_step(m, t, h, shift[q], part[GYRO], part[ACC], ahead, &a0, &a1);
+        if (p->ahead_set[q]) {
+            /* what the last step extrapolated, now interpolated: the difference joins this
+             * sample, so the samples' sums (angle, velocity) stay the true motion's and the
+             * extrapolation error does not pile up index after index (at 10 cm off the centre,
+             * 0.2 ms late: 2e-5 m/s per index) */
+            double again[2][3] = {{0.0}};
+            integrate_piece(m, p->ahead_a[q], p->ahead_b[q], shift[q], again[GYRO], again[ACC]);
+            for (int s = 0; s < 2; s++)
+                for (int i = 0; i < 3; i++) part[s][i] += again[s][i] - p->ahead[q][s][i];
+        }
+        p->ahead_set[q] = !timing1 && a1 > a0;
+        if (p->ahead_set[q]) {
+            p->ahead_a[q] = a0;
+            p->ahead_b[q] = a1;
+            memcpy(p->ahead[q], ahead, sizeof ahead);
+        }
+        /* pass 0 gives the gyros (and the accelerometers when there is one pass), pass 1 the
+         * accelerometers at their own shift */
         for (int s = 0; s < 2; s++)
-            for (int i = 0; i < 3; i++) inc[s][i] += again[s][i] - p->ahead[s][i];
-    }
-    p->ahead_set = !timing1 && a1 > a0;
-    if (p->ahead_set) {
-        p->ahead_a = a0;
-        p->ahead_b = a1;
-        memcpy(p->ahead, ahead, sizeof ahead);
+            if (passes == 1 || (q == 0) == (s == GYRO))
+                for (int i = 0; i < 3; i++) inc[s][i] = part[s][i];
     }
     for (int s = 0; s < 2; s++) {
         const SensorVr *v = &SENSOR_VR[s];

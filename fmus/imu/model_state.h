@@ -52,12 +52,14 @@ typedef struct {
     int nsub;           /* Gauss-Legendre sub-intervals per piece (1 when the model is exact
                            with one: see integrate_piece) */
     int npts;           /* Gauss-Legendre points: 4 (cubic pieces) or 5 (quartic pieces) */
-    /* imu.time_offset > 0 (input_timing 0): the last step's integral over the sensor times
+    /* a positive time offset (input_timing 0): the last step's integral over the sensor times
      * (ahead_a, ahead_b] whose motion lay past the newest knot (extrapolated); the next step
-     * integrates that piece again on the knot that has arrived and adds the difference */
-    int ahead_set;
-    double ahead_a, ahead_b;
-    double ahead[2][3];
+     * integrates that piece again on the knot that has arrived and adds the difference. Per
+     * pass: [0] at imu.time_offset (both sensors, or the gyros when acc.time_offset != 0),
+     * [1] at imu.time_offset + acc.time_offset (the accelerometers) */
+    int ahead_set[2];
+    double ahead_a[2], ahead_b[2];
+    double ahead[2][2][3]; /* [pass][sensor][axis] */
 } ModelPrivate;
 
 #endif

@@ -52,6 +52,9 @@ def _effect_parameters() -> list:
     v.append(real("imu.time_offset", "parameter", 0.0, "s",
                   "IMU sample time late relative to the table: the sample labelled t holds the "
                   "motion of (t - h + dt, t + dt]"))
+    v.append(real("acc.time_offset", "parameter", 0.0, "s",
+                  "accelerometer samples late relative to the gyros (gyro-accelerometer asynchrony): "
+                  "the accelerometer sample labelled t holds the motion of (t - h + dt + dta, t + dt + dta]"))
     return v
 
 
