@@ -54,6 +54,8 @@ _SEPARATE = {
     frozenset({"gyro.sf_asym", "gyro.bias"}): "rotate at two different rates in both directions",
     frozenset({"acc.lever", "acc.k2"}): "rotate at two rates about each axis: the lever term grows with ω², K2 does not change with rate",
     frozenset({"imu.time_offset", "acc.lever"}): "index with different accelerations: the time offset follows df/dt, the tangential lever term ω̇",
+    frozenset({"acc.time_offset", "acc.lever"}): "index with different accelerations: the time offset follows df/dt, the tangential lever term ω̇",
+    frozenset({"imu.time_offset", "acc.time_offset"}): "the gyro rows here are rest-to-rest sums, which no time shift changes, so both move only the accelerometer rows: the system-level filter (calbench kf) separates them — a late accelerometer against the gyros shows in the navigation velocity, the whole IMU late against the table does not",
 }
 _GENERIC = {
     "gyro": "add rotations about each axis in both directions at two rates, and more attitudes",

@@ -13,7 +13,7 @@ import numpy as np
 
 from components.estimation.blocks import Blocks
 from components.estimation.rest_angles import rest_variance
-from components.model.effects import effect_of, regressor_of, time_offset_of_lever
+from components.model.effects import TIME_OFFSETS, effect_of, regressor_of, time_offset_of_lever
 from components.model.motion import Motion
 from components.model.table_parameters import apply_table_parameter, table_parameter_value
 
@@ -64,14 +64,16 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
         if a is not None:
             Ha[:, :, k] = ab.sum(a)
     if lin is not None:
-        # τ D(r) ≈ τ D(r0) + τ0 D(r) − τ0 D(r0), D linear in r: the time-offset column gains
-        # D(r0), each lever column τ0 D(e_k), and τ0 D(r0) moves to the observed side
-        kt = params.index("imu.time_offset")
-        tau0 = lin[kt]
+        # τ D(r) ≈ τ D(r0) + τ0 D(r) − τ0 D(r0), D linear in r, τ the accelerometers' whole shift
+        # (imu.time_offset + acc.time_offset): each time-offset column gains D(r0), each lever
+        # column τ0 D(e_k), and τ0 D(r0) moves to the observed side
+        kts = [params.index(p) for p in TIME_OFFSETS if p in params]
+        tau0 = sum(lin[kt] for kt in kts)
         for k, p in enumerate(params):
             if effect_of(p).name == "acc.lever":
                 d = ab.sum(time_offset_of_lever(motion, p.split(".", 2)[2]))
-                Ha[:, :, kt] += lin[k] * d
+                for kt in kts:
+                    Ha[:, :, kt] += lin[k] * d
                 Ha[:, :, k] += tau0 * d
                 ya = ya + tau0 * lin[k] * d
     # geometry columns by forward differences (the prediction is smooth in these small angles:

@@ -22,7 +22,7 @@ from components.estimation.determinability import Determinability, assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
-from components.model.effects import effect_of, parameters_of
+from components.model.effects import TIME_OFFSETS, effect_of, parameters_of
 from components.model.excitation import needs
 from components.model.geometry import TableGeometry
 from components.model.motion import Motion
@@ -134,7 +134,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         value[params.index(p)] = table_parameter_value(geo, p)
     # the model's one product of two fitted parameters: the time offset shifts the lever-arm
     # terms too (effects.time_offset_of_lever); linearised at the last solution (Gauss–Newton)
-    bilinear = "imu.time_offset" in params and any(effect_of(p).name == "acc.lever" for p in params)
+    bilinear = any(p in params for p in TIME_OFFSETS) and any(effect_of(p).name == "acc.lever" for p in params)
     lin = None
     it = 0
     det = None
@@ -155,7 +155,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
                         f"{p} needs {needs(p)}" for p in det.undetermined))
                 H, Hw, value = H[:, keep], Hw[:, keep], value[keep]
                 table_params = [p for p in table_params if p in params]
-                bilinear = "imu.time_offset" in params and any(effect_of(p).name == "acc.lever" for p in params)
+                bilinear = any(p in params for p in TIME_OFFSETS) and any(effect_of(p).name == "acc.lever" for p in params)
         scale = np.linalg.norm(Hw, axis=0)
         scale[scale == 0] = 1.0
         # rcond: a direction of the column-normalised design below 1e-7 of the largest is a
@@ -169,8 +169,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         value[sensor_idx] = step[sensor_idx]
         moved = False
         if bilinear:
-            tau = value[params.index("imu.time_offset")]
-            moved = lin is None or abs(tau - lin[params.index("imu.time_offset")]) > TIME_OFFSET_STEP_TOL
+            kts = [params.index(p) for p in TIME_OFFSETS if p in params]
+            moved = lin is None or max(abs(value[k] - lin[k]) for k in kts) > TIME_OFFSET_STEP_TOL
             lin = value.copy()
         if table_params:
             delta = np.array([step[params.index(p)] for p in table_params])

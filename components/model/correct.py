@@ -94,7 +94,8 @@ def correct_log(log, res: CalibrationResult):
     else:
         out.acc, out.acc_output, out.acc_count_mps = a, "increment", None
     notes = [f"corrected with a calbench result ({', '.join(res.effects)})"]
-    if res.value("imu.time_offset"):
-        notes.append(f"time offset {res.value('imu.time_offset'):.6g} s not re-timed")
+    for name in ("imu.time_offset", "acc.time_offset"):
+        if res.value(name):
+            notes.append(f"{name} {res.value(name):.6g} s not re-timed")
     out.description = (log.description + "; " if log.description else "") + "; ".join(notes)
     return out

@@ -13,6 +13,10 @@ specific force at accelerometer i (acc), dT = T - T0 and s the time since the st
           + temp_i dT + drift_i s   (+ gyro: gsens_ij f_j + g2sens_i,jk f_j f_k;
                                        acc: k2_i x_i^2 + k3_i x_i^3 + cross_ij x_i x_j)
 
+with x seen at the sample's time shifted by imu.time_offset (both sensors) and, for the
+accelerometers, by acc.time_offset more (the gyro-accelerometer asynchrony; first order: the
+increment gains τ (x(t) − x(t − h))).
+
 to first order in the parameters (the FMU's products of two small parameters are below 1e-9 of
 the signal). Table effects change the motion itself and are fitted through the geometry.
 """
@@ -148,6 +152,16 @@ def _time_offset(m, _):
     return m.omega_end - m.omega_start, m.f_end - m.f_start
 
 
+def _acc_time_offset(m, _):
+    # the same for the accelerometers alone, shifted against the gyros
+    return None, m.f_end - m.f_start
+
+
+# the parameters that shift the accelerometers' samples in time: each multiplies the lever-arm
+# terms too (time_offset_of_lever), a product the least squares linearises
+TIME_OFFSETS = ("imu.time_offset", "acc.time_offset")
+
+
 def time_offset_of_lever(m, idx: str) -> np.ndarray:
     """(N, 3) accelerometer column of the product time offset × ``acc.lever.idx``: the
     derivative by the time shift of that parameter's unit lever-arm term, its value at the
@@ -216,6 +230,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
          "slow trend over the run", ("ug/h", UG / 3600), _drift("acc")),
     Effect("imu.time_offset", ("",), "s", 1e-3, "imu", "IMU sample time late relative to the table",
            "∝ ω̇ (gyro), ∝ df/dt at indexing", ("ms", 1e-3), _time_offset),
+    Effect("acc.time_offset", ("",), "s", 1e-4, "acc",
+           "accelerometer samples late relative to the gyros (gyro-accelerometer asynchrony, PSINS's tGA)",
+           "accelerometer residuals ∝ df/dt at the starts and ends of moves, none at rest, none in the gyros",
+           ("ms", 1e-3), _acc_time_offset),
     Effect("table.base_tilt", ("x", "y"), "rad", 10 * ARCSEC, "table",
            "base rotation about east (x) / north (y) from level",
            "gravity leaks into horizontal axes; attitude-dependent offsets", ("arcsec", ARCSEC)),
