@@ -22,6 +22,11 @@ class LogFormatError(CalbenchError, ValueError):
     row or key, and what was expected."""
 
 
+class MappingError(CalbenchError, ValueError):
+    """An import mapping (``calbench import``) or the foreign file it describes is not what the
+    mapping says: names the mapping file, the key, the input file, the column or row."""
+
+
 class ResultFormatError(CalbenchError, ValueError):
     """A calibration result file (``calbench-result/1``) is not what the format says."""
 

@@ -13,8 +13,8 @@ import importlib
 import sys
 
 # in the order the commands appear in --help
-COMMAND_MODULES = ("cosim", "simulation", "calibration", "diagnosis", "noise", "planning", "procedures", "navigation",
-                   "campaign", "demo")
+COMMAND_MODULES = ("cosim", "simulation", "log_import", "calibration", "diagnosis", "noise", "planning", "procedures",
+                   "navigation", "campaign", "demo")
 
 
 def build_parser() -> argparse.ArgumentParser:

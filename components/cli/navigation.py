@@ -3,15 +3,18 @@ from __future__ import annotations
 
 import argparse
 
+from components.cli import log_option
+
 
 def _cmd_kf(args: argparse.Namespace) -> int:
+    from components.cli.log_option import parse_exclude
     from components.errors import UserError
     from components.logs.logfile import read_log
-    from components.navigation.configs import load_config
+    from components.navigation.configs import load_config, with_grade
     from components.navigation.system import calibrate_system
 
     try:
-        cfg = load_config(args.config)
+        cfg = with_grade(load_config(args.config), args.grade)
     except (ValueError, OSError) as e:
         raise UserError(f"kf: configuration {args.config}: {e}") from None
     if args.simulate and args.log:
@@ -20,34 +23,57 @@ def _cmd_kf(args: argparse.Namespace) -> int:
         from components.simulation.run import run_scenario
         from components.simulation.scenario import load_scenario
 
-        log = run_scenario(load_scenario(args.simulate), progress=False).log
+        run = run_scenario(load_scenario(args.simulate), progress=False)
+        log, truth = run.log, run.truth
         source = args.simulate
     elif args.log:
         log = read_log(args.log)
-        source = args.log
+        source, truth = args.log, None
     else:
         raise UserError("kf: give a LOG or --simulate SCENARIO")
     try:
-        res, _ = calibrate_system(log, cfg)
+        res, _ = calibrate_system(log, cfg, parse_exclude(args.exclude))
     except ValueError as e:  # a window no label matches, no rest to align on, ...
         raise UserError(f"kf: {source} with configuration {cfg.name}: {e}") from None
-    res.save(args.out)
-    for p, v in res.values.items():
-        from components.model.effects import effect_of
+    if truth is not None:
+        from components.procedures.common import errors_against_truth, print_errors
 
-        unit, k = effect_of(p).display
-        print(f"{p:18s} {v / k:12.4f} ± {res.sigmas[p] / k:9.4f} {unit}")
+        rows = errors_against_truth(res, truth)
+        res.extra["errors_against_truth"] = rows
+        res.save(args.out)
+        print(f"errors against the truth of {args.simulate}:")
+        print_errors(rows)
+    else:
+        res.save(args.out)
+        for p, v in res.values.items():
+            from components.model.effects import effect_of
+
+            unit, k = effect_of(p).display
+            print(f"{p:18s} {v / k:12.4f} ± {res.sigmas[p] / k:9.4f} {unit}")
+    for note in res.fit.get("notes", []):
+        print(f"note: {note}")
     print(f"wrote {args.out} ({res.method}, config {cfg.name})")
+    problems = [p for st in res.fit.get("stages", []) for p in st.get("consistency", {}).get("problems", [])]
+    if problems:
+        print("the filter is not consistent with the data; do not use these estimates:")
+        for p in problems:
+            print(f"  {p}")
+        return 1
     return 0
 
 
 def register(sub) -> None:
     k = sub.add_parser("kf", help="system-level Kalman-filter calibration (navigation velocity "
                                   "error on a stationary base): seed_001, seed_001_single, "
-                                  "seed_003, seed_003_joint, seed_003_external, psins19 or a "
-                                  "configuration TOML")
+                                  "seed_003, seed_003_joint, seed_003_external, psins19, psins19_tga "
+                                  "or a configuration TOML; exit 1 when the filter is not consistent "
+                                  "with the data")
     k.add_argument("config", help="ready-made configuration name or .toml")
     k.add_argument("log", nargs="?", help="the log (either file of the pair, or the stem)")
     k.add_argument("--simulate", help="simulate this scenario file instead of reading a log")
     k.add_argument("--out", required=True, help="result file (JSON)")
+    k.add_argument("--grade", choices=("navigation", "mems"), default="navigation",
+                   help="the IMU's grade: the filter's priors and initial attitude uncertainty "
+                        "(default navigation; mems for consumer/industrial MEMS)")
+    log_option.add(k)
     k.set_defaults(func=_cmd_kf)

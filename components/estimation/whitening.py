@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from components.errors import EstimationError
 from components.model.noise import BlockNoise, NoiseModel, block_noise
 
 
@@ -34,6 +35,11 @@ def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.n
         c = bn.c[k]
         Pc = P @ c
         S = float(c @ Pc) + bn.r[k]
+        if not S > 0:  # also catches nan
+            raise EstimationError(
+                f"whitening under the noise model failed at block {k + 1} of {nb}: its predicted variance is "
+                f"{S:.3g} (the noise model's state covariance lost its positive definiteness; its terms span too "
+                "many decades for the log's length — give a simpler noise model with --noise)")
         nu = values[k] - c @ x
         g = (bn.phi[k] * Pc + bn.cross[k]) / S
         out[k] = nu / math.sqrt(S)

@@ -35,10 +35,12 @@ the configurations keep ``acc.mis.yx, zx, zy`` (the lower triangle) and 9 gyro s
 """
 from __future__ import annotations
 
+import math
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
-from components.model.effects import parameters_of
+from components.model.effects import effect_of, parameters_of
 from components.navigation.system import Config, Stage
 
 ACC_MIS3 = ["acc.mis.yx", "acc.mis.zx", "acc.mis.zy"]
@@ -127,9 +129,55 @@ def _psins19() -> Config:
     ], schedule="psins19")
 
 
+def _psins19_tga() -> Config:
+    """psins19 with the gyro–accelerometer time offset (PSINS's tGA) as a 40th state: a late
+    accelerometer shows in the navigation velocity at every index (its specific force turns
+    before the gyro-integrated attitude does); left out, 1 ms of it made the 39-state filter
+    diverge on a noise-free run. On a table log the table stage's imu.time_offset takes both
+    offsets' sum (its rows cannot tell them apart), which the filter does not use."""
+    return Config("psins19_tga", "psins19 with the gyro-accelerometer time offset as a 40th state", [
+        _time_offset_stage("19-position table-referenced", None),
+        Stage("kf", "19-position tGA", parameters=list(P39) + ["acc.time_offset"], window=None,
+              settings={"passes": 3}),
+    ], schedule="psins19")
+
+
 READY = {"seed_003": _seed003, "seed_003_joint": _seed003_joint,
          "seed_003_external": _seed003_external, "seed_001": _seed001,
-         "seed_001_single": _seed001_single, "psins19": _psins19}
+         "seed_001_single": _seed001_single, "psins19": _psins19, "psins19_tga": _psins19_tga}
+
+# The prior σ of each effect's parameters for an IMU grade (SI): the configurations are written
+# for navigation grade (10 x the vocabulary's typical magnitudes); a MEMS IMU's errors are
+# hundreds to thousands of times larger, and a filter told otherwise diverges or clips them.
+GRADE_PRIORS = {
+    "mems": {
+        "gyro.bias": 100 * math.pi / 180 / 3600, "gyro.sf": 5e-3, "gyro.mis": 3e-3,
+        "gyro.gsens": 0.1 * math.pi / 180 / 9.80665,
+        "acc.bias": 10e-3 * 9.80665, "acc.sf": 5e-3, "acc.mis": 3e-3,
+        "acc.k2": 1e-3 / 9.80665, "acc.lever": 0.02, "acc.time_offset": 2e-3, "imu.time_offset": 1e-2,
+    },
+}
+GRADE_ATTITUDE = {"mems": (1e-2, 1e-2, 0.3)}   # initial attitude σ [rad]: a MEMS gyro's heading is rough
+
+
+def with_grade(config: Config, grade: str) -> Config:
+    """*config* with its kf stages' priors (and initial attitude σ) of an IMU *grade*
+    ("navigation": as written; "mems")."""
+    if grade == "navigation":
+        return config
+    if grade not in GRADE_PRIORS:
+        raise ValueError(f"grade {grade!r}: expected navigation or {', '.join(GRADE_PRIORS)}")
+    pri = GRADE_PRIORS[grade]
+    stages = []
+    for st in config.stages:
+        if st.kind == "kf":
+            params = st.parameters or parameters_of(st.effects)
+            given = dict(st.settings.get("prior_sigma", {}))
+            sig = {p: pri[effect_of(p).name] for p in params if effect_of(p).name in pri and p not in given}
+            st = replace(st, settings={**st.settings, "prior_sigma": {**sig, **given},
+                                       "phi0": st.settings.get("phi0", GRADE_ATTITUDE[grade])})
+        stages.append(st)
+    return replace(config, name=f"{config.name} ({grade})", stages=stages)
 
 
 def load_config(spec: str) -> Config:

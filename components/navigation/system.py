@@ -33,8 +33,16 @@ from components.estimation.log_data import LogData
 from components.model.effects import effect_of, parameters_of
 from components.model.result import CalibrationResult, schedule_of
 from components.navigation.alignment import alignment_run, coarse_align, fine_align
+from components.navigation.consistency import check_stage
 from components.navigation.earth import Site
-from components.navigation.kf import SIGMA_ACC_FLOOR, SIGMA_GYRO_FLOOR, FilterOutput, FilterSettings, run_filter
+from components.navigation.kf import (
+    SIGMA_ACC_FLOOR,
+    SIGMA_GYRO_FLOOR,
+    FilterOutput,
+    FilterSettings,
+    prior_sigmas,
+    run_filter,
+)
 from components.navigation.sensor import Regressors
 
 METHOD = "system-level KF"
@@ -91,6 +99,9 @@ class StageOutput:
     joint_covariance: np.ndarray | None = None
     totals: np.ndarray | None = None      # the parameters' values after this stage: ``values``
     #                                       are the increments on the earlier stages' estimates
+    prior_values: np.ndarray | None = None  # a kf stage: where its filter started, and the σ of
+    prior_sigma: np.ndarray | None = None   # its prior (components.navigation.consistency)
+    kf_interval: float | None = None
 
 
 def joint_prior(outputs: list, names: list[str]) -> np.ndarray:
@@ -185,8 +196,12 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
         theta = out.values
         passes.append(theta.copy())
     out.pass_values = passes
-    return StageOutput(stage, params, theta, out.covariance, out, (a + s0, b), passes,
-                       params + consider, out.P[9:, 9:].copy())
+    so = StageOutput(stage, params, theta, out.covariance, out, (a + s0, b), passes,
+                     params + consider, out.P[9:, 9:].copy())
+    so.prior_values = np.array([settings.initial.get(p, 0.0) for p in params], float)
+    so.prior_sigma = prior_sigmas(params, settings)
+    so.kf_interval = settings.kf_interval
+    return so
 
 
 def run_table_stage(data: LogData, stage: Stage, fixed: dict, dt: float) -> StageOutput:
@@ -229,15 +244,37 @@ def run_cwccw_stage(log, stage: Stage) -> StageOutput:
     return StageOutput(stage, params, vals, cov)
 
 
-def calibrate_system(log, config: Config) -> tuple[CalibrationResult, list[StageOutput]]:
-    """Run a configuration's stages on a MeasurementLog."""
-    data = LogData.from_log(log)
+def rests_of(data: LogData) -> np.ndarray:
+    """(N,) bool: the samples the IMU rests through — from the table angles, or in a log without
+    them from the segments described as static — and that are usable."""
+    if data.has_table:
+        return static_mask(data.angles) & data.usable
+    kinds = data.segment_kinds or {}
+    labels = [lab for lab, d in kinds.items() if d["kind"] == "static"]
+    if data.segment is None or not labels:
+        raise ValueError("a log without table angles needs segments described as static (the rests the "
+                         "filter aligns on and observes zero velocity in)")
+    return np.isin(np.asarray(data.segment).astype(str), labels) & data.usable
+
+
+def calibrate_system(log, config: Config, exclude: list | None = None) -> tuple[CalibrationResult, list[StageOutput]]:
+    """Run a configuration's stages on a MeasurementLog (``exclude``: more to leave out, as
+    components.estimation.log_data.LogData.from_log takes it)."""
+    data = LogData.from_log(log, exclude)
     dt = float(log.dt)
-    static = static_mask(data.angles)
+    static = rests_of(data)
     fixed: dict[str, float] = {}
     sigmas: dict[str, float] = {}
     outputs = []
+    notes: list[str] = []
     for stage in config.stages:
+        if stage.kind in ("cwccw", "table") and not data.has_table:
+            if stage.kind == "cwccw":
+                raise ValueError(f"stage {stage.name!r} (CW/CCW closed forms) needs the table angles, which this "
+                                 "log does not have; use a configuration of kf stages")
+            notes.append(f"stage {stage.name!r} skipped: it fits {', '.join(stage.parameters or stage.effects)} "
+                         "against the table angles, which this log does not have (left at 0)")
+            continue
         if stage.kind == "cwccw":
             so = run_cwccw_stage(log, stage)
         elif stage.kind == "table":
@@ -251,7 +288,10 @@ def calibrate_system(log, config: Config) -> tuple[CalibrationResult, list[Stage
             sigmas[p] = float(s)
         so.totals = np.array([fixed[p] for p in so.parameters])
         outputs.append(so)
-    return _result(log, data, config, fixed, sigmas, outputs), outputs
+    res = _result(log, data, config, fixed, sigmas, outputs)
+    if notes:
+        res.fit["notes"] = notes
+    return res, outputs
 
 
 def _result(log, data, config, values, sigmas, outputs) -> CalibrationResult:
@@ -277,11 +317,14 @@ def _result(log, data, config, values, sigmas, outputs) -> CalibrationResult:
         if so.filter is not None:
             f = so.filter
             nu = f.innovations / np.sqrt(np.maximum(f.innovation_var, 1e-300))
+            c = check_stage(so, so.kf_interval or 0.1, so.prior_values, so.prior_sigma)
             d.update({"window_samples": [int(so.window[0]), int(so.window[1])],
                       "passes": len(so.passes), "updates_per_pass": f.updates,
                       "predictions_per_pass": f.predictions,
                       "final_nav_sigma": [float(x) for x in f.sigma_nav],
-                      "normalised_innovation_rms": float(np.sqrt(np.mean(nu ** 2))) if len(nu) else None})
+                      "normalised_innovation_rms": float(np.sqrt(np.mean(nu ** 2))) if len(nu) else None,
+                      "consistency": {"ok": c.ok, "problems": c.problems, "innovation_windows": c.windows,
+                                      "windows_out": c.windows_out}})
         stages.append(d)
     dt = float(log.dt)
     noise = {"model": "white noise per sample (estimated from static data)", "sample_interval_s": dt}

@@ -1,0 +1,81 @@
+"""``calbench import MAPPING.toml --out STEM``: the files users have (CSV/TSV, Parquet, MAT, HDF5;
+any units; separate IMU and table files on their own clocks) as a calbench-log/2 pair
+(docs/import.md)."""
+from __future__ import annotations
+
+import argparse
+
+
+def _cmd_import(args: argparse.Namespace) -> int:
+    from components.logs.importer import import_log
+    from components.logs.logfile import write_log
+    from components.logs.mapping import load_mapping
+
+    m = load_mapping(args.mapping)
+    imp = import_log(m)
+    if m.table is not None and m.clock_offset == "estimate" and imp.clock_offset is not None:
+        imp = refine_clock_offset(m, imp)
+    log = imp.log
+    paths = write_log(args.out, log, args.format)
+    print(f"imported {log.n} samples, {log.time[-1] - log.time[0] + log.dt:.6g} s at {log.sample_rate_hz:.6g} Hz "
+          f"({log.timing} timing), {len(log.axis_names)} table axis(es), format {log.version}")
+    for n in imp.notes:
+        print(f"  {n}")
+    print(f"-> {', '.join(map(str, paths))}")
+    return 0
+
+
+def refine_clock_offset(m, imp):
+    """The clock offset matched on the rates (limited by the encoder's count against the motion
+    between table samples: sub-µs with a fine 1 kHz table, tens of µs with a coarse 200 Hz one)
+    combined with the least squares' imu.time_offset on the merged log, which the accelerometers
+    see as gravity turning through them at every move (µs), by their inverse variances; the log
+    is merged again at the combined offset. What it measures is the IMU's delay against the table
+    as a whole: a clock offset and a delay inside the IMU cannot be told apart from two records."""
+    from components.errors import EstimationError
+    from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
+    from components.logs.importer import describe, import_log
+    from components.model.effects import DEFAULT_EFFECTS
+
+    coarse, s_rate = imp.clock_offset.offset_s, imp.clock_offset.sigma_s
+    offset = coarse
+    try:
+        for _ in range(2):
+            fit = calibrate(LogData.from_log(imp.log), list(DEFAULT_EFFECTS) + ["imu.time_offset"])
+            k = fit.parameters.index("imu.time_offset")
+            # the IMU's samples late by τ against the merged angles: the table's clock was taken
+            # τ too late
+            lsq, s_lsq = offset - float(fit.value[k]), float(fit.sigma[k])
+            w_rate, w_lsq = (1 / s_rate**2 if s_rate > 0 else 0.0), 1 / s_lsq**2
+            offset = (coarse * w_rate + lsq * w_lsq) / (w_rate + w_lsq)
+            sigma = (w_rate + w_lsq) ** -0.5
+            m.clock_offset = offset
+            again = import_log(m)
+            imp = type(imp)(again.log, [n for n in imp.notes if not n.startswith("clock offset")]
+                            + [n for n in again.notes if not n.startswith(("clock offset", "gyro:", "time stamps",
+                                                                           "measured timing", "table angles"))
+                               and n not in imp.notes], imp.clock_offset)
+    except (EstimationError, ValueError) as e:
+        imp.notes.append(f"clock offset not refined by the least squares ({e}); the rate-matched value stands")
+        return imp
+    finally:
+        m.clock_offset = "estimate"
+    imp.notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ± {sigma * 1e3:.2g} ms: matched on the rates "
+                     f"{coarse * 1e3:+.4f} ± {s_rate * 1e3:.2g} ms, by the least squares' imu.time_offset on the "
+                     f"merged log {lsq * 1e3:+.4f} ± {s_lsq * 1e3:.2g} ms (it includes any delay inside the IMU), "
+                     "combined")
+    imp.log.extra_metadata["import"]["notes"] = list(imp.notes)
+    imp.log.description = describe(m, imp.notes)
+    return imp
+
+
+def register(sub) -> None:
+    p = sub.add_parser("import", help="a log from other software (CSV/TSV, Parquet, MAT, HDF5; any units; "
+                                      "separate IMU and table files) to calbench-log/2, driven by a mapping "
+                                      "TOML (docs/import.md)")
+    p.add_argument("mapping", help="the mapping file (TOML): which file holds what, in which unit")
+    p.add_argument("--out", required=True, help="stem of the log pair to write")
+    p.add_argument("--format", choices=("csv", "parquet", "both"), default="csv",
+                   help="sample file format of the written log (default csv)")
+    p.set_defaults(func=_cmd_import)

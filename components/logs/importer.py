@@ -1,0 +1,176 @@
+"""``calbench import``: a log from the files users have (components.logs.mapping says what is
+where), as a :class:`~components.logs.logfile.MeasurementLog` of format ``calbench-log/2`` (or
+``/1`` when it needs nothing of version 2). Every conversion and assumption is said in the
+returned notes and in the log's ``description`` and ``import`` metadata."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from components.errors import MappingError
+from components.logs.logfile import MeasurementLog
+from components.logs.mapping import AX, Mapping
+from components.logs.sources import Columns
+from components.logs.timebase import (
+    angles_at,
+    estimate_clock_offset,
+    gaps,
+    regularise,
+)
+
+
+@dataclass
+class Imported:
+    log: MeasurementLog
+    notes: list[str] = field(default_factory=list)
+    clock_offset: object = None   # timebase.ClockOffset when estimated
+
+
+def _sensor_values(cols: Columns, sensor, name: str, kind_rates: tuple) -> tuple[np.ndarray, str]:
+    """(N, 3) values in the log's unit for the sensor's output kind, and that kind's log name."""
+    v = np.column_stack([cols.values(ch, f"imu.{name}.{a}") for ch, a in zip(sensor.axes, AX)])
+    if sensor.output == "counts":
+        if not np.all(v == np.round(v)):
+            i, k = np.argwhere(v != np.round(v))[0]
+            raise MappingError(f"{cols.where}: imu.{name}.{AX[k]}: row {i + 1}: {v[i, k]!r} is not a whole number of "
+                               "counts (output = 'counts' means pulse counts per sample)")
+        return v, "counts"
+    return v * sensor.unit_si, (kind_rates[0] if sensor.output in ("rate", "specific_force") else "increment")
+
+
+def import_log(m: Mapping) -> Imported:
+    """The log the mapping *m* describes."""
+    notes: list[str] = []
+    cols = Columns(m.imu)
+    t = cols.values(m.time, "imu.time.column") * m.time_si
+    if len(t) < 2:
+        raise MappingError(f"{cols.where}: fewer than two samples")
+    if np.any(np.diff(t) <= 0):
+        i = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {t[i]!r} s after {t[i - 1]!r} s; expected strictly "
+                           "increasing times")
+    nominal = 1.0 / m.sample_rate_hz
+    max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
+    timing, fs = "nominal", m.sample_rate_hz
+    if m.timing == "regularise":
+        reg = regularise(t, nominal, max_int)
+        t = reg.time
+        notes.append(f"time stamps regularised: {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz "
+                     f"({(reg.rate_hz / m.sample_rate_hz - 1) * 1e6:+.3g} ppm from the nominal {m.sample_rate_hz:g}), "
+                     f"stamps' RMS jitter {reg.jitter_rms_s * 1e6:.3g} us")
+        if reg.runs > 1:
+            timing = "measured"
+        # the sensor's rates are per its own nominal interval: the fitted rate (the host's view of
+        # the sensor's clock) only places the samples in time
+    elif m.timing == "measured":
+        timing = "measured"
+        d = np.diff(t)
+        notes.append(f"measured timing: intervals {d.min() * 1e3:.4g}-{d.max() * 1e3:.4g} ms, RMS deviation from "
+                     f"{nominal * 1e3:g} ms {np.sqrt(np.mean((d - nominal) ** 2)) * 1e6:.3g} us")
+    n_gaps = int(gaps(t, max_int).sum()) if timing == "measured" else 0
+    if n_gaps:
+        notes.append(f"{n_gaps} gap(s) longer than {max_int * 1e3:g} ms: the sample after each is left out")
+    gyro, gkind = _sensor_values(cols, m.gyro, "gyro", ("rate",))
+    acc, akind = _sensor_values(cols, m.acc, "acc", ("specific_force",))
+    notes.append(f"gyro: {m.gyro.output} ({'count ' + format(m.gyro.count_weight, 'g') + ' rad' if gkind == 'counts' else 'converted to SI'}); "
+                 f"accelerometer: {m.acc.output} ({'count ' + format(m.acc.count_weight, 'g') + ' m/s' if akind == 'counts' else 'converted to SI'})")
+    temp = None
+    if m.temperature is not None:
+        temp = cols.values(m.temperature, "imu.temperature.column")
+        temp = {"degC": temp, "K": temp - 273.15, "degF": (temp - 32.0) * 5.0 / 9.0}[m.temperature_unit]
+    seg = _labels(m, cols, t)
+    clock: dict = {}
+    gimbal, command, names, vectors, keep = _table(m, cols, t, gyro, gkind, notes, clock)
+    if keep is not None:
+        t, gyro, acc = t[keep], gyro[keep], acc[keep]
+        temp = None if temp is None else temp[keep]
+        seg = None if seg is None else seg[keep]
+    log = MeasurementLog(
+        time=t, gimbal=gimbal, command=command, gyro=gyro, acc=acc, axis_names=names,
+        axis_vectors=np.array(vectors, float).reshape(-1, 3), sample_rate_hz=fs, gyro_output=gkind,
+        acc_output=akind, gyro_count_rad=m.gyro.count_weight, acc_count_mps=m.acc.count_weight,
+        latitude_deg=m.site["latitude_deg"], height_m=m.site["height_m"], gravity_mps2=m.site["gravity_mps2"],
+        description=describe(m, notes),
+        temperature=temp, segment=seg, timing=timing,
+        max_interval_s=m.max_interval_s if timing == "measured" and m.max_interval_s is not None else None,
+        segments=m.segments, exclude=list(m.exclude),
+        encoder_resolution=None if m.encoder_resolution is None or not names else
+        ("exact" if m.encoder_resolution == "exact" else np.full(len(names), float(m.encoder_resolution))))
+    log.extra_metadata = {"import": {"mapping": m.where, "notes": notes}}
+    log.validate(f"the log imported by {m.where}")
+    return Imported(log, notes, clock.get("estimate"))
+
+
+def describe(m: Mapping, notes: list[str]) -> str:
+    """The imported log's description: the mapping's, and what the import did."""
+    return ((m.description + "\n" if m.description else "") + "imported by calbench import from " + m.imu.path.name
+            + (f" and {m.table.path.name}" if m.table is not None else "") + ": " + "; ".join(notes))
+
+
+def _labels(m: Mapping, cols: Columns, t: np.ndarray):
+    if m.labels is not None:
+        lab = cols.text(m.labels, "labels.column")
+        empty = np.array([not s for s in lab])
+        if empty.any():
+            raise MappingError(f"{cols.where}: labels.column: row {int(np.argmax(empty)) + 1}: empty label")
+        return lab
+    if m.label_ranges:
+        lab = np.full(len(t), "unlabelled", dtype=object)
+        for t0, t1, name in m.label_ranges:
+            lab[(t >= t0) & (t <= t1)] = name
+        return lab
+    return None
+
+
+def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict):
+    """(gimbal, command, axis names, axis vectors, samples kept) from the IMU file's own columns
+    or a separate table file on its own clock."""
+    if not m.axes:
+        return {}, {}, [], [], None
+    names = [a.name for a in m.axes]
+    vectors = [a.vector for a in m.axes]
+    if m.table is None:
+        gimbal = {a.name: cols.values(a.channel, f"table.axes.{a.name}") * a.unit_si for a in m.axes}
+        command = {a.name: cols.values(a.command, f"table.axes.{a.name}.command") * a.unit_si
+                   for a in m.axes if a.command is not None}
+        return gimbal, command, names, vectors, None
+    tc = Columns(m.table)
+    tt = tc.values(m.table_time, "table.time.column") * m.table_time_si
+    if np.any(np.diff(tt) <= 0):
+        i = int(np.argmax(np.diff(tt) <= 0)) + 1
+        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {tt[i]!r} s after {tt[i - 1]!r} s; expected strictly "
+                           "increasing times")
+    ang = np.column_stack([tc.values(a.channel, f"table.axes.{a.name}") * a.unit_si for a in m.axes])
+    cmd = {a.name: tc.values(a.command, f"table.axes.{a.name}.command") * a.unit_si for a in m.axes
+           if a.command is not None}
+    if m.clock_offset == "estimate":
+        dt = np.concatenate([[np.median(np.diff(t))], np.diff(t)])
+        if gkind == "counts":
+            inc = gyro * m.gyro.count_weight
+        elif m.gyro.output == "rate":
+            inc = gyro * dt[:, None]
+        else:
+            inc = gyro
+        co = estimate_clock_offset(t, dt, inc, tt, ang, np.array(vectors))
+        clock["estimate"] = co
+        offset = co.offset_s
+        notes.append(f"clock offset table -> IMU estimated {co.offset_s * 1e3:+.4f} ± {co.sigma_s * 1e3:.2g} ms "
+                     f"(first half {co.first_half_s * 1e3:+.4f}, second half {co.second_half_s * 1e3:+.4f} ms; rate "
+                     f"magnitudes correlate {co.correlation:.4f})")
+    else:
+        offset = float(m.clock_offset or 0.0)
+        notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ms (given)")
+    ti = tt + offset
+    keep = (t >= ti[0]) & (t <= ti[-1])
+    if not keep.any():
+        raise MappingError(f"{tc.where}: the table record ({ti[0]:.6g}-{ti[-1]:.6g} s on the IMU clock) does not "
+                           f"overlap the IMU's ({t[0]:.6g}-{t[-1]:.6g} s)")
+    if not keep.all():
+        notes.append(f"{int((~keep).sum())} IMU sample(s) outside the table record dropped")
+    at = angles_at(t[keep], ti, ang)
+    gimbal = {n: at[:, k] for k, n in enumerate(names)}
+    command = {n: angles_at(t[keep], ti, cmd[n][:, None])[:, 0] for n in cmd}
+    notes.append(f"table angles from {tc.source.path.name} ({len(tt)} samples, {1 / np.median(np.diff(tt)):.4g} Hz) "
+                 "interpolated to the IMU's times (PCHIP; a rest's reading held exactly)")
+    return gimbal, command, names, vectors, keep

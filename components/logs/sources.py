@@ -1,0 +1,150 @@
+"""The files ``calbench import`` reads: CSV/TSV (any delimiter, a decimal comma, header lines to
+skip), Parquet, MATLAB .mat (scipy.io) and HDF5 (h5py, the optional extra ``calbench[hdf5]``),
+each as named numeric columns; a column is referred to by name (a .mat variable or an HDF5
+dataset path, ``name:k`` for column k of a 2-D array) or, in a file without a header, by its
+0-based index."""
+from __future__ import annotations
+
+import numpy as np
+
+from components.errors import MappingError
+from components.logs.mapping import Channel, Source
+
+
+class Columns:
+    """The columns of one source file, fetched by :class:`Channel`."""
+
+    def __init__(self, source: Source):
+        self.source = source
+        self.where = str(source.path)
+        if not source.path.exists():
+            raise MappingError(f"{self.where}: the input file does not exist")
+        reader = {"csv": _csv, "tsv": _csv, "parquet": _parquet, "mat": _mat, "hdf5": _hdf5}[source.format]
+        self.data: dict = reader(source)
+
+    def names(self) -> list[str]:
+        return [str(k) for k in self.data]
+
+    def raw(self, ch: Channel, what: str) -> np.ndarray:
+        """The column of *ch* as read (before scale and sign)."""
+        col = ch.column
+        key = col
+        k = None
+        if isinstance(col, str) and col not in self.data and ":" in col:
+            key, _, idx = col.rpartition(":")
+            try:
+                k = int(idx)
+            except ValueError:
+                key = col
+        if isinstance(col, int):
+            keys = list(self.data)
+            if col >= len(keys):
+                raise MappingError(f"{self.where}: {what}: column index {col}, but the file has {len(keys)} columns")
+            key = keys[col]
+        if key not in self.data:
+            shown = ", ".join(self.names()[:30])
+            raise MappingError(f"{self.where}: {what}: no column {col!r}; the file has: {shown}")
+        a = self.data[key]
+        if callable(a):          # HDF5 datasets are read when first used
+            a = self.data[key] = a()
+        a = np.asarray(a)
+        if k is not None:
+            if a.ndim != 2 or not 0 <= k < a.shape[1]:
+                raise MappingError(f"{self.where}: {what}: {col!r} asks for column {k} of {key!r}, which has shape "
+                                   f"{a.shape}")
+            a = a[:, k]
+        elif a.ndim == 2 and 1 in a.shape:
+            a = a.ravel()
+        if a.ndim != 1:
+            raise MappingError(f"{self.where}: {what}: {key!r} has shape {a.shape}; expected one column (write "
+                               f"'{key}:k' for column k)")
+        return a
+
+    def values(self, ch: Channel, what: str) -> np.ndarray:
+        """The column as float64, (raw − offset) × scale × sign; a non-number or non-finite value is
+        an error naming its row."""
+        a = self.raw(ch, what)
+        if a.dtype.kind not in "biuf":
+            try:
+                a = a.astype(float)
+            except (TypeError, ValueError):
+                bad = next(i for i, x in enumerate(a) if not _is_number(x))
+                raise MappingError(f"{self.where}: {what}: row {bad + 1}: {a[bad]!r} is not a number") from None
+        a = a.astype(float)
+        bad = ~np.isfinite(a)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise MappingError(f"{self.where}: {what}: row {i + 1}: {a[i]!r} is not finite")
+        return (a - ch.offset) * ch.scale * ch.sign
+
+    def text(self, ch: Channel, what: str) -> np.ndarray:
+        """A column of labels as text."""
+        a = self.raw(ch, what)
+        if a.dtype.kind in "SO":
+            return np.array([x.decode() if isinstance(x, bytes) else str(x) for x in a], dtype=object)
+        return a.astype(str).astype(object)
+
+
+def _is_number(x) -> bool:
+    try:
+        float(x)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def _csv(src: Source) -> dict:
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    try:
+        table = pcsv.read_csv(
+            src.path,
+            read_options=pcsv.ReadOptions(skip_rows=src.skip_rows, autogenerate_column_names=not src.header,
+                                          encoding="utf8"),
+            parse_options=pcsv.ParseOptions(delimiter=src.delimiter),
+            convert_options=pcsv.ConvertOptions(decimal_point=src.decimal, strings_can_be_null=False))
+    except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as e:
+        raise MappingError(f"{src.path}: cannot be read as {src.format.upper()} with delimiter {src.delimiter!r}, "
+                           f"{src.skip_rows} line(s) skipped, decimal {src.decimal!r} ({str(e).splitlines()[0]})") from None
+    return {name.strip(): table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
+
+
+def _parquet(src: Source) -> dict:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(src.path)
+    except (pa.ArrowInvalid, OSError) as e:
+        raise MappingError(f"{src.path}: not a readable Parquet file ({e})") from None
+    return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
+
+
+def _mat(src: Source) -> dict:
+    import scipy.io
+
+    try:
+        d = scipy.io.loadmat(src.path, squeeze_me=False)
+    except (ValueError, TypeError, NotImplementedError, OSError) as e:
+        hint = " (a MATLAB v7.3 file is HDF5: give format = 'hdf5')" if "v7.3" in str(e) or "HDF" in str(e) else ""
+        raise MappingError(f"{src.path}: not a readable MATLAB file ({e}){hint}") from None
+    return {k: v for k, v in d.items() if not k.startswith("__")}
+
+
+def _hdf5(src: Source) -> dict:
+    try:
+        import h5py
+    except ImportError:
+        raise MappingError(f"{src.path}: reading HDF5 needs h5py: pip install 'calbench[hdf5]'") from None
+    out: dict = {}
+    try:
+        f = h5py.File(src.path, "r")
+    except OSError as e:
+        raise MappingError(f"{src.path}: not a readable HDF5 file ({e})") from None
+
+    def visit(name, obj):
+        if isinstance(obj, h5py.Dataset):
+            out[name] = (lambda o=obj: o[()])
+    f.visititems(visit)
+    return out

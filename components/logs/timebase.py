@@ -1,0 +1,206 @@
+"""Time in the files users bring: a logger's clock with jitter and gaps, and a table recorded on
+another clock at another rate.
+
+- **Jitter.** A sensor that samples on its own clock, time-stamped by a host, has regular
+  samples and irregular stamps. ``regularise`` fits t_k = t_0 + k Δ by least squares over each
+  run between gaps (an interval above ``max_interval``) and replaces the stamps; the fitted rate
+  and the stamps' RMS deviation are reported.
+- **Two clocks.** The table's time plus an offset is the IMU's. The offset is estimated by
+  matching how far the plate turns with how far the gyros say it turned (the same motion,
+  whatever the axes' mapping; the gyros' errors scale it by parts per thousand at most): a coarse
+  shift from the cross-correlation of the two rate magnitudes (each IMU sample's rate at its
+  interval's middle), refined by Gauss–Newton on, per IMU sample while the table turns, the
+  magnitude of its gyro increment minus the plate's turn between the table's angles
+  interpolated (PCHIP) at the ends of that sample's interval shifted by δ — the IMU's samples
+  are integrals and are used as they are, the table's point samples are what is interpolated. σ from that fit's residual and curvature, and at least half
+  the difference of the offsets fitted on the first and the second half (model error, or a drift
+  between the clocks: both halves are reported).
+- **Merging.** The table angles at the IMU's sample times by monotone cubic interpolation
+  (PCHIP): between two equal readings (a rest) the angle stays exactly that reading, so rests
+  keep their encoder values; during moves the interpolant follows the motion.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from components.errors import MappingError
+
+
+@dataclass
+class Regularised:
+    time: np.ndarray
+    rate_hz: float           # fitted over all runs (weighted by their length)
+    jitter_rms_s: float      # RMS of the stamps about the fitted grid
+    runs: int
+
+
+def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
+    """(N,) bool: the sample's interval from the one before exceeds *max_interval*."""
+    out = np.zeros(len(t), bool)
+    out[1:] = np.diff(t) > max_interval
+    return out
+
+
+def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regularised:
+    """Stamps replaced by the least-squares regular grid of each run between gaps."""
+    cut = np.nonzero(gaps(t, max_interval))[0]
+    edges = np.concatenate([[0], cut, [len(t)]])
+    out = np.empty_like(t)
+    dts, weights, sq = [], [], 0.0
+    for a, b in zip(edges[:-1], edges[1:]):
+        k = np.arange(b - a, dtype=float)
+        if b - a >= 2:
+            A = np.column_stack([np.ones_like(k), k])
+            (t0, d), *_ = np.linalg.lstsq(A, t[a:b], rcond=None)
+        else:
+            t0, d = t[a], nominal_dt
+        out[a:b] = t0 + d * k
+        sq += float(np.sum((t[a:b] - out[a:b]) ** 2))
+        dts.append(d)
+        weights.append(b - a)
+    d_mean = float(np.average(dts, weights=weights))
+    return Regularised(out, 1.0 / d_mean, math.sqrt(sq / len(t)), len(dts))
+
+
+@dataclass
+class ClockOffset:
+    offset_s: float          # table time + offset = IMU time
+    sigma_s: float
+    first_half_s: float      # the same on each half of the overlap (a drift between the clocks)
+    second_half_s: float
+    correlation: float       # of the two rate magnitudes at the offset
+
+
+def rate_magnitude_from_angles(t: np.ndarray, angles: np.ndarray, axis_vectors: np.ndarray) -> np.ndarray:
+    """|plate rate| [rad/s] at *t* from the gimbal angles (N, n_axes): ω = Σ_k R_1..R_{k-1} a_k θ̇_k
+    in the plate frame has the norm of that sum in the base frame."""
+    from components.model.geometry import rodrigues
+
+    th = np.asarray(angles, float)
+    rates = np.gradient(th, t, axis=0)
+    w = np.zeros((len(t), 3))
+    R = np.broadcast_to(np.eye(3), (len(t), 3, 3)).copy()
+    for k, a in enumerate(np.asarray(axis_vectors, float)):
+        w += np.einsum("nij,j->ni", R, a) * rates[:, k:k + 1]
+        R = R @ rodrigues(a, th[:, k])
+    return np.linalg.norm(w, axis=1)
+
+
+def _plate(angles: np.ndarray, axis_vectors: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) plate attitudes in the base frame from gimbal angles (N, n_axes)."""
+    from components.model.geometry import rodrigues
+
+    R = np.broadcast_to(np.eye(3), (len(angles), 3, 3)).copy()
+    for k, a in enumerate(np.asarray(axis_vectors, float)):
+        R = R @ rodrigues(a, angles[:, k])
+    return R
+
+
+def _turn_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Angle [rad] of the rotation from attitudes Ra to Rb (small: from the skew part)."""
+    rel = np.einsum("nji,njk->nik", Ra, Rb)
+    v = 0.5 * np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], 1)
+    return np.arcsin(np.clip(np.linalg.norm(v, axis=1), 0.0, 1.0))
+
+
+def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.ndarray, t_tab: np.ndarray,
+                          angles: np.ndarray, axis_vectors: np.ndarray,
+                          max_offset: float | None = None) -> ClockOffset:
+    """The offset δ (table time + δ = IMU time) from the IMU's gyro increments (N, 3) over the
+    intervals (t − dt, t] and the table's angles (M, n_axes) at *t_tab*."""
+    from scipy.interpolate import PchipInterpolator
+
+    w_imu = np.linalg.norm(gyro_inc, axis=1) / dt_imu
+    t_mid = t_imu - dt_imu / 2
+    w_tab = rate_magnitude_from_angles(t_tab, angles, axis_vectors)
+    delta = _coarse(t_mid, w_imu, t_tab, w_tab, float(np.median(dt_imu)), max_offset)
+    # the IMU's samples are integrals and stay as they are; the table's angles are point samples,
+    # interpolated at the ends of each IMU interval shifted to the table's clock
+    interp = PchipInterpolator(t_tab, angles, axis=0, extrapolate=False)
+    step = np.linalg.norm(gyro_inc, axis=1)
+
+    def residual(d, sel):
+        ta, tb = t_imu[sel] - dt_imu[sel] - d, t_imu[sel] - d
+        return step[sel] - _turn_angle(_plate(interp(ta), axis_vectors), _plate(interp(tb), axis_vectors))
+
+    moving = step > 0.02 * float(np.median(dt_imu))     # turning faster than ~1 deg/s
+    delta, sigma, _ = _refine(residual, t_imu, dt_imu, t_tab, moving, delta)
+    sel = moving & (t_imu - dt_imu - delta >= t_tab[0]) & (t_imu - delta <= t_tab[-1])
+    turned = step[sel] - residual(delta, sel)
+    ok = np.isfinite(turned)
+    corr = float(np.corrcoef(step[sel][ok], turned[ok])[0, 1]) if ok.sum() > 2 else float("nan")
+    half = t_imu[0] + 0.5 * (t_imu[-1] - t_imu[0])
+    d1 = _refine(residual, t_imu, dt_imu, t_tab, moving & (t_imu <= half), delta)[0]
+    d2 = _refine(residual, t_imu, dt_imu, t_tab, moving & (t_imu > half), delta)[0]
+    # what the halves disagree by is model error the white-residual σ does not hold
+    sigma = max(sigma, abs(d1 - d2) / 2)
+    return ClockOffset(delta, sigma, d1, d2, corr)
+
+
+def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
+    """The shift maximising the cross-correlation of the two rate magnitudes on a common grid."""
+    span = (min(t_mid[0], t_tab[0]), max(t_mid[-1], t_tab[-1]))
+    if max_offset is None:
+        max_offset = 0.5 * (span[1] - span[0])
+    grid_dt = min(dt, float(np.median(np.diff(t_tab))))
+    grid = np.arange(span[0] - max_offset, span[1] + max_offset, grid_dt)
+    a = np.interp(grid, t_mid, w_imu, left=0.0, right=0.0)
+    b = np.interp(grid, t_tab, w_tab, left=0.0, right=0.0)
+    if not (np.any(b > 1e-3) and np.any(a > 1e-3)):
+        raise MappingError("clock offset: the table never moves (or the IMU never turns) in the records: no "
+                           "motion to match; give table.clock_offset_s")
+    n = len(grid)
+    size = 1 << int(np.ceil(np.log2(2 * n)))
+    xc = np.fft.irfft(np.fft.rfft(a - a.mean(), size) * np.conj(np.fft.rfft(b - b.mean(), size)), size)
+    lags = np.concatenate([np.arange(0, n), np.arange(-n + 1, 0)])
+    xc = np.concatenate([xc[:n], xc[size - n + 1:]])
+    ok = np.abs(lags * grid_dt) <= max_offset
+    return float(lags[ok][np.argmax(xc[ok])] * grid_dt)
+
+
+def _refine(residual, t_imu, dt_imu, t_tab, moving, delta, iterations: int = 15):
+    """Gauss–Newton on δ over the moving IMU samples whose shifted interval lies in the table's
+    record: the residual |gyro increment| − the table's turn over that interval."""
+    sigma = float("nan")
+    eps = 1e-5
+
+    def inside(d):
+        return moving & (t_imu - dt_imu - d >= t_tab[0]) & (t_imu - d <= t_tab[-1])
+
+    for _ in range(iterations):
+        sel = inside(delta)
+        if sel.sum() < 10:
+            raise MappingError("clock offset: fewer than 10 moving IMU samples overlap the table record at the "
+                               "estimated offset; give table.clock_offset_s")
+        r = residual(delta, sel)
+        dr = (residual(delta + eps, sel) - residual(delta - eps, sel)) / (2 * eps)
+        ok = np.isfinite(r) & np.isfinite(dr)
+        r, dr = r[ok], dr[ok]
+        info = float(dr @ dr)
+        if info <= 0:
+            break
+        step = -float(dr @ r) / info
+        delta += step
+        sigma = math.sqrt(float(r @ r) / max(len(r) - 1, 1) / info)
+        if abs(step) < 1e-3 * sigma:
+            break
+    return delta, sigma, None
+
+
+def angles_at(t: np.ndarray, t_tab: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """The table angles (M, n_axes) at the times *t* (inside the table's record), by PCHIP: a
+    rest's reading is held exactly."""
+    from scipy.interpolate import PchipInterpolator
+
+    out = np.empty((len(t), angles.shape[1]))
+    for k in range(angles.shape[1]):
+        out[:, k] = PchipInterpolator(t_tab, angles[:, k], extrapolate=False)(t)
+    # hold exact readings where both neighbouring table samples are equal (no rounding at rest)
+    idx = np.clip(np.searchsorted(t_tab, t), 1, len(t_tab) - 1)
+    for k in range(angles.shape[1]):
+        same = angles[idx - 1, k] == angles[idx, k]
+        out[same, k] = angles[idx[same], k]
+    return out

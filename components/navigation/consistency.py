@@ -1,0 +1,104 @@
+"""Is a system-level filter's answer to be trusted? The checks a run must pass before its
+estimates are used; each failure names the stage, the statistic, where, and how far out.
+
+- **Numbers**: every estimate and σ finite; none beyond what a real IMU has
+  (components.model.plausibility) — a filter printing 1e13 has diverged.
+- **Innovations**: under a consistent filter the normalised innovation squared ν²/S of each
+  velocity component is χ²(1); summed over a window of W updates, χ²(3W). A window above its
+  upper point at 0.1 % (Bonferroni over the windows) is a stretch of the run the filter's model
+  does not explain — a missing effect (a gyro–accelerometer time offset, a lever arm), noise
+  settings of the wrong grade, a wrong sign — even when the run's overall RMS looks healthy.
+- **Against the prior**: an estimate more than ``PRIOR_SIGMAS`` prior σ from where the filter
+  started is a parameter pulled far outside what it was told to expect (the prior's grade is
+  wrong, or the data are).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from components.model.effects import effect_of
+from components.model.plausibility import implausible
+
+WINDOW_S = 10.0       # s of updates per innovation window
+LEVEL = 1e-3          # family-wise level of the window test
+PRIOR_SIGMAS = 20.0   # an estimate this many prior σ from its start is suspect
+
+
+@dataclass
+class Consistency:
+    """The checks' outcome for one filter stage."""
+
+    stage: str
+    problems: list[str] = field(default_factory=list)
+    nis_mean: float | None = None         # mean ν²/S over all updates and components
+    windows: int = 0
+    windows_out: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+def check_stage(so, kf_interval: float, prior_values: np.ndarray | None = None,
+                prior_sigmas: np.ndarray | None = None) -> Consistency:
+    """The checks of one stage output (components.navigation.system.StageOutput)."""
+    c = Consistency(so.stage.name)
+    vals = np.asarray(so.values, float)
+    sig = np.sqrt(np.abs(np.diag(so.covariance))) if so.covariance is not None else np.full(len(vals), np.nan)
+    bad = [p for p, v, s in zip(so.parameters, vals, sig) if not (math.isfinite(v) and math.isfinite(s))]
+    if bad:
+        c.problems.append(f"stage {so.stage.name!r}: non-finite estimate or σ for {', '.join(bad[:6])}"
+                          + (" ..." if len(bad) > 6 else "") + ": the filter diverged")
+        return c
+    absurd = implausible(dict(zip(so.parameters, so.totals if so.totals is not None else vals)))
+    if absurd:
+        worst = list(absurd.items())[:3]
+        c.problems.append(f"stage {so.stage.name!r}: estimates beyond any real IMU: " + "; ".join(
+            f"{p} ({why})" for p, why in worst) + (f" and {len(absurd) - 3} more" if len(absurd) > 3 else ""))
+    if prior_values is not None and prior_sigmas is not None and len(prior_sigmas) == len(vals):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.abs(vals - prior_values) / prior_sigmas
+        far = [(p, float(x)) for p, x in zip(so.parameters, z) if np.isfinite(x) and x > PRIOR_SIGMAS]
+        if far:
+            far.sort(key=lambda t: -t[1])
+            c.problems.append(f"stage {so.stage.name!r}: estimates far outside their prior: " + ", ".join(
+                f"{p} {x:.0f} prior σ" for p, x in far[:4]) + " (is the grade of the prior right? --grade)")
+    f = so.filter
+    if f is not None and len(f.innovations):
+        nis = f.innovations ** 2 / np.maximum(f.innovation_var, 1e-300)
+        c.nis_mean = float(np.mean(nis))
+        per = max(1, int(round(WINDOW_S / kf_interval)))
+        n = len(nis) // per
+        c.windows = n
+        if n:
+            sums = nis[:n * per].reshape(n, per * nis.shape[1]).sum(axis=1)
+            dof = per * nis.shape[1]
+            limit = stats.chi2.isf(LEVEL / n, dof)
+            out = np.nonzero(sums > limit)[0]
+            c.windows_out = len(out)
+            if len(out):
+                k = int(out[np.argmax(sums[out])])
+                t = f.history_t[min((k + 1) * per, len(f.history_t)) - 1] if len(f.history_t) else float("nan")
+                c.problems.append(
+                    f"stage {so.stage.name!r}: the velocity innovations exceed what the filter predicts in "
+                    f"{len(out)} of {n} windows of {WINDOW_S:g} s (worst ending t = {t:.1f} s: "
+                    f"{sums[k] / dof:.3g} times their predicted variance, limit {limit / dof:.3g}): its model "
+                    "misses something there (an effect not among the states, e.g. acc.time_offset; noise "
+                    "settings of another grade; a wrong sign or axis)")
+    return c
+
+
+def prior_of(so, settings) -> tuple[np.ndarray, np.ndarray]:
+    """Where a kf stage's filter started and with what σ (its settings' prior)."""
+    from components.navigation.kf import prior_sigmas
+
+    start = np.array([settings.initial.get(p, 0.0) for p in so.parameters])
+    return start, prior_sigmas(so.parameters, settings)
+
+
+def describe_effects(params: list[str]) -> str:
+    return ", ".join(dict.fromkeys(effect_of(p).name for p in params))

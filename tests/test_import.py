@@ -1,0 +1,301 @@
+"""``calbench import``: the conformance vector ``example`` (a 416 s navigation-grade table log with
+its truth) written out the way other software writes logs — separate IMU and table files on
+different clocks and rates, deg/s and g, ADC counts with a scale and an offset, pulse counts,
+jittered host time stamps in ms, angles in degrees, a decimal comma, TSV, Parquet, MAT, HDF5 —
+and imported back: it calibrates to the original log's values within 0.1 σ, and the table's
+clock offset is found within its reported σ. Every mistake in a mapping is one error naming the
+mapping file and the key, or the input file and the column or row."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from components.cli import main
+from components.errors import MappingError
+from components.estimation.log_data import LogData
+from components.estimation.lsq import calibrate
+from components.logs.importer import import_log
+from components.logs.logfile import read_log
+from components.logs.mapping import load_mapping
+from components.model.effects import DEFAULT_EFFECTS
+
+G0 = 9.80665
+DEG = math.pi / 180
+CLOCK = 0.0123          # s: table time + CLOCK = IMU time
+RNG = np.random.default_rng(21)
+
+
+@pytest.fixture(scope="module")
+def original(conformance):
+    log = read_log(conformance / "example")
+    fit = calibrate(LogData.from_log(log), list(DEFAULT_EFFECTS))
+    return log, fit
+
+
+def _write_delimited(path: Path, header: list[str], cols: list[np.ndarray], delimiter: str = ",",
+                     decimal: str = ".", preamble: str = "", fmt: str = "%.17g") -> None:
+    """A plain text table the way a logger writes one (independent of calbench's writer)."""
+    rows = np.column_stack(cols)
+    lines = [preamble] if preamble else []
+    lines.append(delimiter.join(header))
+    for r in rows:
+        cells = [fmt % x for x in r]
+        if decimal != ".":
+            cells = [c.replace(".", decimal) for c in cells]
+        lines.append(delimiter.join(cells))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _mapping(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+SITE = '[site]\nlatitude_deg = 39.9\nheight_m = 50.0\n'
+
+
+def _axes_toml(columns: list[str], unit: str = "deg") -> str:
+    vecs = {"outer": [0, 0, 1], "middle": [1, 0, 0], "inner": [0, 0, 1]}
+    return "".join(f'[[table.axes]]\nname = "{n}"\naxis = {vecs[n]}\ncolumn = "{c}"\nunit = "{unit}"\n'
+                   for n, c in zip(("outer", "middle", "inner"), columns))
+
+
+def _fit(log) -> object:
+    return calibrate(LogData.from_log(log), list(DEFAULT_EFFECTS))
+
+
+def _same(fit, ref, tol=0.1):
+    z = {p: (v - ref.value[ref.parameters.index(p)]) / ref.sigma[ref.parameters.index(p)]
+         for p, v in zip(fit.parameters, fit.value)}
+    assert sorted(fit.parameters) == sorted(ref.parameters)
+    worst = max(z, key=lambda p: abs(z[p]))
+    assert abs(z[worst]) < tol, (worst, z[worst])
+
+
+@pytest.fixture(scope="module")
+def kilohertz_run():
+    """The six-position schedule simulated at 1 kHz: the table's angles at 1 kHz, the IMU summed to
+    200 Hz (exact increments), and the reference log at 200 Hz with the angles of its own times."""
+    import dataclasses
+    import tomllib
+
+    from components.simulation.run import run_scenario
+    from components.simulation.scenario import scenario_from_dict
+
+    root = Path(__file__).resolve().parents[1]
+    d = tomllib.loads((root / "examples" / "scenarios" / "six_position.toml").read_text())
+    d["scenario"]["step"] = 0.001
+    d["schedule"]["overrides"]["dwell"] = 8.0
+    fast = run_scenario(scenario_from_dict(d, source="test_import"), progress=False).log
+    n = fast.n // 5 * 5
+    # the IMU record inside the table's, by 50 ms at each end: the clock offset and the stamps'
+    # jitter must not push a sample out of the table record, which would change the calibration
+    end = np.arange(4, n, 5)[10:-10]
+    ref = dataclasses.replace(
+        fast, time=fast.time[end], gimbal={a: v[end] for a, v in fast.gimbal.items()}, command={},
+        gyro=fast.gyro[:n].reshape(-1, 5, 3).sum(axis=1)[10:-10], acc=fast.acc[:n].reshape(-1, 5, 3).sum(axis=1)[10:-10],
+        temperature=None if fast.temperature is None else fast.temperature[end],
+        segment=fast.segment[end], sample_rate_hz=200.0, encoder_resolution="exact")
+    return fast, ref, _fit(ref)
+
+
+def test_separate_table_file_on_its_own_clock_deg_s_g_jitter_decimal_comma(kilohertz_run, tmp_path, capsys):
+    fast, log, ref = kilohertz_run
+    dt = log.dt
+    # IMU at 200 Hz: host stamps in ms with ±0.2 ms jitter, rates in deg/s with y flipped and the
+    # columns renamed and reordered, specific force in g, labels; TSV
+    t_ms = (log.time + RNG.uniform(-2e-4, 2e-4, log.n)) * 1e3
+    rate = np.degrees(log.gyro / dt)
+    force = log.acc / dt / G0
+    _write_delimited(tmp_path / "imu.tsv", ["stamp_ms", "wz", "wy", "wx", "ax", "ay", "az"],
+                     [t_ms, rate[:, 2], -rate[:, 1], rate[:, 0], force[:, 0], force[:, 1], force[:, 2]],
+                     delimiter="\t")
+    # table at 1 kHz on its own clock (CLOCK behind: not a whole number of its samples), degrees,
+    # ';' with a decimal comma, two lines before the header
+    _write_delimited(tmp_path / "table.csv", ["t", "A", "B", "C"],
+                     [fast.time - CLOCK] + [np.degrees(fast.gimbal[a]) for a in ("outer", "middle", "inner")],
+                     delimiter=";", decimal=",", preamble="# turntable controller export\n# v1.2")
+    m = _mapping(tmp_path / "map.toml", f'''
+description = "round trip: separate files"
+[imu]
+file = "imu.tsv"
+sample_rate_hz = 200.0
+[imu.time]
+column = "stamp_ms"
+unit = "ms"
+timing = "regularise"
+[imu.gyro]
+output = "rate"
+unit = "deg/s"
+x = "wx"
+y = "-wy"
+z = "wz"
+[imu.acc]
+output = "specific_force"
+unit = "g"
+x = "ax"
+y = "ay"
+z = "az"
+[table]
+file = "table.csv"
+delimiter = ";"
+decimal = ","
+skip_rows = 2
+clock_offset_s = "estimate"
+encoder_resolution = "exact"
+[table.time]
+column = "t"
+unit = "s"
+{_axes_toml(["A", "B", "C"])}
+{SITE}''')
+    assert main(["import", str(m), "--out", str(tmp_path / "merged")]) == 0
+    out = capsys.readouterr().out
+    line = [ln for ln in out.splitlines() if "combined" in ln and "clock offset" in ln][0]
+    got = float(line.split("IMU")[1].split("±")[0]) * 1e-3
+    sig = float(line.split("±")[1].split("ms")[0]) * 1e-3
+    assert abs(got - CLOCK) < 4 * sig and sig < 1e-5, line
+    assert "regularised" in out
+    back = read_log(tmp_path / "merged")
+    assert back.version == "calbench-log/2" and back.encoder_resolution == "exact"
+    _same(_fit(back), ref)
+
+
+@pytest.mark.parametrize("layout", ["parquet", "mat", "hdf5"])
+def test_single_file_layouts_with_adc_counts_and_pulse_counts(original, tmp_path, layout):
+    """Gyro rates as 24-bit ADC counts with a scale and an offset (a Xsens-like raw record), the
+    accelerometers as pulse counts (increments in units of 1e-9 m/s, remainder carried), angles
+    in degrees in the same file."""
+    log, ref = original
+    dt = log.dt
+    scale, offset = 1e-7, 1000.0              # deg/s per count, counts at zero rate
+    adc = np.round(np.degrees(log.gyro / dt) / scale + offset)
+    w = 1e-9
+    pulses = np.diff(np.round(np.cumsum(log.acc, axis=0) / w), axis=0, prepend=0.0)
+    cols = {"time_s": log.time, "gx": adc[:, 0], "gy": adc[:, 1], "gz": adc[:, 2],
+            "px": pulses[:, 0], "py": pulses[:, 1], "pz": pulses[:, 2],
+            **{f"ang_{a}": np.degrees(log.gimbal[a]) for a in ("outer", "middle", "inner")}}
+    if layout == "parquet":
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        pq.write_table(pa.table(cols), tmp_path / "rec.parquet")
+        fname = "rec.parquet"
+    elif layout == "mat":
+        import scipy.io
+
+        scipy.io.savemat(tmp_path / "rec.mat", {"t": log.time[:, None], "gyro_adc": adc, "acc_pulses": pulses,
+                                                "angles_deg": np.column_stack([cols["ang_outer"], cols["ang_middle"],
+                                                                               cols["ang_inner"]])})
+        fname = "rec.mat"
+    else:
+        h5py = pytest.importorskip("h5py")
+        with h5py.File(tmp_path / "rec.h5", "w") as f:
+            f["imu/time"] = log.time
+            f["imu/gyro"] = adc
+            f["imu/acc"] = pulses
+            f["table/angles"] = np.column_stack([cols["ang_outer"], cols["ang_middle"], cols["ang_inner"]])
+        fname = "rec.h5"
+    names = {"parquet": ("time_s", "gx", "gy", "gz", "px", "py", "pz", "ang_outer", "ang_middle", "ang_inner"),
+             "mat": ("t", "gyro_adc:0", "gyro_adc:1", "gyro_adc:2", "acc_pulses:0", "acc_pulses:1", "acc_pulses:2",
+                     "angles_deg:0", "angles_deg:1", "angles_deg:2"),
+             "hdf5": ("imu/time", "imu/gyro:0", "imu/gyro:1", "imu/gyro:2", "imu/acc:0", "imu/acc:1", "imu/acc:2",
+                      "table/angles:0", "table/angles:1", "table/angles:2")}[layout]
+    m = _mapping(tmp_path / "map.toml", f'''
+[imu]
+file = "{fname}"
+sample_rate_hz = 200.0
+[imu.time]
+column = "{names[0]}"
+[imu.gyro]
+output = "rate"
+unit = "deg/s"
+scale = {scale}
+offset = {offset}
+x = "{names[1]}"
+y = "{names[2]}"
+z = "{names[3]}"
+[imu.acc]
+output = "counts"
+count = "1e-9 m/s"
+x = "{names[4]}"
+y = "{names[5]}"
+z = "{names[6]}"
+[table]
+encoder_resolution = "exact"
+{_axes_toml(names[7:])}
+{SITE}''')
+    assert main(["import", str(m), "--out", str(tmp_path / "imported")]) == 0
+    back = read_log(tmp_path / "imported")
+    assert back.acc_output == "counts" and back.acc_count_mps == pytest.approx(1e-9)
+    _same(_fit(back), ref)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda s: s.replace('sample_rate_hz = 200.0', 'sample_rate_hz = -1'), r"map.toml: key 'imu.sample_rate_hz'"),
+    (lambda s: s.replace('unit = "deg/s"', 'unit = "deg/min"'), r"key 'imu.gyro.unit' = 'deg/min': expected one of"),
+    (lambda s: s.replace('x = "gx"', 'x = "gq"'), r"rec.csv: imu.gyro.x: no column 'gq'; the file has: t, gx"),
+    (lambda s: s.replace('output = "specific_force"', 'output = "force"'), r"key 'imu.acc.output' = 'force'"),
+    (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\ntiming = "jittery"'),
+     r"key 'imu.time.timing' = 'jittery'"),
+    (lambda s: s.replace('file = "rec.csv"', 'file = "nope.csv"'), r"nope.csv: the input file does not exist"),
+    (lambda s: s.replace('[site]\nlatitude_deg = 39.9', '[site]\nlatitude_deg = 99'), r"key 'site.latitude_deg' = 99"),
+    (lambda s: s + '\n[labels]\ncolumn = "t"\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n',
+     r"give a column or ranges, not both"),
+])
+def test_mapping_mistakes_are_one_clear_error(tmp_path, edit, match):
+    t = np.arange(1, 101) * 0.01
+    _write_delimited(tmp_path / "rec.csv", ["t", "gx", "gy", "gz", "ax", "ay", "az"],
+                     [t] + [np.zeros(100)] * 5 + [np.ones(100)])
+    text = '''[imu]
+file = "rec.csv"
+sample_rate_hz = 200.0
+[imu.time]
+column = "t"
+[imu.gyro]
+output = "rate"
+unit = "deg/s"
+x = "gx"
+y = "gy"
+z = "gz"
+[imu.acc]
+output = "specific_force"
+unit = "g"
+x = "ax"
+y = "ay"
+z = "az"
+''' + SITE
+    m = _mapping(tmp_path / "map.toml", edit(text))
+    with pytest.raises(MappingError, match=match):
+        import_log(load_mapping(m))
+
+
+def test_a_non_number_and_backwards_time_name_their_row(tmp_path, capsys):
+    t = np.arange(1, 11) * 0.005
+    _write_delimited(tmp_path / "rec.csv", ["t", "g", "a"], [t, np.zeros(10), np.ones(10)])
+    lines = (tmp_path / "rec.csv").read_text().splitlines()
+    lines[4] = lines[4].replace("0,1", "x,1")
+    (tmp_path / "rec.csv").write_text("\n".join(lines) + "\n")
+    m = _mapping(tmp_path / "map.toml", '''[imu]
+file = "rec.csv"
+sample_rate_hz = 200.0
+[imu.time]
+column = "t"
+[imu.gyro]
+output = "rate"
+unit = "rad/s"
+x = "g"
+y = "g"
+z = "g"
+[imu.acc]
+output = "specific_force"
+unit = "m/s2"
+x = "a"
+y = "a"
+z = "a"
+''' + SITE)
+    assert main(["import", str(m), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "rec.csv" in err and "Traceback" not in err
