@@ -79,7 +79,7 @@ def _calibrate_positions(args, log, data, effects, noise) -> int:
     res.save(args.out)
     print("\n".join(fit.lines()))
     print(f"-> {args.out}")
-    return 0
+    return strict_status(args, res)
 
 
 def _cmd_apply(args: argparse.Namespace) -> int:

@@ -137,8 +137,16 @@ class PositionsFit:
         lo, hi = self.chi2_band()
         out.append(f"chi2/dof = {self.chi2_per_dof:.3f} ({self.dof} dof; 99.9 % band {lo:.3f}-{hi:.3f}), "
                    f"{len(self.positions)} positions, {len(self.rotations)} rotations")
+        for p, why in self.implausible().items():
+            out.append(f"IMPLAUSIBLE {p}: {why}")
         out += [f"note: {n}" for n in self.notes]
         return out
+
+    def implausible(self) -> dict[str, str]:
+        """Estimates no real IMU has, with the likely cause (components.model.plausibility)."""
+        from components.model.plausibility import implausible
+
+        return implausible(self.values(), self.sample_interval)
 
     def to_result(self, source: str | Path | None = None):
         """A components.model.result.CalibrationResult (method "positions"). Held and
@@ -194,8 +202,15 @@ class PositionsFit:
             "excluded_samples": dict(self.excluded),
             "notes": list(self.notes),
         }
+        bad = self.implausible()
+        extra = {"positions": block}
+        if bad or self.undetermined:
+            extra["determinability"] = {k: v for k, v in (
+                ("implausible", bad),
+                ("undetermined", {p: {"held_at": 0.0, "why": "not determined by these data"} for p in self.undetermined}),
+            ) if v}
         return CalibrationResult(
             effects=list(self.effects), values=self.values(), sigmas=self.sigmas(),
             correlation=self.correlation() if len(self.parameters) else None, noise=noise, fit=fit,
             temperature_ref=self.temperature_ref, schedule=[list(s) for s in self.schedule], data=data,
-            method="positions", extra={"positions": block})
+            method="positions", extra=extra)
