@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 
 # in the order the commands appear in --help
 COMMAND_MODULES = ("cosim", "simulation", "log_import", "calibration", "diagnosis", "noise", "planning", "procedures",
@@ -31,11 +32,25 @@ def main(argv: list[str] | None = None) -> int:
     from orchestrator.errors import OrchestratorError
 
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except (CalbenchError, OrchestratorError, BuildError) as e:
-        print(f"calbench: error: {e}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings(record=True) as caught:
+        # numpy's and scipy's warnings are calbench's to handle: a user sees one line each, said
+        # as what it is, never a raw stack of them
+        warnings.simplefilter("always", RuntimeWarning)
+        try:
+            return args.func(args)
+        except (CalbenchError, OrchestratorError, BuildError) as e:
+            print(f"calbench: error: {e}", file=sys.stderr)
+            return 2
+        finally:
+            seen = set()
+            for w in caught:
+                if issubclass(w.category, RuntimeWarning) and str(w.message) not in seen:
+                    seen.add(str(w.message))
+                    print(f"calbench: warning: a numerical step warned ({w.message}, in "
+                          f"{w.filename.rsplit('/', 1)[-1]}:{w.lineno}); the results above may be affected: please "
+                          "report it with the input", file=sys.stderr)
+                elif not issubclass(w.category, RuntimeWarning):
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 if __name__ == "__main__":

@@ -45,10 +45,14 @@ def _cmd_kf(args: argparse.Namespace) -> int:
         print_errors(rows)
     else:
         res.save(args.out)
+        undetermined = res.extra.get("determinability", {}).get("undetermined", {})
         for p, v in res.values.items():
             from components.model.effects import effect_of
 
             unit, k = effect_of(p).display
+            if p in undetermined:
+                print(f"{p:18s} {'not determined':>25s}  ({undetermined[p]['why']}; needs {undetermined[p]['needs']})")
+                continue
             print(f"{p:18s} {v / k:12.4f} ± {res.sigmas[p] / k:9.4f} {unit}")
     for note in res.fit.get("notes", []):
         print(f"note: {note}")

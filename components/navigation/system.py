@@ -31,6 +31,7 @@ import numpy as np
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.log_data import LogData
 from components.model.effects import effect_of, parameters_of
+from components.model.excitation import needs
 from components.model.result import CalibrationResult, schedule_of
 from components.navigation.alignment import alignment_run, coarse_align, fine_align
 from components.navigation.consistency import check_stage
@@ -47,6 +48,7 @@ from components.navigation.sensor import Regressors
 
 METHOD = "system-level KF"
 STATIC_TOL = 1e-9  # rad: an angle change per sample below this is "at rest"
+UNINFORMED = 0.9  # a filter state whose posterior σ is above this share of its prior σ: not determined
 
 
 @dataclass
@@ -291,6 +293,17 @@ def calibrate_system(log, config: Config, exclude: list | None = None) -> tuple[
     res = _result(log, data, config, fixed, sigmas, outputs)
     if notes:
         res.fit["notes"] = notes
+    # a filter state whose σ stays at its prior's: the log did not inform it
+    undetermined = {}
+    for so in outputs:
+        if so.filter is None or so.prior_sigma is None:
+            continue
+        for p, s, s0 in zip(so.parameters, np.sqrt(np.abs(np.diag(so.covariance))), so.prior_sigma):
+            if s0 > 0 and s > UNINFORMED * s0:
+                undetermined[p] = {"why": f"stage {so.stage.name!r}: its σ stays at {s / s0:.0%} of its prior σ: "
+                                          "this log does not inform it", "needs": needs(p)}
+    if undetermined:
+        res.extra["determinability"] = {"undetermined": undetermined}
     return res, outputs
 
 
