@@ -309,7 +309,17 @@ def _read_meta(path: Path) -> dict:
     except RecursionError:
         raise LogFormatError(f"{path}: metadata nested deeper than {MAX_METADATA_DEPTH} levels; expected the flat "
                              "object of docs/measurement-log.md") from None
+    except UnicodeDecodeError as e:
+        raise LogFormatError(_not_utf8(path, e)) from None
     return parse_metadata(raw, str(path))
+
+
+def _not_utf8(path: Path, e: UnicodeDecodeError) -> str:
+    """What a file that is not UTF-8 text is, and what to do."""
+    head = path.read_bytes()[:2]
+    what = " (it looks like UTF-16: save it as UTF-8)" if head in (b"\xff\xfe", b"\xfe\xff") else ""
+    return (f"{path}: byte {e.object[e.start]:#04x} at offset {e.start} is not UTF-8 text{what}; expected a UTF-8 "
+            "file (docs/measurement-log.md)")
 
 
 def _csv_row(i: int) -> str:
@@ -317,8 +327,11 @@ def _csv_row(i: int) -> str:
 
 
 def _read_header(path: Path) -> list[str]:
-    with open(path, newline="", encoding="utf-8-sig") as f:
-        first = f.readline()
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            first = f.readline()
+    except UnicodeDecodeError as e:
+        raise LogFormatError(_not_utf8(path, e)) from None
     if not first.strip():
         raise LogFormatError(f"{path}: line 1: empty; expected the header row (time, gimbal_<axis>, ...)")
     return next(csv.reader([first]))
@@ -380,7 +393,7 @@ def _labels(col) -> np.ndarray:
 def _diagnose_csv(path: Path, header: list[str], numeric: list[str], err: Exception) -> None:
     """The fast parser refused the file: find the first bad row the slow way, for the message."""
     idx = {c: header.index(c) for c in numeric}
-    with open(path, newline="", encoding="utf-8-sig") as f:
+    with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
         r = csv.reader(f)
         next(r)
         for k, fields in enumerate(r):
