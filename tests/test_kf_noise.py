@@ -6,14 +6,14 @@
   form gives.
 - The ready-made seed-003 configuration on FMU runs of the seed_003 schedule (default length,
   12 min, 200 Hz) with navigation-grade white noise (ARW 0.001 deg/sqrt(h), VRW 5 ug/sqrt(Hz))
-  and a 0.2 ms IMU/table time offset, 6 Monte-Carlo seeds: the mean NEES of each stage within
-  its 95 % band: the table-referenced time offset (1 state), the 39-state filter (30 effect
+  and a 0.2 ms IMU/table time offset, 4 Monte-Carlo seeds: the mean NEES of each stage within
+  its 95 % band (for 4 runs): the table-referenced time offset (1 state), the 39-state filter (30 effect
   states) and the S204 consider-state bias stage (3). (Found by this test: passes that
   re-centred the prior walked along weakly observable directions, NEES 59 mean, 132 at worst.)
 
-- The issue's accuracy targets on one run of the one-hour seed_003 preset (the benchmark's
-  first seed; ~3 min): every error within its target, every reported σ too. The Monte-Carlo
-  RMS per state against its bound is benchmarks/kf_vs_lsq.py."""
+- The issue's accuracy targets on the one-hour seed_003 preset are the benchmark's
+  (benchmarks/kf_vs_lsq.py: every target, RMS per state against its bound over 8 one-hour
+  runs; `--runs 1` is the first seed alone, ~4 min): an accuracy figure, not a unit test."""
 from __future__ import annotations
 
 import multiprocessing as mp
@@ -29,10 +29,6 @@ from components.navigation.kf import _schmidt_update
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from kf_vs_lsq import TARGET, scenario, stage_nees  # noqa: E402
-
-from components.model.effects import effect_of  # noqa: E402
-
-ONE_HOUR = {"cycles": 1, "bias_cycles": 6, "exc_dwell": 150.0, "dwell": 60.0}  # seed_003.toml  (the benchmark's run, 12 min here)
 
 
 def test_schmidt_update_reports_the_variance_of_its_errors():
@@ -77,7 +73,7 @@ def _one_run(seed: int):
 
 
 def test_seed003_nees_within_its_band_over_monte_carlo_runs():
-    runs = 6
+    runs = 4
     with mp.get_context("fork").Pool(2) as pool:
         res = pool.map(_one_run, range(500, 500 + runs))
     for stage, (name, _, dof) in enumerate(res[0][0]):
@@ -87,18 +83,3 @@ def test_seed003_nees_within_its_band_over_monte_carlo_runs():
     # the issue's target for the IMU/table time offset (0.2 ms injected): 0.1 ms
     tau_err = [r[1] for r in res]
     assert max(map(abs, tau_err)) <= TARGET["imu.time_offset"], tau_err
-
-
-def test_one_hour_seed003_meets_the_accuracy_targets():
-    from components.navigation.configs import load_config
-    from components.navigation.system import calibrate_system
-    from components.simulation.run import run_scenario
-
-    run = run_scenario(scenario(300, ONE_HOUR), progress=False)
-    assert run.log.time[-1] > 3600.0
-    res, _ = calibrate_system(run.log, load_config("seed_003"))
-    truth = run.truth["effects"]
-    assert set(TARGET) == {effect_of(p).name for p in res.values}
-    over = [(p, v - truth[p], res.sigmas[p]) for p, v in res.values.items()
-            if max(abs(v - truth[p]), res.sigmas[p]) > TARGET[effect_of(p).name]]
-    assert not over, over
