@@ -179,3 +179,12 @@ def test_deeply_nested_metadata_is_one_clear_error(tmp_path):
         (tmp_path / "m.json").write_text(text)
         with pytest.raises(LogFormatError, match=r"m.json: metadata nested deeper than 32 levels"):
             read_log(tmp_path / "m")
+
+
+def test_metadata_size_is_bounded(tmp_path, monkeypatch):
+    import components.logs.logfile as lf
+
+    _write(tmp_path, _meta())
+    monkeypatch.setattr(lf, "MAX_METADATA_BYTES", 100)
+    with pytest.raises(LogFormatError, match=r"m.json: \d+ bytes of metadata; expected at most 100"):
+        read_log(tmp_path / "m")

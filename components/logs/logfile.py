@@ -301,7 +301,14 @@ def _pair(path: str | Path) -> tuple[Path, Path]:
     return data, meta
 
 
+MAX_METADATA_BYTES = 16 << 20   # a metadata file is a page of keys; a bigger one is not metadata
+
+
 def _read_meta(path: Path) -> dict:
+    size = path.stat().st_size
+    if size > MAX_METADATA_BYTES:
+        raise LogFormatError(f"{path}: {size} bytes of metadata; expected at most {MAX_METADATA_BYTES} (the small "
+                             "object of docs/measurement-log.md)")
     try:
         raw = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as e:
