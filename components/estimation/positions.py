@@ -181,7 +181,7 @@ def _checked_hints(U0: np.ndarray, segs: Segments, desc: dict) -> list[np.ndarra
         h = desc[segs.labels[p]].get("up")
         if h is not None:
             hints[p] = h
-            ang = _angle_deg(h, U0[p])
+            ang = angle_deg(h, U0[p])
             if ang > HINT_LIMIT_DEG:
                 raise EstimationError(
                     f"static {segs.names[p]!r}: the accelerometers' mean points {ang:.0f}° from the stated up "
@@ -195,7 +195,7 @@ def _parameters(effects: list[str], U0: np.ndarray) -> tuple[dict[str, str], lis
     P = len(U0)
     reps: list[np.ndarray] = []
     for u in U0:
-        if all(_angle_deg(u, r) > SAME_ATTITUDE_DEG for r in reps):
+        if all(angle_deg(u, r) > SAME_ATTITUDE_DEG for r in reps):
             reps.append(u)
     held = {p: HELD_WHY for p in GAUGE_HELD if "acc.mis" in effects}
     requested = [p for p in CAL_NAMES if effect_of(p).name in effects and p not in held]
@@ -241,7 +241,7 @@ def _rest_results(model: Model, th: np.ndarray, C: np.ndarray, cov_all: np.ndarr
         pos_out.append(PositionResult(
             name=segs.names[p], label=segs.labels[p], start=a, stop=b, samples=int(rests.samples[p]),
             duration=float(T_p[p]), up=U[p].copy(), up_covariance=ucov, up_hint=hints[p],
-            hint_angle_deg=None if hints[p] is None else _angle_deg(hints[p], U[p]),
+            hint_angle_deg=None if hints[p] is None else angle_deg(hints[p], U[p]),
             north=C[p, 1].copy() if use_heading else None,
             heading_sigma_deg=math.degrees(math.sqrt(max(Cp[2, 2], 0.0))) if use_heading else None,
             acc_residual=res_a[sel].sum(axis=0) / T_p[p], gyro_residual=res_g[sel].sum(axis=0) / T_p[p],
@@ -264,7 +264,7 @@ def _turn_results(model: Model, th: np.ndarray, C: np.ndarray, notes: list[str])
         rot_out.append(RotationResult(
             name=r.name, label=r.label, start=r.lo, stop=r.hi, axis=r.axis, angle=r.angle,
             duration=r.T, before=r.before, after=r.after, measured=r.sum,
-            earth=r.M @ Ob[r.q], residual=res, normalized=nrm, end_mismatch_deg=_angle_deg(u_pred, U[r.q_after])))
+            earth=r.M @ Ob[r.q], residual=res, normalized=nrm, end_mismatch_deg=angle_deg(u_pred, U[r.q_after])))
     for ro in rot_out:
         if ro.end_mismatch_deg > 2.0:
             notes.append(f"rotation {ro.name!r}: the attitude after it is {ro.end_mismatch_deg:.1f}° from the one "
@@ -272,6 +272,7 @@ def _turn_results(model: Model, th: np.ndarray, C: np.ndarray, notes: list[str])
     return rot_out
 
 
-def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    """The angle between two vectors [deg]."""
     c = float(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
     return math.degrees(math.acos(c))

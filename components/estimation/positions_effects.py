@@ -17,7 +17,7 @@ import numpy as np
 from components.errors import EstimationError
 from components.estimation.determinability import undetermined_columns
 from components.estimation.log_data import LogData
-from components.estimation.positions import SUPPORTED, calibrate_positions
+from components.estimation.positions import SUPPORTED, angle_deg, calibrate_positions
 from components.estimation.positions_design import PositionsDesign
 from components.estimation.positions_result import PositionResult, PositionsFit, RotationResult
 from components.model.effects import EFFECTS, parameters_of, parse_effects
@@ -137,7 +137,7 @@ def _rests(design: PositionsDesign, C: np.ndarray, cov_att: np.ndarray, resid: n
             name=name, label=design.segs.labels[p], start=a, stop=b,
             samples=int(sum(e - st for q, st, e in design.segs.chunks if q == p)), duration=T_p, up=up,
             up_covariance=Ju @ cov_att[s, s] @ Ju.T, up_hint=hint,
-            hint_angle_deg=None if hint is None else _angle_deg(hint, up),
+            hint_angle_deg=None if hint is None else angle_deg(hint, up),
             north=C[p, 1].copy() if na == 3 else None,
             heading_sigma_deg=math.degrees(math.sqrt(max(cov_att[s, s][2, 2], 0.0))) if na == 3 else None,
             acc_residual=mean["acc"], gyro_residual=mean["gyro"], chi2=float(np.sum(resid[sel] ** 2)),
@@ -158,13 +158,8 @@ def _turns(design: PositionsDesign, C: np.ndarray, resid: np.ndarray, info: dict
         out.append(RotationResult(
             name=r.name, label=r.label, start=r.lo, stop=r.hi, axis=r.axis, angle=r.angle, duration=r.T,
             before=r.before, after=r.after, measured=r.sum, earth=earth, residual=res, normalized=nrm,
-            end_mismatch_deg=_angle_deg(u_pred, C[r.q_after, 2])))
+            end_mismatch_deg=angle_deg(u_pred, C[r.q_after, 2])))
         if out[-1].end_mismatch_deg > 2.0:
             notes.append(f"rotation {r.name!r}: the attitude after it is {out[-1].end_mismatch_deg:.1f}° from the "
                          "one the stated turn predicts: check its axis and angle, and that it is about a body axis")
     return out
-
-
-def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
-    c = float(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
-    return math.degrees(math.acos(c))

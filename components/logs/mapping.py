@@ -115,17 +115,13 @@ def _unit(v, key: str, where: str, units) -> str:
 
 
 def _quantity(v, key: str, where: str, units: dict) -> float:
-    """A number with a unit of *units* (``"0.01 deg"``) in SI."""
-    if isinstance(v, str):
-        parts = v.split(None, 1)
-        try:
-            x = float(parts[0])
-        except (ValueError, IndexError):
-            x = None
-        if x is not None and len(parts) == 2 and parts[1].strip() in units:
-            return x * units[parts[1].strip()]
-    raise MappingError(f"{where}: key {key!r} = {v!r}: expected '<number> <unit>' with unit one of "
-                       f"{', '.join(units)}")
+    """A number with a unit of *units* (``"0.01 deg"``) in SI (components.model.quantities)."""
+    from components.model.quantities import QuantityError, quantity
+
+    try:
+        return quantity(v, key, where, units, next(iter(units)))
+    except QuantityError as e:
+        raise MappingError(str(e)) from None
 
 
 def _channel(v, key: str, where: str, d: dict | None = None) -> Channel:
