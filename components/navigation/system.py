@@ -104,6 +104,7 @@ class StageOutput:
     prior_values: np.ndarray | None = None  # a kf stage: where its filter started, and the σ of
     prior_sigma: np.ndarray | None = None   # its prior (components.navigation.consistency)
     kf_interval: float | None = None
+    noise_free: bool = False              # its data carry no noise (the innovation check does not apply)
 
 
 def joint_prior(outputs: list, names: list[str]) -> np.ndarray:
@@ -203,6 +204,10 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     so.prior_values = np.array([settings.initial.get(p, 0.0) for p in params], float)
     so.prior_sigma = prior_sigmas(params, settings)
     so.kf_interval = settings.kf_interval
+    # noise-free data (a simulation's check of the model): the filter runs on its numerical floors,
+    # where the innovations measure the linearisation, not the data's noise
+    so.noise_free = bool(np.all(np.asarray(settings.sigma_gyro, float) <= 1.01 * SIGMA_GYRO_FLOOR)
+                         and np.all(np.asarray(settings.sigma_acc, float) <= 1.01 * SIGMA_ACC_FLOOR))
     return so
 
 
