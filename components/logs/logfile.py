@@ -24,27 +24,19 @@ Choices the spec leaves open, stated here:
 * **CSV.** Empty cells in numeric columns, and blank lines, are refused; surrounding blanks in
   a number are tolerated (pyarrow's parser). A file with both ``<stem>.csv`` and
   ``<stem>.parquet`` read by its stem reads the CSV; give the file name to read the other.
-* **Increments.** ``rate`` and ``specific_force`` outputs are means over the sample interval,
-  converted to increments with the nominal interval ``1 / sample_rate_hz``; with measured timing
-  (version 2) with each sample's own interval, the first sample's being the nominal one.
-* **What is left out** (version 2): :meth:`MeasurementLog.usable` is False for the sample after
-  a gap (its interval's start is unknown), for ``mask`` = 0, inside an ``exclude`` time range
-  (the sample's time, its interval's end, inside [t0, t1]), for an ``exclude`` label and for a
-  label whose segment is ``excluded``. A label ``exclude`` names that the log does not hold is
-  an error: it is a typing mistake, not a choice.
+* **Increments and what is left out**: components/logs/measurement.py.
 """
 from __future__ import annotations
 
 import csv
 import json
-import math
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from components.errors import LogFormatError
+from components.logs.measurement import MeasurementLog
 from components.logs.rules import (  # noqa: F401  (FORMAT: re-exported)
     FORMAT,
     FORMAT_V2,
@@ -58,226 +50,6 @@ from components.logs.rules import (  # noqa: F401  (FORMAT: re-exported)
     parse_metadata,
 )
 
-
-@dataclass
-class MeasurementLog:
-    time: np.ndarray                       # s, end of each sample interval
-    gimbal: dict[str, np.ndarray]          # axis name -> measured angle [rad], base-to-plate order
-    gyro: np.ndarray                       # (N, 3) as in the file (see gyro_output)
-    acc: np.ndarray                        # (N, 3) as in the file (see acc_output)
-    axis_names: list[str]
-    axis_vectors: np.ndarray               # (n_axes, 3), unit vectors
-    sample_rate_hz: float
-    gyro_output: str = "increment"
-    acc_output: str = "increment"
-    gyro_count_rad: float | None = None
-    acc_count_mps: float | None = None
-    latitude_deg: float = 0.0
-    height_m: float = 0.0
-    gravity_mps2: float | None = None      # None: normal gravity at latitude and height
-    description: str = ""
-    command: dict[str, np.ndarray] = field(default_factory=dict)
-    temperature: np.ndarray | None = None  # °C
-    segment: np.ndarray | None = None      # object array of str
-    extra: dict[str, np.ndarray] = field(default_factory=dict)
-    extra_metadata: dict = field(default_factory=dict)  # unknown keys of the JSON, kept
-    source: str | None = None
-    # calbench-log/2 (all optional; a log using none of them is written as version 1)
-    encoder_resolution: object = None      # None (not stated), "exact", or (n_axes,) one count [rad]
-    timing: str = "nominal"                # "nominal" or "measured" (each sample's own interval)
-    max_interval_s: float | None = None    # measured timing: a longer interval is a gap
-    segments: dict | None = None           # label -> description, as in the file
-    exclude: list = field(default_factory=list)  # time ranges [t0, t1] and labels to leave out
-    noise: dict | None = None              # the noise model if known (calbench-noise/1 form)
-    mask: np.ndarray | None = None         # (N,) bool, False: leave the sample out
-
-    # ----------------------------------------------------------------- derived
-    @property
-    def latitude(self) -> float:
-        """Latitude [rad]."""
-        return math.radians(self.latitude_deg)
-
-    @property
-    def dt(self) -> float:
-        """Nominal sample interval [s]."""
-        return 1.0 / self.sample_rate_hz
-
-    @property
-    def n(self) -> int:
-        return len(self.time)
-
-    @property
-    def gravity(self) -> float:
-        """Gravity magnitude [m/s²]: the logged value, else WGS-84 normal gravity."""
-        if self.gravity_mps2 is not None:
-            return self.gravity_mps2
-        from components.model.geometry import normal_gravity
-
-        return normal_gravity(self.latitude, self.height_m)
-
-    @property
-    def angles(self) -> np.ndarray:
-        """(N, n_axes) gimbal angles [rad] in base-to-plate order ((N, 0) without a table)."""
-        if not self.axis_names:
-            return np.zeros((self.n, 0))
-        return np.column_stack([self.gimbal[a] for a in self.axis_names])
-
-    @property
-    def has_table(self) -> bool:
-        """The log holds table angles (every version-1 log does)."""
-        return bool(self.axis_names)
-
-    @property
-    def version(self) -> str:
-        """The format this log needs: version 2 only when it uses a key of version 2."""
-        v2 = (not self.axis_names or self.encoder_resolution is not None or self.timing != "nominal"
-              or self.segments is not None or bool(self.exclude) or self.noise is not None or self.mask is not None)
-        return FORMAT_V2 if v2 else FORMAT
-
-    def intervals(self) -> np.ndarray:
-        """(N,) each sample's interval [s]: the nominal 1/sample_rate_hz, or with measured timing
-        t[k] - t[k-1] (the first sample's nominal)."""
-        if self.timing != "measured":
-            return np.full(self.n, self.dt)
-        return np.concatenate([[self.dt], np.diff(self.time)])
-
-    def gaps(self) -> np.ndarray:
-        """(N,) bool: the sample's interval is longer than ``max_interval_s`` (default 1.5 nominal
-        intervals) under measured timing: its start is unknown."""
-        if self.timing != "measured":
-            return np.zeros(self.n, bool)
-        limit = self.max_interval_s if self.max_interval_s is not None else 1.5 * self.dt
-        return self.intervals() > limit
-
-    def left_out(self, more: list | None = None) -> dict[str, np.ndarray]:
-        """Why samples are left out: {reason: (N,) bool} for gaps, the mask, each ``exclude``
-        item (and *more*, e.g. the command line's ``--exclude``) and each excluded segment label.
-        Reasons with no sample are not listed."""
-        out: dict[str, np.ndarray] = {}
-        g = self.gaps()
-        if g.any():
-            out["gap (the sample after it)"] = g
-        if self.mask is not None and not self.mask.all():
-            out["mask = 0"] = ~self.mask
-        labels = set(self.segment) if self.segment is not None else set()
-        for item in list(self.exclude) + list(more or []):
-            if isinstance(item, str):
-                item = str(item)    # numpy's str_ too, so that messages show the plain label
-                if item not in labels:
-                    raise LogFormatError(f"{self.source or 'log'}: exclude {item!r}: no segment has this label "
-                                         f"(labels: {', '.join(sorted(map(str, labels))[:20]) or 'none'})")
-                out[f"segment {item!r} (exclude)"] = self.segment == item
-            else:
-                t0, t1 = item
-                hit = (self.time >= t0) & (self.time <= t1)
-                if hit.any():
-                    out[f"t = {t0:g}-{t1:g} s (exclude)"] = hit
-        for lab, d in (self.segments or {}).items():
-            if isinstance(d, dict) and d.get("kind") == "excluded" and self.segment is not None:
-                hit = self.segment == lab
-                if hit.any():
-                    out[f"segment {lab!r} (kind excluded)"] = hit
-        return out
-
-    def usable(self, more: list | None = None) -> np.ndarray:
-        """(N,) bool: the sample enters estimates (see :meth:`left_out`)."""
-        ok = np.ones(self.n, bool)
-        for m in self.left_out(more).values():
-            ok &= ~m
-        return ok
-
-    def gyro_increment(self) -> np.ndarray:
-        """(N, 3) angle increments [rad] over each sample interval."""
-        return _to_increment(self.gyro, self.gyro_output, self._rate_intervals(self.gyro_output), self.gyro_count_rad)
-
-    def acc_increment(self) -> np.ndarray:
-        """(N, 3) velocity increments [m/s] over each sample interval."""
-        return _to_increment(self.acc, self.acc_output, self._rate_intervals(self.acc_output), self.acc_count_mps)
-
-    def _rate_intervals(self, kind: str):
-        if kind not in ("rate", "specific_force") or self.timing != "measured":
-            return self.dt
-        return self.intervals()[:, None]
-
-    def gyro_rate(self) -> np.ndarray:
-        """(N, 3) mean angular rate [rad/s] over each interval."""
-        return self.gyro_increment() / self.intervals()[:, None]
-
-    def specific_force(self) -> np.ndarray:
-        """(N, 3) mean specific force [m/s²] over each interval."""
-        return self.acc_increment() / self.intervals()[:, None]
-
-    def metadata(self) -> dict:
-        """The JSON metadata of this log."""
-        v2 = self.version == FORMAT_V2
-        meta = {
-            "format": self.version,
-            "site": {"latitude_deg": self.latitude_deg, "height_m": self.height_m,
-                     "gravity_mps2": self.gravity_mps2},
-            "table": {"axes": [{"name": n, "axis": [float(x) for x in v]}
-                               for n, v in zip(self.axis_names, self.axis_vectors)]},
-            "imu": {"sample_rate_hz": self.sample_rate_hz, "gyro_output": self.gyro_output,
-                    "acc_output": self.acc_output, "gyro_count_rad": self.gyro_count_rad,
-                    "acc_count_mps": self.acc_count_mps},
-            "description": self.description,
-        }
-        if v2:
-            res = self.encoder_resolution
-            if res is not None:
-                meta["table"]["encoder_resolution_rad"] = res if isinstance(res, str) else \
-                    [float(x) for x in np.broadcast_to(res, (len(self.axis_names),))]
-            if self.timing != "nominal":
-                meta["imu"]["timing"] = self.timing
-            if self.max_interval_s is not None:
-                meta["imu"]["max_interval_s"] = self.max_interval_s
-            if self.noise is not None:
-                meta["imu"]["noise"] = self.noise
-            if self.segments is not None:
-                meta["segments"] = self.segments
-            if self.exclude:
-                meta["exclude"] = self.exclude
-        for k, v in self.extra_metadata.items():
-            meta.setdefault(k, v)
-        return meta
-
-    def columns(self) -> dict[str, np.ndarray]:
-        """The sample columns in the spec's order."""
-        cols: dict[str, np.ndarray] = {"time": self.time}
-        for a in self.axis_names:
-            cols[f"gimbal_{a}"] = self.gimbal[a]
-        for a in self.axis_names:
-            if a in self.command:
-                cols[f"command_{a}"] = self.command[a]
-        for j, c in enumerate(XYZ):
-            cols[f"gyro_{c}"] = self.gyro[:, j]
-        for j, c in enumerate(XYZ):
-            cols[f"acc_{c}"] = self.acc[:, j]
-        if self.temperature is not None:
-            cols["temperature"] = self.temperature
-        if self.segment is not None:
-            cols["segment"] = self.segment
-        if self.mask is not None:
-            cols["mask"] = self.mask.astype(np.int8)
-        cols.update(self.extra)
-        return cols
-
-    def validate(self, where: str = "measurement log") -> None:
-        """Check this log against the rules (what :func:`read_log` enforces on files)."""
-        meta = parse_metadata(self.metadata(), where)
-        cols = self.columns()
-        check_columns(list(cols), meta, where)
-        check_samples(cols, meta, where, lambda i: f"sample {i + 1}", labels=True)
-
-
-def _to_increment(x: np.ndarray, kind: str, dt, weight: float | None) -> np.ndarray:
-    if kind == "increment":
-        return x
-    if kind == "counts":
-        return x * weight
-    return x * dt  # rate or specific_force
-
-
-# ---------------------------------------------------------------------------- metadata
 
 # ---------------------------------------------------------------------------- reading
 def _pair(path: str | Path) -> tuple[Path, Path]:
