@@ -16,7 +16,8 @@ _TYPE_NAMES = {"Real": "Real", "Float64": "Real", "Float32": "Real", "Integer": 
 _BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
-def _fmu_variables(md) -> dict[str, VarInfo]:
+def fmu_variables(md) -> dict[str, VarInfo]:
+    """The variables of a model description (fmpy's), with their declared units' SI conversion."""
     units = {u.name: u for u in (md.unitDefinitions or [])}
     out = {}
     for v in md.modelVariables:
@@ -52,7 +53,7 @@ class FMU2Unit(Unit):
         self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
         self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
         self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
-        self.variables = _fmu_variables(self.md)
+        self.variables = fmu_variables(self.md)
         self.fmu = None
         self._dir = None
 
@@ -170,7 +171,7 @@ class FMU3Unit(Unit):
             raise UnitError(f"unit {name}: {self.path} is FMI {self.md.fmiVersion}, not 3.0")
         if self.md.coSimulation is None:
             raise UnitError(f"unit {name}: {self.path} has no co-simulation interface")
-        self.variables = _fmu_variables(self.md)
+        self.variables = fmu_variables(self.md)
         self.can_get_set_state = bool(getattr(self.md.coSimulation, "canGetAndSetFMUState", False))
         self.fmu = None
         self._dir = None
@@ -241,3 +242,10 @@ def load_fmu_unit(name: str, path: str | Path) -> Unit:
     except Exception as e:
         raise UnitError(f"unit {name}: {p} is not a readable FMU ({e})") from None
     return FMU3Unit(name, p) if md.fmiVersion.startswith("3") else FMU2Unit(name, p)
+
+
+def read_fmu_variables(path: str | Path) -> dict[str, VarInfo]:
+    """The variables of the FMU file *path* (its model description only: nothing is loaded)."""
+    from fmpy import read_model_description
+
+    return fmu_variables(read_model_description(str(path)))

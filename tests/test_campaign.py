@@ -50,7 +50,7 @@ acc_output = "specific_force"
 {extra}
 [systems.{name}.mapping]
 {MAPPING}
-[systems.{name}.effects]
+[systems.{name}.effect_map]
 {EFFECTS}
 """
 
@@ -179,7 +179,8 @@ def test_two_workers_verdicts_and_reports(two_workers):
     assert {c["id"] for c in recs["lsq-acme-g0-r0"]["criteria"]} == {"ACC-BIAS"}
     # the supplier's truth is what reached its parameters (no misalignment parameter: not injected)
     assert "acc.bias.x" in recs["lsq-acme-g0-r0"]["truth"]
-    assert "acc.mis.xy" in recs["lsq-acme-g0-r0"]["not_injected"]
+    lost = recs["lsq-acme-g0-r0"]["not_injected"]
+    assert "acc.mis.xy" in lost["effects"] and lost["seed"] is True
     # no time inside a case record
     assert not any("time" in k or k in ("start", "end") for k in ours)
 

@@ -114,15 +114,37 @@ def record(task: dict, numbers: dict | None, reason: str | None = None) -> dict:
     """The case record: verdict pass (every criterion passed), fail or error (with the reason)."""
     from components.campaign.criteria import evaluate
 
-    rec = {"format": FORMAT, **task["case"], "truth": task["truth"], "not_injected": task.get("not_injected", [])}
+    lost = task.get("not_injected", {})
+    rec = {"format": FORMAT, **task["case"], "truth": task["truth"], "not_injected": lost}
     if numbers is None:
         return {**rec, "verdict": "error", "reason": reason,
                 "criteria": [{"id": c["id"], "requirement": c["requirement"], "kind": c["kind"], "passed": None,
                               "message": "not evaluated: the case errored"} for c in task["criteria"]]}
-    results = [evaluate(c, numbers) for c in task["criteria"]]
-    failed = [r["id"] for r in results if not r["passed"]]
+    results = []
+    for c in task["criteria"]:
+        why = not_applicable(c, lost)
+        results.append({"id": c["id"], "requirement": c["requirement"], "kind": c["kind"], "passed": None,
+                        "applicable": False, "message": f"not applicable: {why}"} if why else evaluate(c, numbers))
+    failed = [r["id"] for r in results if r["passed"] is False]
     return {**rec, "verdict": "fail" if failed else "pass",
             "reason": f"failed: {', '.join(failed)}" if failed else None, "criteria": results, **numbers}
+
+
+def needs_noise(criterion: dict) -> bool:
+    """A criterion whose numbers mean something only with noise: σ, the Cramér–Rao bound, χ², a
+    statistical test's verdict."""
+    return criterion["kind"] in ("crb", "chi2", "diagnosis") or any(k in criterion for k in ("crb_sigmas", "sigmas"))
+
+
+def not_applicable(criterion: dict, lost: dict) -> str | None:
+    """Why the criterion cannot be judged on this case's IMU (None: it can): a noise-free IMU
+    gives σ, bounds and χ² of nothing — never a pass on them."""
+    if not needs_noise(criterion) or not lost.get("noise_free"):
+        return None
+    if lost.get("noise"):
+        return (f"the IMU FMU takes none of the noise asked for ({', '.join(lost['noise'])}: no noise_map or no such "
+                "parameter), so the run is noise-free and its σ, bounds and χ² say nothing")
+    return "the case injects no noise, so the run is noise-free and its σ, bounds and χ² say nothing"
 
 
 def run_case(task: dict) -> dict:

@@ -82,6 +82,21 @@ def render(camp, summary: dict, records: dict, manifest: dict, worst: list[dict]
                      f"{'as expected' if ok else 'NOT as expected'}</span>"
                      + (f" — differs: {_e(', '.join(mm))}" if mm else "") + "</p>")
 
+    lost_rows = []
+    for sname in camp.systems:
+        rec = next((r for cid, r in sorted(records.items()) if r and r.get("system") == sname), None)
+        lost = (rec or {}).get("not_injected") or {}
+        if isinstance(lost, dict) and (lost.get("effects") or lost.get("noise") or lost.get("seed")):
+            lost_rows.append([_e(sname), _e(", ".join(lost.get("effects", [])) or "—"),
+                              _e(", ".join(lost.get("noise", [])) or ("none asked" if lost.get("noise_free") else "—")),
+                              "no (every replicate draws the same)" if lost.get("seed") else "yes"])
+    if lost_rows:
+        parts.append("<h2>What each IMU could not take</h2><p class='note'>Effects and noise the campaign asked for "
+                     "that an IMU FMU has no parameter for (its effect_map / noise_map, docs/supplier.md): not "
+                     "injected and not in its truth; criteria that need noise are not applicable on a noise-free "
+                     "IMU.</p>")
+        parts.append(_table(["system", "effects not injected", "noise not injected", "seed applied"], lost_rows,
+                            left={0, 1, 2, 3}))
     parts.append("<h2>Traceability: requirement → criterion → cases → verdict</h2>")
     rows = []
     for req in summary["requirements"]:
@@ -89,10 +104,10 @@ def render(camp, summary: dict, records: dict, manifest: dict, worst: list[dict]
             k = cr["counts"]
             rows.append([f"<b>{_e(req['requirement'])}</b> <span class='{_cls(req['verdict'])}'>{_e(req['verdict'])}</span>"
                          if i == 0 else "", _e(cr["id"]), _e(cr["kind"]), _e(cr["description"]),
-                         f"{k['pass']}", f"{k['fail']}", f"{k['error']}", f"{k['missing']}",
+                         f"{k['pass']}", f"{k['fail']}", f"{k.get('n/a', 0)}", f"{k['error']}", f"{k['missing']}",
                          f"<span class='{_cls(cr['verdict'])}'>{_e(cr['verdict'])}</span>"])
-    parts.append(_table(["requirement", "criterion", "kind", "description", "pass", "fail", "error", "not run",
-                         "verdict"], rows, left={0, 1, 2, 3}))
+    parts.append(_table(["requirement", "criterion", "kind", "description", "pass", "fail", "not applicable", "error",
+                         "not run", "verdict"], rows, left={0, 1, 2, 3}))
     parts.append("<details><summary>cases per criterion</summary>")
     for req in summary["requirements"]:
         for cr in req["criteria"]:

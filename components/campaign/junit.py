@@ -24,12 +24,13 @@ def junit_xml(camp, records: dict) -> str:
             continue
         for r in rec["criteria"]:
             ET.SubElement(props, "property", name=f"criterion {r['id']} ({r['requirement']})",
-                          value="pass" if r["passed"] else "not evaluated" if r["passed"] is None else "fail")
+                          value="pass" if r["passed"] else "not applicable" if r.get("applicable") is False
+                          else "not evaluated" if r["passed"] is None else "fail")
         if rec["verdict"] == "error":
             e = ET.SubElement(tc, "error", message=rec["reason"] or "error", type="CaseError")
             e.text = rec["reason"]
         elif rec["verdict"] == "fail":
-            bad = [r for r in rec["criteria"] if not r["passed"]]
+            bad = [r for r in rec["criteria"] if r["passed"] is False]
             f = ET.SubElement(tc, "failure", message="; ".join(f"{r['id']} ({r['requirement']})" for r in bad),
                               type="AcceptanceCriterion")
             f.text = "\n".join(f"{r['id']} [{r['requirement']}]: {r['message']}" for r in bad)

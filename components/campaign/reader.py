@@ -26,8 +26,8 @@
     replicates = 1           # fewer (or more) seeds for this system than [campaign] replicates
     [systems.acme.parameters]                            # fixed FMU parameters (its names, its units)
     SegfaultAt = 1e300
-    [systems.acme.effects]                               # vocabulary -> [FMU parameter, its unit]
-    "gyro.bias.x" = ["GyroBias_X", "deg/s"]
+    [systems.acme.effect_map]                            # vocabulary -> the FMU's parameter [, its unit]
+    "gyro.bias.x" = ["GyroBias_X", "deg/s"]              # (docs/supplier.md; noise_map, seed_parameter too)
 
     [procedures.lsq]         # method: lsq (effects), cwccw, tilt, tilt_ignored
     method = "lsq"
@@ -180,8 +180,11 @@ def _scenario(d: dict, src, base: Path):
 def _system(name: str, d, src, base: Path) -> System:
     w = f"[systems.{name}]"
     _expect(isinstance(d, dict), src, w, d, "a table")
-    _keys(d, {"imu", "mapping", "gyro_output", "acc_output", "parameters", "effects", "timeout_s", "replicates"},
-          src, w)
+    _keys(d, {"imu", "mapping", "gyro_output", "acc_output", "role_options", "parameters", "effect_map", "noise_map",
+              "seed_parameter", "effects", "timeout_s", "replicates"}, src, w)
+    if "effects" in d:
+        raise CampaignError(f"{src}: {w}.effects: renamed effect_map (the same table: vocabulary name = [the FMU's "
+                            "parameter, its unit]), as in scenario files (docs/supplier.md)")
     reps = d.get("replicates")
     if reps is not None:
         _expect(isinstance(reps, int) and not isinstance(reps, bool) and reps >= 1, src, f"{w} replicates", reps,
@@ -200,27 +203,29 @@ def _system(name: str, d, src, base: Path) -> System:
     params = d.get("parameters", {})
     _expect(isinstance(params, dict) and all(is_number(v) for v in params.values()), src, f"{w} parameters",
             params, "a table of FMU parameter = number")
-    effects = None
-    if "effects" in d:
-        from components.model.quantities import effect_units
+    from components.errors import ScenarioError
+    from components.simulation.scenario import unit_maps_of
+    from components.simulation.unit_maps import maps_for
 
-        effects = {}
-        for k, v in d["effects"].items():
-            try:
-                units = effect_units(k)
-            except KeyError:
-                raise CampaignError(f"{src}: {w}.effects: {k!r} is not a parameter of the effect vocabulary") from None
-            if not (isinstance(v, list) and len(v) == 2 and isinstance(v[0], str) and v[1] in units):
-                raise CampaignError(f"{src}: {w}.effects: {k} = {v!r}: expected [FMU parameter name, unit] with "
-                                    f"unit one of {', '.join(units)}")
-            effects[k] = (v[0], units[v[1]])
+    maps = unit_maps_of(d, f"{src}: {w}", CampaignError)
+    try:
+        # the maps against the FMU's declared parameters and units: a unit mistake stops the
+        # campaign before its first case
+        maps_for(path, maps["imu_effect_map"], maps["imu_noise_map"], maps["imu_seed_parameter"], f"{src}: {w}")
+    except ScenarioError as e:
+        raise CampaignError(str(e)) from None
+    ro = d.get("role_options", {})
+    _expect(isinstance(ro, dict) and not set(ro) - {"gyro_output", "acc_output"}, src, f"{w} role_options", ro,
+            "{gyro_output, acc_output}")
+    d = {**d, **ro}
     t = d.get("timeout_s")
     if t is not None:
         _expect(is_number(t) and t > 0, src, f"{w} timeout_s", t, "a positive number [s]")
     for k in ("gyro_output", "acc_output"):
         _expect(isinstance(d.get(k, ""), str), src, f"{w} {k}", d.get(k), "text")
     return System(name, imu, path, dict(mp), d.get("gyro_output", "increment"), d.get("acc_output", "increment"),
-                  dict(params), effects, None if t is None else float(t), reps)
+                  dict(params), maps["imu_effect_map"], None if t is None else float(t), reps,
+                  maps["imu_noise_map"], maps["imu_seed_parameter"])
 
 
 def _procedure(name: str, d, src) -> Procedure:

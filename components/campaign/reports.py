@@ -23,7 +23,8 @@ def worst_cases(camp, records: dict, n: int = 5) -> list[dict]:
         if rec["verdict"] == "error":
             out.append({"id": case.id, "verdict": "error", "score": float("inf"), "why": rec["reason"]})
             continue
-        ratios = [(r.get("worst_ratio", 0.0 if r["passed"] else float("inf")), r) for r in rec["criteria"]]
+        ratios = [(r.get("worst_ratio", 0.0 if r["passed"] else float("inf")), r) for r in rec["criteria"]
+                  if r.get("applicable", True)]
         if not ratios:
             continue
         score, r = max(ratios, key=lambda t: t[0])

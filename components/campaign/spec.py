@@ -58,9 +58,11 @@ class System:
     gyro_output: str = "increment"
     acc_output: str = "increment"
     parameters: dict = field(default_factory=dict)
-    effects: dict | None = None   # vocabulary -> (FMU name, SI per FMU unit); None: the FMU uses the vocabulary
-    timeout_s: float | None = None
+    effect_map: dict | None = None   # the unit description's maps (components.simulation.unit_maps);
+    timeout_s: float | None = None   #   None: the FMU's parameters are the vocabulary's
     replicates: int | None = None
+    noise_map: dict | None = None
+    seed_parameter: str | None = None
 
 
 @dataclass
@@ -231,28 +233,27 @@ def scenario_for(camp: Campaign, case: Case, check_only: bool = False):
             imu["noise"][name] = v
         else:
             imu["effects"][name] = v
-    parsed = scenario_from_dict(sc, str(camp.scenario_file or camp.source), camp.scenario_base_dir)
-    truth = {k: v for k, v in {**parsed.imu_effects, **parsed.table_effects}.items() if v != 0.0}
-    lost = []
     imu["fmu"] = str(sys_.path)
     imu["mapping"] = dict(sys_.mapping)
     imu["gyro_output"], imu["acc_output"] = sys_.gyro_output, sys_.acc_output
     imu["parameters"] = {**imu["parameters"], **sys_.parameters}
-    if sys_.effects is not None:
-        # a supplier's FMU: vocabulary effects become its own parameters (its units); what it
-        # has no parameter for is not injected (and not in the truth); it has no noise model
-        params = dict(imu["parameters"])
-        for name, si in parsed.imu_effects.items():
-            if name in sys_.effects:
-                fmu_name, scale = sys_.effects[name]
-                params[fmu_name] = si / scale
-            elif si != 0.0:
-                lost.append(name)
-                truth.pop(name, None)
-        imu["parameters"], imu["effects"], imu["noise"] = params, {}, {}
+    for key, v in (("effect_map", sys_.effect_map), ("noise_map", sys_.noise_map),
+                   ("seed_parameter", sys_.seed_parameter)):
+        if v is not None:
+            imu[key] = v
+    parsed = scenario_from_dict(sc, str(camp.scenario_file or camp.source), camp.scenario_base_dir)
+    # what this IMU can take of the case's effects and noise (its maps; ours: all): the truth is
+    # what it got, the rest is listed as not injected
+    from components.simulation.unit_maps import maps_for, plan_injection
+
+    inj = plan_injection(parsed.imu_effects, parsed.imu_noise,
+                         *maps_for(sys_.path, sys_.effect_map, sys_.noise_map, sys_.seed_parameter, str(camp.source)))
+    truth = {k: v for k, v in {**inj.effects, **parsed.table_effects}.items() if v != 0.0}
+    lost = {"effects": sorted(inj.not_injected["effects"]), "noise": sorted(inj.not_injected["noise"]),
+            "seed": inj.seed_parameter is None, "noise_free": inj.noise_free}
     if check_only:
         return sc, truth, lost
-    return sc, dict(sorted(truth.items())), sorted(lost)
+    return sc, dict(sorted(truth.items())), lost
 
 
 def match_parameters(patterns: list, names) -> list:

@@ -28,16 +28,20 @@ def traceability(camp, records: dict) -> list[dict]:
             if rec is not None:
                 res = next((r for r in rec["criteria"] if r["id"] == crit.id), None)
             outcome = ("missing" if rec is None else "error" if rec["verdict"] == "error"
+                       else "n/a" if res and res.get("applicable") is False
                        else "pass" if res and res["passed"] else "fail")
             cases.append({"case": case.id, "outcome": outcome})
-        counts = {k: sum(c["outcome"] == k for c in cases) for k in ("pass", "fail", "error", "missing")}
+        counts = {k: sum(c["outcome"] == k for c in cases) for k in ("pass", "fail", "error", "missing", "n/a")}
+        judged = [c for c in cases if c["outcome"] != "n/a"]
         verdict = ("fail" if counts["fail"] else "error" if counts["error"] else
-                   "incomplete" if counts["missing"] else "pass" if cases else "no case")
+                   "incomplete" if counts["missing"] else "pass" if judged else
+                   "not applicable" if cases else "no case")
         req["criteria"].append({"id": crit.id, "kind": crit.kind, "description": crit.description,
                                 "cases": cases, "counts": counts, "verdict": verdict})
     for req in out.values():
         vs = [c["verdict"] for c in req["criteria"]]
-        req["verdict"] = next((v for v in ("fail", "error", "incomplete", "no case") if v in vs), "pass")
+        req["verdict"] = next((v for v in ("fail", "error", "incomplete", "no case") if v in vs),
+                              "not applicable" if vs and all(v == "not applicable" for v in vs) else "pass")
     return [out[k] for k in sorted(out)]
 
 

@@ -19,7 +19,22 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     log = result.log
     print(f"{sc.name}: schedule {sc.schedule.name}, {log.n} samples over {log.time[-1]:.1f} s, "
           f"{len(result.controller.labels)} segment labels -> " + ", ".join(str(p) for p in paths))
+    for line in injection_notes(result.truth):
+        print(line)
     return 0
+
+
+def injection_notes(truth: dict) -> list[str]:
+    """What a run's IMU could not take, as the truth file records it."""
+    lost = truth.get("not_injected", {})
+    out = []
+    for kind in ("effects", "noise"):
+        if lost.get(kind):
+            out.append(f"not injected (the IMU FMU has no parameter for them; see docs/supplier.md): {kind} "
+                       f"{', '.join(lost[kind])}")
+    if lost.get("seed"):
+        out.append("the IMU FMU takes no seed: every run of it draws the same noise (or has none)")
+    return out
 
 
 def register(sub) -> None:

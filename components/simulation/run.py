@@ -18,6 +18,7 @@ from components.control.schedule import DEG
 from components.errors import ScenarioError
 from components.model.result import file_sha256
 from components.simulation.scenario import TRUTH_FORMAT, Scenario, scenario_from_dict
+from components.simulation.unit_maps import maps_for, plan_injection
 
 
 def _fmu_path(spec: str, base_dir: Path) -> Path:
@@ -119,9 +120,14 @@ def build_system(sc: Scenario, record: list[str] | None = None):
            float(tparams.get(f"{fmu_axis[a]}.acc_max", tstart.get(f"{fmu_axis[a]}.acc_max", 200 * DEG)))
            for a in axes]
     imu_names = set(istart) | _names(imu_path)
-    iparams = {**sc.imu_effects, **sc.imu_noise, **sc.imu_parameters}
-    if sc.imu_mapping.get("seed", "seed") in imu_names:
-        iparams["seed"] = sc.seed  # a supplier's IMU may have no noise seed
+    # the vocabulary's effects and noise through the unit's maps (ours: the identity); what the
+    # FMU has no parameter for is not injected, and the truth says so
+    em, nm, seed_par = maps_for(imu_path, sc.imu_effect_map, sc.imu_noise_map, sc.imu_seed_parameter,
+                                f"{sc.source}: [imu]")
+    injection = plan_injection(sc.imu_effects, sc.imu_noise, em, nm, seed_par)
+    iparams = {**injection.parameters, **sc.imu_parameters}
+    if seed_par is not None:
+        iparams[seed_par] = sc.seed
     multiple = int(round(1.0 / (sc.controller_rate_hz * sc.step)))
     ctrl = CalibrationController("ctrl", sc.schedule, axes=axes, counts_per_rev=cpr, acc_max=acc)
     conns = []
@@ -169,7 +175,8 @@ def build_system(sc: Scenario, record: list[str] | None = None):
                         parameters=iparams, mapping=dict(sc.imu_mapping))],
         connections=conns, record=rec, source=sc.source, base_dir=sc.base_dir)
     info = {"table_path": table_path, "imu_path": imu_path, "geometry": geo, "table_parameters": tparams,
-            "imu_parameters": iparams, "counts_per_rev": cpr, "acc_max": acc, "controller_multiple": multiple}
+            "imu_parameters": iparams, "counts_per_rev": cpr, "acc_max": acc, "controller_multiple": multiple,
+            "injection": injection}
     return system, ctrl, info
 
 
@@ -242,15 +249,18 @@ def _step_dict(s) -> dict:
 def truth_of(sc: Scenario, ctrl: CalibrationController, info: dict, rec) -> dict:
     sched = sc.schedule
     st = sched.settings
-    effects = {k: v for k, v in {**sc.imu_effects, **sc.table_effects}.items() if v != 0.0}
+    inj = info["injection"]
+    effects = {k: v for k, v in {**inj.effects, **sc.table_effects}.items() if v != 0.0}
 
     return {
         "format": TRUTH_FORMAT,
         "scenario": {"name": sc.name, "description": sc.description, "source": sc.source,
                      "sha256": file_sha256(sc.source) if sc.source and Path(sc.source).exists() else None},
-        "seed": sc.seed,
+        "seed": sc.seed if inj.seed_parameter is not None else None,
         "effects": effects,
-        "noise": dict(sc.imu_noise),
+        "noise": dict(inj.noise),
+        # asked for but not reachable through the IMU's maps: not in the truth above
+        "not_injected": {**inj.not_injected, "seed": inj.seed_parameter is None},
         "imu": {"fmu": str(info["imu_path"]), "sha256": file_sha256(info["imu_path"]),
                 "parameters": {k: v for k, v in info["imu_parameters"].items() if v != 0 or k == "seed"},
                 "gyro_output": sc.gyro_output, "acc_output": sc.acc_output, "sample_interval_s": sc.step},

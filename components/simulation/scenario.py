@@ -33,9 +33,9 @@ A scenario file (TOML)::
     "outer.rate_max" = 1.0
 
     [imu]
-    fmu = "builtin:imu"
-    mapping = {}
-    gyro_output = "increment"    # the unit's output kind (role option)
+    fmu = "builtin:imu"          # or a supplier's FMU: docs/supplier.md (effect_map, noise_map,
+    mapping = {}                 #   seed_parameter: how the vocabulary reaches its parameters)
+    gyro_output = "increment"    # the unit's output kind (role option; or role_options = {...})
     acc_output = "increment"
     [imu.effects]                # vocabulary names = the IMU FMU's parameter names
     "gyro.bias.x" = "0.01 deg/h"
@@ -91,6 +91,10 @@ class Scenario:
     imu_effects: dict = field(default_factory=dict)
     imu_noise: dict = field(default_factory=dict)
     imu_parameters: dict = field(default_factory=dict)
+    # a supplier's IMU: vocabulary -> its parameters (components.simulation.unit_maps); None: ours
+    imu_effect_map: dict | None = None
+    imu_noise_map: dict | None = None
+    imu_seed_parameter: str | None = None
     schedule_spec: str = ""
     schedule_overrides: dict = field(default_factory=dict)
     geometry_axes: dict = field(default_factory=dict)   # role axis -> rotation axis (filled by build_system)
@@ -199,7 +203,17 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
 
     im = _table(data, "imu", source)
     w = f"{source}: [imu]"
-    _keys(im, {"fmu", "mapping", "gyro_output", "acc_output", "effects", "noise", "parameters"}, w)
+    _keys(im, {"fmu", "mapping", "gyro_output", "acc_output", "role_options", "effects", "noise", "parameters",
+               "effect_map", "noise_map", "seed_parameter"}, w)
+    maps = unit_maps_of(im, w)
+    if "role_options" in im:
+        ro = im["role_options"]
+        if not isinstance(ro, dict) or set(ro) - {"gyro_output", "acc_output"}:
+            raise ScenarioError(f"{w}: role_options = {ro!r}: expected {{gyro_output, acc_output}}")
+        for k in ("gyro_output", "acc_output"):
+            if k in ro and k in im and ro[k] != im[k]:
+                raise ScenarioError(f"{w}: {k} is given twice, differently ({im[k]!r}, role_options {ro[k]!r})")
+        im = {**im, **ro}
     imu_effects = {}
     for k, v in _table(im, "effects", w).items():
         if k.startswith("table."):
@@ -234,8 +248,38 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
         acc_max=None if acc is None else float(acc) * DEG,
         imu_fmu=im.get("fmu", "builtin:imu"), imu_mapping=dict(im.get("mapping", {})),
         gyro_output=im.get("gyro_output", "increment"), acc_output=im.get("acc_output", "increment"),
-        imu_effects=imu_effects, imu_noise=imu_noise, imu_parameters=imu_params,
+        imu_effects=imu_effects, imu_noise=imu_noise, imu_parameters=imu_params, **maps,
         schedule_spec=spec, schedule_overrides=ov, source=source, base_dir=base_dir)
+
+
+OUTPUT_KINDS = {"gyro_output": ("increment", "rate", "counts"), "acc_output": ("increment", "specific_force", "counts")}
+
+
+def unit_maps_of(d: dict, where: str, error=ScenarioError) -> dict:
+    """The effect map, noise map and seed parameter of an IMU unit description (scenario [imu],
+    campaign [systems.X]), checked for shape; their FMU parameters and units are checked against
+    the FMU when the run is built (components.simulation.unit_maps)."""
+    out = {"imu_effect_map": None, "imu_noise_map": None, "imu_seed_parameter": None}
+    for key in ("effect_map", "noise_map"):
+        if key not in d:
+            continue
+        m = d[key]
+        ok = isinstance(m, dict) and all(isinstance(v, str) or (isinstance(v, list) and len(v) == 2 and all(
+            isinstance(x, str) for x in v)) for v in m.values())
+        if not ok:
+            raise error(f"{where}: {key} = {m!r}: expected a table of vocabulary name = the FMU's parameter, or "
+                        "[its parameter, its unit]")
+        out[f"imu_{key}"] = dict(m)
+    if "seed_parameter" in d:
+        sp = d["seed_parameter"]
+        if not isinstance(sp, str) or not sp:
+            raise error(f"{where}: seed_parameter = {sp!r}: expected the FMU's seed parameter name")
+        out["imu_seed_parameter"] = sp
+    for k, kinds in OUTPUT_KINDS.items():
+        v = d.get(k, (d.get("role_options") or {}).get(k) if isinstance(d.get("role_options"), dict) else None)
+        if v is not None and v not in kinds:
+            raise error(f"{where}: {k} = {v!r}: expected one of {', '.join(kinds)}")
+    return out
 
 
 def _param(v, key: str, where: str):
