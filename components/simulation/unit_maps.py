@@ -96,9 +96,13 @@ def resolve_map(raw: dict | None, fmu_path: Path, kind: str, where: str) -> Para
             hint = f" (did you mean {', '.join(near)}?)" if near else f" (its parameters: {', '.join(list(params)[:12])})"
             raise ScenarioError(f"{w}: the FMU {fmu_path.name} has no parameter {fmu_name!r}{hint}")
         want = _si_exponents(si_unit)
+        have = None if v.base_exponents is None else tuple(v.base_exponents)
+        if have is not None and want is not None and si_unit == "1" and "arcsec" in units:
+            # a misalignment is a small angle: SI calls it 1, FMI's base units call it rad
+            have = tuple(0 if k == len(have) - 1 else e for k, e in enumerate(have))
         declared = None   # SI per unit of the FMU's own unit, when it can be read
         if v.unit and v.base_exponents is not None:
-            if want is not None and tuple(v.base_exponents) != tuple(want):
+            if want is not None and have != tuple(want):
                 raise ScenarioError(f"{w}: the FMU declares {fmu_name} in {v.unit!r}, which is not a unit of {si_unit} "
                                     f"(what {name} is in)")
             if v.unit_offset:
