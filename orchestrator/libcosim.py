@@ -126,7 +126,9 @@ def _sample_reader():
 def run_libcosim(system: System, chunk: int = 4096) -> Recording:
     """Run *system* in libcosim and return a :class:`Recording` with the same signals, time rows
     and SI values as :meth:`Simulation.run` would. Raises :class:`LibcosimUnsupported` before
-    anything runs when the system needs what libcosim cannot do."""
+    anything runs when the system needs what libcosim cannot do (checked before libcosimpy is
+    imported, so an unsupported system is told why without the engine installed)."""
+    sim = check_supported(system)
     from libcosimpy._internal import get_last_error_message
     from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
@@ -134,7 +136,6 @@ def run_libcosim(system: System, chunk: int = 4096) -> Recording:
     from libcosimpy.CosimObserver import CosimObserver
     from libcosimpy.CosimSlave import CosimLocalSlave
 
-    sim = check_supported(system)
     h = system.step
     n_steps = int(round((system.stop - system.start) / h))
     every = system.record_every

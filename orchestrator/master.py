@@ -84,6 +84,7 @@ class Simulation:
         self.units: dict[str, Unit] = {}
         self.bindings: dict[str, dict] = {}
         self.role_checks: list[RoleCheck] = []
+        self.role_settings: dict[str, dict] = {}
         self.order: list[str] = []
         self.connections: list[ScalarConnection] = []
         self.stopped_at: float | None = None  # set when a unit ended the run before stop
@@ -101,11 +102,14 @@ class Simulation:
             if spec.role:
                 try:
                     role = get_role(spec.role, **spec.role_options)
-                except (KeyError, TypeError) as e:
-                    raise SystemError_(f"units.{spec.name}.role = {spec.role!r}: {e}") from None
+                except (KeyError, TypeError, ValueError) as e:
+                    opts = f" with role_options {spec.role_options}" if spec.role_options else ""
+                    raise SystemError_(f"units.{spec.name}.role = {spec.role!r}{opts}: "
+                                       f"{str(e).strip(chr(39))}") from None
                 chk = check_unit(self.units[spec.name], role, spec.mapping)
                 checks.append(chk)
                 self.bindings[spec.name] = chk.bindings
+                self.role_settings[spec.name] = self._role_settings(spec, role)
             elif spec.mapping:
                 raise SystemError_(f"units.{spec.name}: a mapping needs a role")
         self.role_checks = checks
@@ -119,9 +123,27 @@ class Simulation:
     def _endpoint(self, unit: str, name: str, where: str) -> list[Endpoint]:
         return resolve(self.units[unit], self.bindings.get(unit, {}), name, where)
 
+    def _role_settings(self, spec, role) -> dict:
+        """The role's settings this unit has a parameter for, in its own names; a value the
+        system file gives otherwise contradicts the role's options and is refused."""
+        unit, out = self.units[spec.name], {}
+        for name, value in role.settings.items():
+            own = spec.mapping.get(name, name)
+            v = unit.variables.get(own)
+            if v is None or v.causality != "parameter":
+                continue
+            given = spec.parameters.get(name, spec.parameters.get(own))
+            if given is not None and given != value:
+                raise SystemError_(
+                    f"units.{spec.name}.parameters: {name} = {given!r} contradicts the role's "
+                    f"options {spec.role_options or '(defaults)'}, which need {name} = {value!r}; "
+                    "set role_options instead")
+            out[own] = value
+        return out
+
     def _parameters(self, spec) -> dict:
-        """Parameter values in the unit's own names and units."""
-        out = {}
+        """Parameter values in the unit's own names and units (the role's settings first)."""
+        out = dict(self.role_settings.get(spec.name, {}))
         for name, value in spec.parameters.items():
             (e,) = self._endpoint(spec.name, name, f"units.{spec.name}.parameters")
             v = self.units[spec.name].variables[e.var]

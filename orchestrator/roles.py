@@ -23,6 +23,9 @@ class RoleVariable:
     unit: str | None = None  # SI unit the role exchanges
     required: bool = True
     description: str = ""
+    # how an output refines when the step is halved (verify): "sample" a value at an instant,
+    # "sum" a per-interval total (an increment, a count), "mean" a per-interval mean (a mean rate)
+    aggregate: str = "sample"
 
 
 @dataclass
@@ -30,6 +33,10 @@ class Role:
     name: str
     variables: list[RoleVariable]
     description: str = ""
+    # parameters that configure a unit to give what the role's options declare (an IMU that
+    # chooses its output kind by parameter): a unit that has a parameter of this name (its own or
+    # through its mapping) takes the value; a system file setting it otherwise is refused
+    settings: dict = field(default_factory=dict)
 
     def variable(self, name: str) -> RoleVariable | None:
         return next((v for v in self.variables if v.name == name), None)

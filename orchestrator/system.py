@@ -54,7 +54,7 @@ from orchestrator.errors import SystemError_
 from orchestrator.tomlfile import read_toml
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
-AGGREGATIONS = ("sample", "sum")
+AGGREGATIONS = ("sample", "sum", "mean")
 
 
 @dataclass

@@ -4,11 +4,12 @@ an independent engine compute the same thing?
 1. Step refinement. The system runs at its step h, at h/2 and at h/4 (every unit keeps its
    ``step_multiple``, so every unit's own step halves too). The three recordings are brought onto
    the grid of the h-run's recorded rows (every ``record.every`` * h):
-   ``sample`` (default) takes the value at the grid time; ``sum`` adds a finer run's values over
-   each grid interval (for per-interval quantities such as IMU increments, whose value per step
-   depends on the step). A signal's aggregation is set in the system file,
-   ``[record] aggregate = {"imu.gyro" = "sum"}`` (a name or a vector prefix), or on the command
-   line. Per signal, with d1 = ||y_h - y_h/2|| and d2 = ||y_h/2 - y_h/4|| (RMS over the grid rows
+   ``sample`` takes the value at the grid time; ``sum`` adds a finer run's values over each grid
+   interval (per-interval totals: IMU increments, pulse counts); ``mean`` averages them (per-interval
+   means: an IMU's mean rate or mean specific force). A signal's aggregation comes from the command
+   line, then the system file (``[record] aggregate = {"imu.gyro" = "sum"}``, a name or a vector
+   prefix), then the unit's role (the IMU role's outputs say which kind they are, so a mean-rate
+   IMU is averaged and an increment IMU summed without being told), else ``sample``. Per signal, with d1 = ||y_h - y_h/2|| and d2 = ||y_h/2 - y_h/4|| (RMS over the grid rows
    after the first), the observed order is p = log2(d1 / d2) and the Richardson estimate of the
    h-run's error is d1 * 2^p / (2^p - 1). When the differences do not shrink (p below 0.5, or
    d2 = 0 while d1 > 0) no extrapolation is trusted and the estimate is d1 + d2 (flagged "no
@@ -68,6 +69,7 @@ class VerifyReport:
     engine_rel: float
     signals: list[SignalResult] = field(default_factory=list)
     engine_note: str = ""
+    engine_missing: bool = False   # libcosimpy is not installed: the engine check could not run
 
     @property
     def ok(self) -> bool:
@@ -96,7 +98,8 @@ class VerifyReport:
 
 def aggregation_of(system: System, signal: str, overrides: dict | None = None) -> str:
     """The aggregation of a recorded signal: the longest matching name or prefix (``imu.gyro``
-    matches ``imu.gyro.x``) in *overrides*, then in the system's ``record.aggregate``."""
+    matches ``imu.gyro.x``) in *overrides*, then in the system's ``record.aggregate``, then what
+    the unit's role declares for that variable."""
     for table in (overrides or {}, system.record_aggregate):
         best = None
         for key in table:
@@ -108,7 +111,22 @@ def aggregation_of(system: System, signal: str, overrides: dict | None = None) -
             if how not in AGGREGATIONS:
                 raise SystemError_(f"aggregate {best} = {how!r}: expected one of {AGGREGATIONS}")
             return how
-    return "sample"
+    return _role_aggregation(system, signal)
+
+
+def _role_aggregation(system: System, signal: str) -> str:
+    unit, _, var = signal.partition(".")
+    spec = next((u for u in system.units if u.name == unit), None)
+    if spec is None or not spec.role:
+        return "sample"
+    from orchestrator.roles import get_role
+
+    try:
+        role = get_role(spec.role, **(spec.role_options or {}))
+    except (KeyError, TypeError, ValueError):
+        return "sample"  # the system's validation reports a bad role; verify does not guess
+    declared = role.variable(var)
+    return declared.aggregate if declared is not None else "sample"
 
 
 def _refined(system: System, factor: int) -> System:
@@ -121,7 +139,7 @@ def _refined(system: System, factor: int) -> System:
 def on_grid(rec: Recording, block: int, how: list[str]) -> np.ndarray:
     """Rows of a run recorded every step, brought onto a grid of every *block*-th row:
     ``sample`` columns take the row at the grid point, ``sum`` columns add the *block* rows of
-    the interval that ends there (row 0 keeps the initial value)."""
+    the interval that ends there, ``mean`` columns average them (row 0 keeps the initial value)."""
     data = rec.data[: rec.rows]
     n = (rec.rows - 1) // block
     out = data[:: block][: n + 1].copy()
@@ -129,6 +147,8 @@ def on_grid(rec: Recording, block: int, how: list[str]) -> np.ndarray:
     for j, h in enumerate(how):
         if h == "sum":
             out[1:, j] = sums[:, j]
+        elif h == "mean":
+            out[1:, j] = sums[:, j] / block
     return out
 
 
@@ -172,6 +192,11 @@ def _engine_check(system: System, base: Recording, report: VerifyReport) -> None
 
     try:
         theirs = run_libcosim(copy.deepcopy(system))
+    except ImportError:
+        report.engine_missing = True
+        report.engine_note = ("engine comparison with libcosim not run: libcosimpy is not installed "
+                              "(pip install \"calbench[verify]\", or --no-engine to skip it)")
+        return
     except LibcosimUnsupported as e:
         report.engine_note = ("engine comparison with libcosim skipped: "
                               + str(e).split(":", 1)[-1].strip().replace("\n  ", "; "))

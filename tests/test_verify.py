@@ -95,6 +95,8 @@ def test_on_grid_sample_and_sum():
     g = on_grid(rec, 4, ["sample", "sum"])
     np.testing.assert_array_equal(g[:, 0], [0, 4, 8])
     np.testing.assert_array_equal(g[:, 1], [0, 1 + 2 + 3 + 4, 5 + 6 + 7 + 8])
+    g = on_grid(rec, 4, ["mean", "sample"])
+    np.testing.assert_array_equal(g[:, 0], [0, (1 + 2 + 3 + 4) / 4, (5 + 6 + 7 + 8) / 4])
 
 
 def test_aggregate_from_toml_and_prefix(tmp_path):
@@ -106,7 +108,7 @@ def test_aggregate_from_toml_and_prefix(tmp_path):
     assert aggregation_of(s, "a.gyroscope") == "sample"
     assert aggregation_of(s, "a.gyro.x", {"a.gyro.x": "sample"}) == "sample"
     p.write_text('[system]\nstop = 1.0\n[units.a]\nfmu = "x.fmu"\n'
-                 '[record]\nsignals = ["a.gyro"]\naggregate = {"a.gyro" = "mean"}\n')
+                 '[record]\nsignals = ["a.gyro"]\naggregate = {"a.gyro" = "median"}\n')
     with pytest.raises(Exception, match="aggregate"):
         load_system(p)
 
@@ -149,3 +151,126 @@ aggregate = {"imu.acc" = "sum"}
     assert "PASS" in out and "skipped" not in out  # the libcosim comparison ran
     assert main(["verify", str(toml), "--rel-tol", "1e-15"]) == 1
     assert "FAIL" in capsys.readouterr().out
+
+
+# Our IMU FMU between a slewing table (1 rad on the middle axis) and nothing to smooth it over a
+# step (no integrals, Jacobi): a real first-order coupling error on every sensed channel.
+PAIR = """
+[system]
+name = "pair"
+step = 0.004
+stop = {stop}
+algorithm = "jacobi"
+[units.table]
+fmu = "builtin:turntable"
+role = "turntable"
+[units.table.parameters]
+"middle.angle_cmd" = 1.0
+[units.imu]
+fmu = "builtin:imu"
+role = "imu"
+{options}
+[units.imu.parameters]
+"acc.bias.x" = 1e-3
+{parameters}
+[[connections]]
+from = "table.plate.omega"
+to = "imu.omega"
+[[connections]]
+from = "table.plate.f"
+to = "imu.f"
+[[connections]]
+from = "table.plate.alpha"
+to = "imu.alpha"
+[record]
+signals = ["imu.acc", "imu.gyro", "table.middle.angle"]
+"""
+
+
+def pair(tmp_path, name="pair.toml", stop=1.0, options="", parameters=""):
+    p = tmp_path / name
+    p.write_text(PAIR.format(stop=stop, options=options, parameters=parameters))
+    return p
+
+
+MEAN_RATE = 'role_options = {gyro_output = "rate", acc_output = "specific_force"}'
+
+
+def test_mean_rate_outputs_are_averaged_like_increments_are_summed(tmp_path):
+    """A mean rate over an interval is its increment divided by the interval, so averaged onto the
+    coarse grid it is the summed increment / h: the same IMU in rate mode and in increment mode
+    must show the same relative coupling error, each aggregated as its role declares (nothing in
+    the system file says how). Sampling the mean rate instead (the old behaviour that failed every
+    mean-rate IMU) compares intervals of different lengths and overstates it."""
+    inc = verify(load_system(pair(tmp_path)), rel_tol=1.0, engine=False)
+    rate_system = load_system(pair(tmp_path, "rate.toml", options=MEAN_RATE))
+    rate = verify(rate_system, rel_tol=1.0, engine=False)
+    sampled = verify(rate_system, rel_tol=1.0, engine=False, aggregate={"imu": "sample"})
+    by_inc = {s.name: s for s in inc.signals}
+    by_sampled = {s.name: s for s in sampled.signals}
+    for s in rate.signals:
+        if not s.name.startswith("imu."):
+            continue
+        i = by_inc[s.name]
+        assert (s.aggregate, i.aggregate) == ("mean", "sum"), s.name
+        # the outputs really are rates: increment / h (the role option reached our FMU)
+        assert s.rms == pytest.approx(i.rms / 0.004, rel=1e-9), s.name
+        if s.name == "imu.acc.x":
+            continue  # a constant bias: no coupling error in either mode
+        assert s.rel_error == pytest.approx(i.rel_error, rel=1e-6), s.name
+        assert by_sampled[s.name].rel_error > 1.3 * s.rel_error, s.name
+
+
+def test_role_options_and_parameters_must_agree(tmp_path, capsys):
+    p = pair(tmp_path, options=MEAN_RATE, parameters='"gyro.output" = 2')
+    assert main(["verify", str(p), "--no-engine"]) == 2
+    err = capsys.readouterr().err
+    assert "gyro.output = 2 contradicts" in err and "Traceback" not in err
+    p = pair(tmp_path, options='role_options = {gyro_output = "degrees"}')
+    assert main(["verify", str(p), "--no-engine"]) == 2
+    assert "gyro_output 'degrees': expected one of" in capsys.readouterr().err
+
+
+def test_turntable_axes_option_as_one_string():
+    from components.simulation.roles import turntable_role
+
+    names = {v.name.split(".")[0] for v in turntable_role("outer, inner").variables}
+    assert names == {"outer", "inner", "plate"}
+    with pytest.raises(ValueError, match="expected distinct names"):
+        turntable_role("outr")
+
+
+class Failing(Component):
+    variables = [Var("x", "output")]
+
+    def do_step(self, t, h):
+        if t > 0.5:
+            raise RuntimeError("sensor saturated")
+
+
+def test_verify_exit_codes_bad_input_could_not_run_engine_missing(tmp_path, capsys, monkeypatch):
+    assert main(["verify", str(pair(tmp_path)), "--aggregate", "imu=median"]) == 2
+    assert "expected SIGNAL=sample|sum|mean" in capsys.readouterr().err
+    # a unit fails during the run: "could not run", the unit and time named
+    failing = tmp_path / "failing.toml"
+    failing.write_text('[system]\nname = "f"\nstep = 0.1\nstop = 1.0\n[units.f]\n'
+                       'component = "test_verify:Failing"\n[record]\nsignals = ["f.x"]\n')
+    monkeypatch.syspath_prepend(str(__import__("pathlib").Path(__file__).parent))
+    assert main(["verify", str(failing), "--no-engine"]) == 3
+    err = capsys.readouterr().err
+    assert "could not run" in err and "sensor saturated" in err
+    # the engine is not installed: said in the report, exit 3 even though the coupling passed
+    monkeypatch.setitem(__import__("sys").modules, "libcosimpy", None)
+    monkeypatch.setitem(__import__("sys").modules, "libcosimpy._internal", None)
+    assert main(["verify", str(pair(tmp_path)), "--rel-tol", "1e3"]) == 3
+    cap = capsys.readouterr()
+    assert "libcosimpy is not installed" in cap.out and "PASS" in cap.out
+    assert "engine comparison could not run" in cap.err and "Traceback" not in cap.err
+    # a system libcosim cannot run (a Python component) is told why without the engine: the
+    # comparison does not apply, so it is no failure to run
+    sine = tmp_path / "sine.toml"
+    sine.write_text('[system]\nname = "s"\nstep = 0.1\nstop = 1.0\n[units.s]\n'
+                    'component = "test_verify:Sine"\n[record]\nsignals = ["s.x"]\n')
+    assert main(["verify", str(sine)]) == 0
+    out = capsys.readouterr().out
+    assert "skipped" in out and "Python component" in out and "not installed" not in out

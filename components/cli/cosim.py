@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from components.errors import UserError
+
+# verify's exit codes beyond the shared 0 (fine) and 2 (bad input)
+VERIFY_OUT_OF_TOLERANCE = 1
+VERIFY_COULD_NOT_RUN = 3
 
 
 def _cmd_build_fmus(args: argparse.Namespace) -> int:
@@ -45,22 +50,36 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
+    from orchestrator.errors import LibcosimError, NativeSpanFault, SimulationFault
     from orchestrator.loader import load_system
+    from orchestrator.system import AGGREGATIONS
     from orchestrator.verify import verify
 
+    # bad input (the system file, an option) raises and leaves with exit 2 like every command
     system = load_system(args.system)
     if args.stop is not None:
         system.stop = args.stop
     agg = {}
     for it in args.aggregate or []:
         k, sep, v = it.partition("=")
-        if not sep:
-            raise UserError(f"--aggregate {it!r}: expected SIGNAL=sample|sum")
+        if not sep or v.strip() not in AGGREGATIONS:
+            raise UserError(f"--aggregate {it!r}: expected SIGNAL={'|'.join(AGGREGATIONS)}")
         agg[k.strip()] = v.strip()
-    report = verify(system, rel_tol=args.rel_tol, engine_abs=args.engine_tol, engine_rel=args.engine_tol,
-                    aggregate=agg, engine=not args.no_engine)
+    system.validate()
+    try:
+        report = verify(system, rel_tol=args.rel_tol, engine_abs=args.engine_tol,
+                        engine_rel=args.engine_tol, aggregate=agg, engine=not args.no_engine)
+    except (SimulationFault, NativeSpanFault, LibcosimError) as e:
+        print(f"calbench verify: could not run {args.system}: {e}", file=sys.stderr)
+        return VERIFY_COULD_NOT_RUN
     print(report.table())
-    return 0 if report.ok else 1
+    if not report.ok:
+        return VERIFY_OUT_OF_TOLERANCE
+    if report.engine_missing:
+        print("calbench verify: the coupling check passed, but the engine comparison could not run",
+              file=sys.stderr)
+        return VERIFY_COULD_NOT_RUN
+    return 0
 
 
 def _parse_mapping(items: list[str]) -> dict:
@@ -117,12 +136,15 @@ def register(sub) -> None:
     c.set_defaults(func=_cmd_check_fmu)
 
     v = sub.add_parser("verify", help="estimate the coupling error of the step (runs at h, h/2, h/4) "
-                                      "and compare with libcosim; exit 1 if out of tolerance")
+                                      "and compare with libcosim; exit 0 within tolerance, 1 out of "
+                                      "tolerance, 2 bad input, 3 could not run (a unit failed, "
+                                      "libcosimpy not installed)")
     v.add_argument("system", help="system file (.toml or .ssp)")
     v.add_argument("--rel-tol", type=float, default=1e-6, help="coupling error / signal RMS (1e-6)")
     v.add_argument("--engine-tol", type=float, default=1e-12, help="engine difference, abs and rel (1e-12)")
-    v.add_argument("--aggregate", action="append", metavar="SIGNAL=sample|sum",
-                   help="how a finer run maps onto the coarse grid (repeatable; adds to record.aggregate)")
+    v.add_argument("--aggregate", action="append", metavar="SIGNAL=sample|sum|mean",
+                   help="how a finer run maps onto the coarse grid (repeatable; overrides "
+                        "record.aggregate and what the unit's role declares)")
     v.add_argument("--stop", type=float, help="override the stop time [s]")
     v.add_argument("--no-engine", action="store_true", help="skip the libcosim comparison")
     v.set_defaults(func=_cmd_verify)

@@ -11,6 +11,12 @@ DEFAULT_AXES = ("outer", "middle", "inner")
 
 
 def turntable_role(axes=DEFAULT_AXES) -> Role:
+    """``axes``: the table's axes, a list of names or one string ("outer", "outer,inner")."""
+    if isinstance(axes, str):
+        axes = [a for a in axes.replace(",", " ").split()]
+    bad = [a for a in axes if a not in DEFAULT_AXES]
+    if bad or not axes or len(set(axes)) != len(axes):
+        raise ValueError(f"axes {list(axes)!r}: expected distinct names from {list(DEFAULT_AXES)}")
     v = []
     for a in axes:
         v += [
@@ -39,6 +45,7 @@ def turntable_role(axes=DEFAULT_AXES) -> Role:
 
 GYRO_KINDS = {"increment": "rad", "rate": "rad/s", "counts": "1"}
 ACC_KINDS = {"increment": "m/s", "specific_force": "m/s2", "rate": "m/s2", "counts": "1"}
+OUTPUT_CODES = {"increment": 0, "rate": 1, "specific_force": 1, "counts": 2}  # fmus/imu gyro.output
 
 
 def imu_role(gyro_output: str = "increment", acc_output: str = "increment") -> Role:
@@ -54,10 +61,15 @@ def imu_role(gyro_output: str = "increment", acc_output: str = "increment") -> R
     v += [RoleVariable(f"omega_int.{c}", "input", "Real", "rad", False) for c in "xyz"]
     v += [RoleVariable(f"f_int.{c}", "input", "Real", "m/s", False) for c in "xyz"]
     v.append(RoleVariable("temperature_env", "input", "Real", "degC", False))
-    v += [RoleVariable(f"gyro.{c}", "output", "Real", GYRO_KINDS[gyro_output]) for c in "xyz"]
-    v += [RoleVariable(f"acc.{c}", "output", "Real", ACC_KINDS[acc_output]) for c in "xyz"]
+    agg = {"increment": "sum", "counts": "sum", "rate": "mean", "specific_force": "mean"}
+    v += [RoleVariable(f"gyro.{c}", "output", "Real", GYRO_KINDS[gyro_output], aggregate=agg[gyro_output])
+          for c in "xyz"]
+    v += [RoleVariable(f"acc.{c}", "output", "Real", ACC_KINDS[acc_output], aggregate=agg[acc_output])
+          for c in "xyz"]
     v.append(RoleVariable("temperature", "output", "Real", "degC", False))
-    return Role("imu", v, "sensor physics, error effects, noise; outputs per interval")
+    # our IMU FMU picks its output kind by parameter; a supplier's without them is left alone
+    settings = {"gyro.output": OUTPUT_CODES[gyro_output], "acc.output": OUTPUT_CODES[acc_output]}
+    return Role("imu", v, "sensor physics, error effects, noise; outputs per interval", settings)
 
 
 def _builtin(name: str):

@@ -17,6 +17,7 @@ from components.control.controller import CalibrationController
 from components.control.schedule import DEG
 from components.errors import ScenarioError
 from components.model.result import file_sha256
+from components.simulation.roles import OUTPUT_CODES
 from components.simulation.scenario import TRUTH_FORMAT, Scenario, scenario_from_dict
 from components.simulation.unit_maps import maps_for, plan_injection
 
@@ -148,10 +149,9 @@ def build_system(sc: Scenario, record: list[str] | None = None):
                  and sc.imu_mapping.get(f"{dst}.x", f"{dst}.x") in imu_names]
     # an IMU that chooses its output kind by parameter (ours: gyro.output / acc.output) is told
     # the kind the scenario declares, so the role's unit and the FMU's output agree
-    kinds = {"increment": 0, "rate": 1, "specific_force": 1, "counts": 2}
     for sensor, kind in (("gyro", sc.gyro_output), ("acc", sc.acc_output)):
-        if f"{sensor}.output" in imu_names and f"{sensor}.output" not in iparams and kind in kinds:
-            iparams[f"{sensor}.output"] = kinds[kind]
+        if f"{sensor}.output" in imu_names and f"{sensor}.output" not in iparams:
+            iparams[f"{sensor}.output"] = OUTPUT_CODES[kind]
     if len(integrals) == 2 and "input_integrals" in imu_names and "input_integrals" not in iparams:
         conns += [Connection(f"table.{src}", f"imu.{dst}") for src, dst in integrals]
         iparams["input_integrals"] = 1
