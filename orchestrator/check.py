@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from orchestrator.errors import UnitError
+from orchestrator.errors import SystemError_, UnitError
 from orchestrator.fmu_units import FMU2Unit, load_fmu_unit
 from orchestrator.roles import RoleCheck, check_unit, get_role
 
@@ -52,7 +52,12 @@ def check_fmu(path: str | Path, role: str | None = None, mapping: dict | None = 
         verdict.smoke.append(str(e))
         return verdict
     if role:
-        verdict.role_check = check_unit(unit, get_role(role, **(role_options or {})), mapping)
+        try:
+            role_def = get_role(role, **(role_options or {}))
+        except (KeyError, TypeError, ValueError) as e:
+            raise SystemError_(f"role {role!r} with options {role_options or {}}: "
+                               f"{str(e).strip(chr(39))}") from None
+        verdict.role_check = check_unit(unit, role_def, mapping)
     _smoke(unit, step, verdict)
     return verdict
 

@@ -34,6 +34,7 @@ import numpy as np
 from orchestrator.errors import LibcosimUnsupported, SystemError_
 from orchestrator.master import simulate
 from orchestrator.recording import Recording
+from orchestrator.roles import get_role
 from orchestrator.system import AGGREGATIONS, System
 
 
@@ -70,6 +71,7 @@ class VerifyReport:
     signals: list[SignalResult] = field(default_factory=list)
     engine_note: str = ""
     engine_missing: bool = False   # libcosimpy is not installed: the engine check could not run
+    interface_notes: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -89,6 +91,7 @@ class VerifyReport:
             eok = "" if s.engine_ok is None else ("ok" if s.engine_ok else "FAIL")
             lines.append(f"{s.name:28s} {s.aggregate:6s} {s.rms:10.3e} {p:>8s} {s.error:12.3e} "
                          f"{s.rel_error:9.2e} {'ok' if s.coupling_ok else 'FAIL':4s} {eng:>11s} {eok:4s}")
+        lines += self.interface_notes
         if self.engine_note:
             lines.append(self.engine_note)
         lines.append(f"{'PASS' if self.ok else 'FAIL'}: {sum(s.ok for s in self.signals)} of "
@@ -119,8 +122,6 @@ def _role_aggregation(system: System, signal: str) -> str:
     spec = next((u for u in system.units if u.name == unit), None)
     if spec is None or not spec.role:
         return "sample"
-    from orchestrator.roles import get_role
-
     try:
         role = get_role(spec.role, **(spec.role_options or {}))
     except (KeyError, TypeError, ValueError):
@@ -180,11 +181,49 @@ def verify(system: System, rel_tol: float = 1e-6, engine_abs: float = 1e-12, eng
             err, conv = d1 + d2, False
         report.signals.append(SignalResult(name, how[j], rms, d1, d2, p, err, conv,
                                            err <= rel_tol * rms + 1e-300))
+    report.interface_notes = interface_notes(system)
     if engine:
         _engine_check(system, runs[0], report)
     else:
         report.engine_note = "engine comparison not requested"
     return report
+
+
+def interface_notes(system: System) -> list[str]:
+    """What each role unit's interface leaves out: the role's optional inputs the unit does not
+    offer, and those it offers that nothing drives. Both show in the coupling error above (the
+    unit reconstructs between communication points what it is not given)."""
+    from orchestrator.master import Simulation
+
+    sim = Simulation(system)
+    sim.load()
+    driven = {(c.target.unit, c.target.name) for c in sim.connections}
+    notes = []
+    for spec in system.units:
+        if not spec.role:
+            continue
+        role = get_role(spec.role, **spec.role_options)
+        optional = [v.name for v in role.variables if v.causality == "input" and not v.required]
+        absent = _vectors([n for n in optional if n not in sim.bindings[spec.name]])
+        idle = _vectors([n for n in optional if n in sim.bindings[spec.name] and (spec.name, n) not in driven])
+        if absent:
+            notes.append(f"unit {spec.name} (role {spec.role}) does not take the optional inputs "
+                         f"{', '.join(absent)}")
+        if idle:
+            notes.append(f"unit {spec.name} (role {spec.role}) takes {', '.join(idle)}, but nothing "
+                         "drives them")
+    return notes
+
+
+def _vectors(names: list[str]) -> list[str]:
+    """``alpha.x, alpha.y, alpha.z`` as ``alpha``."""
+    out = []
+    for n in names:
+        stem, _, last = n.rpartition(".")
+        key = stem if stem and last in ("x", "y", "z") else n
+        if key not in out:
+            out.append(key)
+    return out
 
 
 def _engine_check(system: System, base: Recording, report: VerifyReport) -> None:

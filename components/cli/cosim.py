@@ -101,10 +101,27 @@ def _cmd_check_fmu(args: argparse.Namespace) -> int:
         raise UserError(f"FMU file {args.fmu} does not exist")
     options = {}
     for it in args.option or []:
-        k, _, v = it.partition("=")
-        options[k] = v
-    verdict = check_fmu(args.fmu, args.role, _parse_mapping(args.map), options, args.step)
+        k, sep, v = it.partition("=")
+        if not sep or not k.strip():
+            raise UserError(f"--option {it!r}: expected KEY=VALUE")
+        options[k.strip()] = v.strip()
+    parameters = {}
+    for it in args.parameter or []:
+        k, sep, v = it.partition("=")
+        try:
+            parameters[k.strip()] = float(v)
+        except ValueError:
+            sep = ""
+        if not sep or not k.strip():
+            raise UserError(f"--parameter {it!r}: expected NAME=NUMBER (in the FMU's own units)")
+    mapping = _parse_mapping(args.map)
+    verdict = check_fmu(args.fmu, args.role, mapping, options, args.step)
     print(verdict.report())
+    if args.role == "imu" and verdict.ok and not args.no_cost:
+        from components.simulation.interface_cost import interface_cost
+
+        print(interface_cost(args.fmu, mapping, options, parameters, args.step, args.grade,
+                             args.noise_fraction).report())
     return 0 if verdict.ok else 1
 
 
@@ -132,7 +149,18 @@ def register(sub) -> None:
                    help="map a role variable onto the FMU's own name (repeatable)")
     c.add_argument("--option", action="append", metavar="KEY=VALUE",
                    help="role option, e.g. gyro_output=rate (imu) (repeatable)")
-    c.add_argument("--step", type=float, default=0.005, help="step of the smoke test [s]")
+    c.add_argument("--step", type=float, default=0.005,
+                   help="communication step of the smoke test and the interface cost [s]")
+    c.add_argument("--parameter", action="append", metavar="NAME=NUMBER",
+                   help="a parameter for the interface cost, in the FMU's own name and unit (e.g. "
+                        "its noise set to 0) (repeatable)")
+    c.add_argument("--grade", choices=("navigation", "tactical"), default="navigation",
+                   help="whose white noise per sample the coupling error is set against (imu)")
+    c.add_argument("--noise-fraction", type=float, default=0.1,
+                   help="the share of that noise the coupling error may reach (0.1)")
+    c.add_argument("--no-cost", action="store_true",
+                   help="skip the interface cost (role imu: the coupling error while the table "
+                        "indexes, at the step and at 2, 5, 10, 20 ms)")
     c.set_defaults(func=_cmd_check_fmu)
 
     v = sub.add_parser("verify", help="estimate the coupling error of the step (runs at h, h/2, h/4) "

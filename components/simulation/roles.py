@@ -13,7 +13,7 @@ DEFAULT_AXES = ("outer", "middle", "inner")
 def turntable_role(axes=DEFAULT_AXES) -> Role:
     """``axes``: the table's axes, a list of names or one string ("outer", "outer,inner")."""
     if isinstance(axes, str):
-        axes = [a for a in axes.replace(",", " ").split()]
+        axes = axes.replace(",", " ").split()
     bad = [a for a in axes if a not in DEFAULT_AXES]
     if bad or not axes or len(set(axes)) != len(axes):
         raise ValueError(f"axes {list(axes)!r}: expected distinct names from {list(DEFAULT_AXES)}")
@@ -85,6 +85,6 @@ def _builtin(name: str):
 
 def register() -> None:
     """The ``orchestrator.plugins`` entry point (pyproject.toml): the two roles and ``builtin:``."""
-    register_role("turntable", lambda axes=DEFAULT_AXES: turntable_role(tuple(axes)))
+    register_role("turntable", turntable_role)
     register_role("imu", imu_role)
     register_fmu_resolver("builtin", _builtin)
