@@ -404,7 +404,9 @@ class Simulation:
                        "start": sysm.start, "stop": sysm.stop, "algorithm": sysm.algorithm,
                        "order": self.order, "record_every": sysm.record_every},
             "units": {n: {**u.provenance(),
-                          "parameters": self.system.unit(n).parameters,
+                          # what was set: the role's settings (ours: its output kind) and the file's
+                          "parameters": {**self.role_settings.get(n, {}), **self.system.unit(n).parameters},
+                          "role_options": self.system.unit(n).role_options,
                           "step_multiple": self.system.unit(n).step_multiple}
                       for n, u in self.units.items()},
             "versions": {"python": platform.python_version(), "numpy": np.__version__,

@@ -160,7 +160,7 @@ def test_log_from_orchestrator_run(tmp_path):
                      "config": {"sequence": [[0.0, 0.0, 0.0, 0.0], [0.3, 0.0, 0.2, 0.0]]}},
             "table": {"fmu": "builtin:turntable", "role": "turntable",
                       "parameters": {"site.latitude": lat, "site.height": 120.0}},
-            "imu": {"fmu": "builtin:imu", "role": "imu", "parameters": {"gyro.output": 1}},
+            "imu": {"fmu": "builtin:imu", "role": "imu", "role_options": {"gyro_output": "rate"}},
         },
         "connections": [{"from": f"ctrl.{a}.{v}", "to": f"table.{a}.{v}"}
                         for a in ("outer", "middle", "inner") for v in ("angle_cmd", "mode", "rate_cmd")]

@@ -240,8 +240,8 @@ def test_turntable_axes_option_as_one_string():
 
     names = {v.name.split(".")[0] for v in turntable_role("outer, inner").variables}
     assert names == {"outer", "inner", "plate"}
-    with pytest.raises(ValueError, match="expected distinct names"):
-        turntable_role("outr")
+    with pytest.raises(ValueError, match="expected distinct axis names"):
+        turntable_role("outer, outer")
 
 
 class Failing(Component):

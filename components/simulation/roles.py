@@ -14,9 +14,9 @@ def turntable_role(axes=DEFAULT_AXES) -> Role:
     """``axes``: the table's axes, a list of names or one string ("outer", "outer,inner")."""
     if isinstance(axes, str):
         axes = axes.replace(",", " ").split()
-    bad = [a for a in axes if a not in DEFAULT_AXES]
-    if bad or not axes or len(set(axes)) != len(axes):
-        raise ValueError(f"axes {list(axes)!r}: expected distinct names from {list(DEFAULT_AXES)}")
+    # the names are the table's own (outer/middle/inner for ours, yaw/pitch for another's)
+    if not axes or len(set(axes)) != len(axes) or not all(isinstance(a, str) and a.isidentifier() for a in axes):
+        raise ValueError(f"axes {list(axes)!r}: expected distinct axis names, e.g. {list(DEFAULT_AXES)}")
     v = []
     for a in axes:
         v += [
