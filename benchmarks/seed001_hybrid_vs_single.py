@@ -10,7 +10,7 @@ configurations (components.navigation.configs seed_001, seed_001_single), one fi
 - filter steps (velocity updates) until every state's error stays within K x its target
   (K = 1 and 3), from the filter's history.
 
-    /work/venv/bin/python benchmarks/seed001_hybrid_vs_single.py [--seeds 2] [--dwell 10]
+    python benchmarks/seed001_hybrid_vs_single.py [--seeds 2] [--dwell 10]
 """
 from __future__ import annotations
 
