@@ -420,8 +420,8 @@ def _engine_check(system: System, base: Recording, report: VerifyReport,
                               "(pip install \"calbench[verify]\", or --no-engine to skip it)")
         return
     except LibcosimUnsupported as e:
-        report.engine_note = ("engine check skipped: "
-                              + str(e).split(":", 1)[-1].strip().replace("\n  ", "; "))
+        reasons = str(e).split("cannot run in libcosim:", 1)[-1].strip().split("\n")
+        report.engine_note = "engine check skipped: " + "; ".join(r.strip() for r in reasons if r.strip())
         return
     if system.algorithm == "jacobi":
         ours = base
