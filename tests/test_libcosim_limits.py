@@ -34,7 +34,6 @@ def enum_counter(counter, tmp_path_factory) -> Path:
             data = zin.read(item.filename)
             if item.filename == "modelDescription.xml":
                 text = data.decode()
-                text = text.replace("  <UnitDefinitions>", '  <UnitDefinitions>', 1)
                 text = text.replace("  <DefaultExperiment", '  <TypeDefinitions>\n    <SimpleType name="Mode">'
                                     '<Enumeration><Item name="one" value="1"/><Item name="two" value="2"/>'
                                     '</Enumeration></SimpleType>\n  </TypeDefinitions>\n  <DefaultExperiment', 1)
