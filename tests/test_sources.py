@@ -144,3 +144,16 @@ def test_component_beside_the_system_file_without_pythonpath(tmp_path, feedthrou
     # a module the folder does not have is still reported as one line naming where it looked
     with pytest.raises(SystemError_, match=r"units\.src\.component = 'no_such_module_x:A': cannot import"):
         run(tmp_path, feedthrough, "no_such_module_x:A", "")
+
+
+def test_two_modules_of_one_name_are_refused_with_both_paths(tmp_path, feedthrough):
+    name = "calbench_test_twice_named"
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / f"{name}.py").write_text(COMPONENT)
+    t, y = run(tmp_path / "a", feedthrough, f"{name}:Twice", "")
+    np.testing.assert_allclose(y, 2.0 * t, atol=1e-14)
+    with pytest.raises(SystemError_, match=rf"a module '{name}' is already imported from .*a/{name}\.py, not "
+                                           rf".*b/{name}\.py; rename one"):
+        run(tmp_path / "b", feedthrough, f"{name}:Twice", "")
+    sys.modules.pop(name, None)
