@@ -1,6 +1,7 @@
 """Python components named in a system file: ``component = "module:Class"`` is imported from the
 system file's folder first (a ``module.py`` or package beside the TOML needs no PYTHONPATH),
-then from the Python path; the class is built with the unit's ``[config]`` table.
+then from the Python path (``component = "sine"``, a name without ``:``, is one of the built-in
+sources of :mod:`orchestrator.sources`); the class is built with the unit's ``[config]`` table.
 
 A component class may name config keys that hold file paths (``relative_paths``); those are
 resolved against the system file's folder, as FMU paths are."""
@@ -14,6 +15,9 @@ from pathlib import Path
 from orchestrator.component import Component
 from orchestrator.errors import SystemError_
 
+# component = "sine" is short for "orchestrator.sources:Sine" (a name without ':' is no module path)
+BUILTIN_SOURCES = {"constant": "Constant", "step": "Step", "ramp": "Ramp", "sine": "Sine", "table": "Table"}
+
 
 def import_component(spec, name: str, config: dict, base_dir: Path | None = None) -> Component:
     """A ready component for unit *name*: *spec* is an instance, a Component subclass or a
@@ -22,8 +26,13 @@ def import_component(spec, name: str, config: dict, base_dir: Path | None = None
         return spec
     if isinstance(spec, type) and issubclass(spec, Component):
         return construct(spec, name, config, base_dir)
+    if isinstance(spec, str) and spec in BUILTIN_SOURCES:
+        from orchestrator import sources
+
+        return construct(getattr(sources, BUILTIN_SOURCES[spec]), name, config, base_dir)
     if not (isinstance(spec, str) and ":" in spec):
-        raise SystemError_(f"units.{name}.component = {spec!r}: expected 'module:Class'")
+        raise SystemError_(f"units.{name}.component = {spec!r}: expected 'module:Class' or a built-in "
+                           f"source ({', '.join(BUILTIN_SOURCES)})")
     mod, cls = spec.split(":", 1)
     try:
         module = _import(mod, name, spec, Path(base_dir) if base_dir else None)

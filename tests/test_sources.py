@@ -157,3 +157,11 @@ def test_two_modules_of_one_name_are_refused_with_both_paths(tmp_path, feedthrou
                                            rf".*b/{name}\.py; rename one"):
         run(tmp_path / "b", feedthrough, f"{name}:Twice", "")
     sys.modules.pop(name, None)
+
+
+def test_short_names_of_the_builtin_sources(tmp_path, feedthrough):
+    t, y = run(tmp_path, feedthrough, "sine", "amplitude = 2.0\nfrequency = 0.5")
+    np.testing.assert_allclose(y, 2.0 * np.sin(math.pi * t), atol=1e-14)
+    with pytest.raises(SystemError_, match=r"units\.src\.component = 'cosine': expected 'module:Class' or a "
+                                           r"built-in source \(constant, step, ramp, sine, table\)"):
+        run(tmp_path, feedthrough, "cosine", "")
