@@ -9,6 +9,7 @@ array's dimensions hold): a check that set a Float32 through ``fmi3SetFloat64`` 
 valid FMU for the checker's own mistake."""
 from __future__ import annotations
 
+import ctypes
 import math
 import shutil
 import tempfile
@@ -160,9 +161,10 @@ def _smoke(path: Path, md, step: float, verdict: FmuVerdict) -> None:
     api_of = (lambda v: _FMI3_API.get(v.type, v.type)) if fmi3 else (lambda v: _FMI2_API.get(v.type, v.type))
     workdir = tempfile.mkdtemp(prefix="calbench-check-")
     fmu = None
+    logs: list[str] = []
     try:
         unzipped = extract(str(path), unzipdir=workdir)
-        fmu = _instantiate(md, unzipped, fmi3)
+        fmu = _instantiate(md, unzipped, fmi3, logs)
         settable = [v for v in variables if v.causality in ("input", "parameter")
                     and v.variability != "constant" and v.initial != "calculated"]
         for v in settable:
@@ -183,7 +185,8 @@ def _smoke(path: Path, md, step: float, verdict: FmuVerdict) -> None:
         _state_roundtrip(fmu, md, variables, api_of, step, fmi3, verdict)
         verdict.smoke_notes.append(f"instantiate, initialise, step of {step:g} s, terminate: OK")
     except Exception as e:  # a vendor FMU may fail in ways fmpy reports loosely
-        verdict.smoke.append(f"{type(e).__name__}: {e}")
+        tail = "; ".join(logs[-3:])
+        verdict.smoke.append(f"{e}" + (f" (FMU log: {tail})" if tail else ""))
     finally:
         if fmu is not None:
             for call in (fmu.terminate, fmu.freeInstance):
@@ -194,21 +197,44 @@ def _smoke(path: Path, md, step: float, verdict: FmuVerdict) -> None:
         shutil.rmtree(workdir, ignore_errors=True)
 
 
-def _instantiate(md, unzipped: str, fmi3: bool):
+def _instantiate(md, unzipped: str, fmi3: bool, logs: list[str]):
+    """An instance in initialisation mode whose log messages go to *logs* (not to stdout, where
+    fmpy's default logger prints them), so a failure can be reported with the FMU's own words."""
     cs = md.coSimulation
+
+    def text(message) -> str:
+        return message.decode(errors="replace") if isinstance(message, bytes) else str(message)
+
     if fmi3:
         from fmpy.fmi3 import FMU3Slave
 
         fmu = FMU3Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=cs.modelIdentifier,
                         instanceName="candidate")
-        fmu.instantiate()
+        fmu.instantiate(loggingOn=True, logMessage=lambda env, status, category, message:
+                        logs.append(text(message)))
         fmu.enterInitializationMode(startTime=0.0)
     else:
-        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi2 import (
+            FMU2Slave,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
 
         fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=cs.modelIdentifier,
                         instanceName="candidate")
-        fmu.instantiate()
+        libc = ctypes.CDLL(None)
+        libc.calloc.restype = ctypes.c_void_p
+        libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
+        libc.free.argtypes = [ctypes.c_void_p]
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(lambda env, instance, status, category, message:
+                                           logs.append(text(message)))
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(libc.calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(libc.free)
+        fmu._calbench_callbacks = cb  # ctypes callbacks must outlive the instance
+        fmu.instantiate(callbacks=cb, loggingOn=True)
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
     return fmu

@@ -58,3 +58,14 @@ def test_refuses_scheduled_execution_only_with_the_reason(tmp_path):
     verdict = check_fmu(se)
     assert not verdict.ok
     assert "scheduled execution only" in verdict.cannot_run and "clocks" in verdict.cannot_run
+
+
+def test_a_failing_step_is_refused_with_the_fmus_own_message(tmp_path, capsys):
+    src = fmu_path(HERE / "failing", 2)
+    failing = _rewrite(src, tmp_path / "fails_at_0.fmu", '<Real unit="s" start="1e+300"/>',
+                       '<Real unit="s" start="0.0"/>')
+    verdict = check_fmu(failing)
+    assert not verdict.ok
+    (problem,) = verdict.smoke
+    assert "fmi2DoStep" in problem and "deliberate failure: step from t = 0 reached fail_time = 0" in problem
+    assert capsys.readouterr().out == ""  # the FMU's log is in the verdict, not printed on the side
