@@ -135,3 +135,21 @@ def test_through_an_fmu(tmp_path):
     x = np.sin(np.floor(t / T + 1e-9) * T)
     assert abs(y.alg_diff - math.sqrt(np.mean(np.diff(x) ** 2))) < 1e-12
     assert verify(system("gauss-seidel"), rel_tol=1e-3, engine=False).ok
+
+
+def test_columns_of_every_type_are_put_on_the_grid_and_compared():
+    """What verify does with a typed recording's columns (strings by equality, integers and
+    Booleans exactly, arrays not compared), told by the column when no variable type is known."""
+    from orchestrator.verify import _column_on_grid, _differ, _kind
+
+    words = np.array(["idle", "run", "run", "stop", "stop"], dtype=object)
+    np.testing.assert_array_equal(_column_on_grid(words, 2, "sample"), ["idle", "run", "stop"])
+    assert _differ(words, np.array(["idle", "run", "x", "stop", "y"], dtype=object)) == 2
+    assert _kind(None, "u.mode", words) == ("equal", "")
+    assert _kind(None, "u.flag", np.array([True, False]))[0] == "exact"
+    assert _kind(None, "u.n", np.array([1, 2], dtype=np.int64))[0] == "exact"
+    assert _kind(None, "u.x", np.array([1.0, 2.0]))[0] == "real"
+    kind, why = _kind(None, "u.v", np.zeros((3, 2)))
+    assert kind == "skip" and "array" in why
+    counts = np.array([0, 1, 1, 2, 3], dtype=np.int64)
+    np.testing.assert_array_equal(_column_on_grid(counts, 2, "sum"), [0, 2, 5])
