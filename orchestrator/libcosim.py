@@ -77,6 +77,7 @@ def check_supported(system: System, sim: Simulation | None = None) -> Simulation
             problems.append(f"connection {name} ({c.source.var} -> {c.target.var}) needs the unit "
                             f"conversion target = {f:.17g} * source + {o:.17g}; libcosim "
                             "transfers values unconverted")
+    problems += _libcosimpy_bugs(system, sim)
     h_ns = round(system.step * 1e9)
     if h_ns <= 0 or abs(h_ns * 1e-9 - system.step) > 1e-12 * system.step:
         problems.append(f"system.step = {system.step} s is not a whole number of nanoseconds")
@@ -86,6 +87,46 @@ def check_supported(system: System, sim: Simulation | None = None) -> Simulation
         raise LibcosimUnsupported(
             f"{system.source or system.name}: cannot run in libcosim:\n  " + "\n  ".join(problems))
     return sim
+
+
+def _libcosimpy_version() -> tuple[int, ...] | None:
+    """The installed libcosimpy's version (from its metadata, without importing it), or None."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return tuple(int(x) for x in version("libcosimpy").split(".")[:3] if x.isdigit())
+    except (PackageNotFoundError, ValueError):
+        return None
+
+
+def _libcosimpy_bugs(system: System, sim: Simulation) -> list[str]:
+    """What libcosimpy 0.0.6 (and earlier) fails on with a traceback of its own, named before
+    it is called: ``connect_integer_variables`` calls a method the class never defines (it is
+    spelled ``__connect_int_variables``), and an FMI 2 Enumeration is an Integer to libcosim's
+    C API but not to its initial-value setter, which libcosimpy offers only for Real, Integer,
+    Boolean and String. Both checks are kept while the installed version is 0.0.6 or older (or
+    unknown)."""
+    installed = _libcosimpy_version()
+    if installed is not None and installed > (0, 0, 6):
+        return []
+    out = []
+    for c in sim.connections:
+        types = {sim.units[e.unit].variables[e.var].type for e in (c.source, c.target)}
+        if "Integer" in types:
+            out.append(f"connection {c.source.unit}.{c.source.name} -> {c.target.unit}.{c.target.name} "
+                       "is an Integer connection, which libcosimpy 0.0.6 cannot make "
+                       "(its connect_integer_variables calls a method it does not define)")
+    for spec in system.units:
+        u = sim.units[spec.name]
+        md = getattr(u, "md", None)
+        if md is None:
+            continue
+        raw = {v.name: v.type for v in md.modelVariables}
+        for var in sim._parameters(spec):
+            if raw.get(var) == "Enumeration":
+                out.append(f"units.{spec.name}.parameters: {var} is an FMI 2 Enumeration; libcosimpy "
+                           "0.0.6 has no initial-value setter for enumerations")
+    return out
 
 
 def _observed(sim: Simulation) -> list[tuple[str, str, str, float, float]]:
@@ -142,7 +183,7 @@ def run_libcosim(system: System, chunk: int = 4096) -> Recording:
     n_rows = n_steps // every + 1
     times = system.start + np.arange(n_rows) * (every * h)
     prov = sim.provenance()
-    prov["engine"] = {"name": "libcosim", "libcosimpy": _libcosimpy_version(),
+    prov["engine"] = {"name": "libcosim", "libcosimpy": _libcosimpy_about(),
                       "algorithm": "libcosim fixed_step_algorithm (Jacobi)"}
     signals = _observed(sim)
     rec = Recording.allocate([s[0] for s in signals], times, prov)
@@ -239,7 +280,7 @@ def run_libcosim(system: System, chunk: int = 4096) -> Recording:
     return rec
 
 
-def _libcosimpy_version() -> str:
+def _libcosimpy_about() -> str:
     try:
         from libcosimpy.__about__ import __version__
 

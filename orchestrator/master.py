@@ -8,7 +8,6 @@ and FMI 3.0 units step in Python, here, at their own multiple of the communicati
 """
 from __future__ import annotations
 
-import importlib
 import math
 import platform
 import sys
@@ -18,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orchestrator.component import Component
+from orchestrator.component_import import import_component
 from orchestrator.component_unit import ComponentUnit
 from orchestrator.errors import NativeSpanFault, RoleError, SimulationFault, SystemError_, UnitError
 from orchestrator.fmu_resolver import resolve_fmu
@@ -37,30 +36,6 @@ from orchestrator.wiring import (
     resolve,
     stepping_order,
 )
-
-
-def _import_component(spec, name: str, config: dict) -> Component:
-    if isinstance(spec, Component):
-        return spec
-    if isinstance(spec, type) and issubclass(spec, Component):
-        return _construct(spec, name, config)
-    if isinstance(spec, str) and ":" in spec:
-        mod, cls = spec.split(":", 1)
-        try:
-            obj = getattr(importlib.import_module(mod), cls)
-        except (ImportError, AttributeError) as e:
-            raise SystemError_(f"units.{name}.component = {spec!r}: cannot import ({e})") from None
-        if not (isinstance(obj, type) and issubclass(obj, Component)):
-            raise SystemError_(f"units.{name}.component = {spec!r}: not a Component subclass")
-        return _construct(obj, name, config)
-    raise SystemError_(f"units.{name}.component = {spec!r}: expected 'module:Class'")
-
-
-def _construct(cls: type, name: str, config: dict) -> Component:
-    try:
-        return cls(name, **config)
-    except TypeError as e:
-        raise SystemError_(f"units.{name}.config: {cls.__name__} does not accept {sorted(config)} ({e})") from None
 
 
 @dataclass
@@ -96,7 +71,7 @@ class Simulation:
                 self.units[spec.name] = load_fmu_unit(spec.name, resolve_fmu(spec.fmu, self.system.base_dir))
             else:
                 self.units[spec.name] = ComponentUnit(
-                    spec.name, _import_component(spec.component, spec.name, spec.config))
+                    spec.name, import_component(spec.component, spec.name, spec.config, self.system.base_dir))
         checks = []
         for spec in self.system.units:
             if spec.role:

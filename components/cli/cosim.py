@@ -163,8 +163,8 @@ def register(sub) -> None:
                         "indexes, at the step and at 2, 5, 10, 20 ms)")
     c.set_defaults(func=_cmd_check_fmu)
 
-    v = sub.add_parser("verify", help="estimate the coupling error of the step (runs at h, h/2, h/4) "
-                                      "and compare with libcosim; exit 0 within tolerance, 1 out of "
+    v = sub.add_parser("verify", help="estimate the coupling error of the step (runs at h, h/2, h/4, "
+                                      "and the other algorithm at h) and compare with libcosim; exit 0 within tolerance, 1 out of "
                                       "tolerance, 2 bad input, 3 could not run (a unit failed, "
                                       "libcosimpy not installed)")
     v.add_argument("system", help="system file (.toml or .ssp)")
