@@ -2,8 +2,10 @@
 exceptions seen through the :class:`~orchestrator.units.Unit` interface."""
 from __future__ import annotations
 
+import importlib
+
 from orchestrator.component import Component
-from orchestrator.errors import UnitError
+from orchestrator.errors import SystemError_, UnitError
 from orchestrator.units import Unit, VarInfo
 
 
@@ -54,3 +56,29 @@ class ComponentUnit(Unit):
 
     def provenance(self) -> dict:
         return {"kind": "python", **self.component.provenance()}
+
+
+def import_component(spec, name: str, config: dict) -> Component:
+    """The component *spec* names (an instance, a class, or 'module:Class'), constructed with
+    *config*."""
+    if isinstance(spec, Component):
+        return spec
+    if isinstance(spec, type) and issubclass(spec, Component):
+        return construct_component(spec, name, config)
+    if isinstance(spec, str) and ":" in spec:
+        mod, cls = spec.split(":", 1)
+        try:
+            obj = getattr(importlib.import_module(mod), cls)
+        except (ImportError, AttributeError) as e:
+            raise SystemError_(f"units.{name}.component = {spec!r}: cannot import ({e})") from None
+        if not (isinstance(obj, type) and issubclass(obj, Component)):
+            raise SystemError_(f"units.{name}.component = {spec!r}: not a Component subclass")
+        return construct_component(obj, name, config)
+    raise SystemError_(f"units.{name}.component = {spec!r}: expected 'module:Class'")
+
+
+def construct_component(cls: type, name: str, config: dict) -> Component:
+    try:
+        return cls(name, **config)
+    except TypeError as e:
+        raise SystemError_(f"units.{name}.config: {cls.__name__} does not accept {sorted(config)} ({e})") from None

@@ -1,0 +1,67 @@
+"""The exchange of a run: one slot per distinct source output or recorded variable.
+
+Values a float64 holds exactly (floats, Booleans, integers up to 32 bits) live in one float64
+array in SI units, which the native loop reads and writes; 64-bit integers, strings and binaries
+live beside it as Python objects (only Python-stepped units produce them). A slot's value is
+turned into a target's type only as :mod:`orchestrator.fmi_types` allows, never by rounding.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from orchestrator.errors import UnitError
+from orchestrator.fmi_types import exact_in_float64, from_slot
+from orchestrator.units import Unit, VarInfo, log_suffix
+
+
+class Exchange:
+    def __init__(self, units: dict[str, Unit]) -> None:
+        self.units = units
+        self.slots: dict[tuple[str, str], int] = {}
+        self.conv: dict[tuple[str, str], tuple[float, float]] = {}  # SI = factor * x + offset
+        self.objects: dict[int, object] = {}  # slots that hold Python objects
+        self.values = np.zeros(1)
+
+    def slot(self, unit: str, var: str, factor: float = 1.0, offset: float = 0.0) -> int:
+        key = (unit, var)
+        if key not in self.slots:
+            i = self.slots[key] = len(self.slots)
+            self.conv[key] = (factor, offset)
+            if not exact_in_float64(self.units[unit].variables[var].tinfo):
+                self.objects[i] = None
+        return self.slots[key]
+
+    def allocate(self) -> np.ndarray:
+        self.values = np.zeros(max(len(self.slots), 1))
+        return self.values
+
+    def read(self, s: int):
+        return self.objects[s] if s in self.objects else self.values[s]
+
+    def as_input(self, v: VarInfo, s: int, scale: float, shift: float):
+        """The value of slot *s* as input *v* takes it (its unit, its type)."""
+        x = self.read(s)
+        if v.tinfo.family == "float":
+            return scale * float(x) + shift
+        return from_slot(v.tinfo, x)
+
+    def outputs_of(self, u: Unit) -> list[str]:
+        return [var for (unit, var) in self.slots if unit == u.name]
+
+    def store_outputs(self, u: Unit, time: float, names: list[str] | None = None) -> None:
+        """Read *u*'s exchanged outputs into their slots (floats checked finite, to SI)."""
+        names = self.outputs_of(u) if names is None else names
+        if not names:
+            return
+        for var, x in zip(names, u.get_values(names)):
+            s = self.slots[(u.name, var)]
+            if s in self.objects:
+                self.objects[s] = x
+                continue
+            x = float(x)
+            if not math.isfinite(x):
+                raise UnitError(f"unit {u.name}: output {var} = {x} at t = {time:.9g} s" + log_suffix(u))
+            f, o = self.conv[(u.name, var)]
+            self.values[s] = f * x + o
