@@ -34,7 +34,12 @@ class Exchange:
         return self.slots[key]
 
     def allocate(self) -> np.ndarray:
+        """The value array, once every slot is known (and, per unit, what its outputs need)."""
         self.values = np.zeros(max(len(self.slots), 1))
+        self._outputs: dict[str, list] = {}
+        for (unit, var), s in self.slots.items():
+            family = self.units[unit].variables[var].tinfo.family
+            self._outputs.setdefault(unit, []).append((var, s, family, *self.conv[(unit, var)]))
         return self.values
 
     def read(self, s: int):
@@ -50,18 +55,20 @@ class Exchange:
     def outputs_of(self, u: Unit) -> list[str]:
         return [var for (unit, var) in self.slots if unit == u.name]
 
-    def store_outputs(self, u: Unit, time: float, names: list[str] | None = None) -> None:
+    def store_outputs(self, u: Unit, time: float) -> None:
         """Read *u*'s exchanged outputs into their slots (floats checked finite, to SI)."""
-        names = self.outputs_of(u) if names is None else names
-        if not names:
+        outs = self._outputs.get(u.name)
+        if not outs:
             return
-        for var, x in zip(names, u.get_values(names)):
-            s = self.slots[(u.name, var)]
+        for (var, s, family, f, o), x in zip(outs, u.get_values([out[0] for out in outs])):
             if s in self.objects:
                 self.objects[s] = x
                 continue
+            if family in ("int", "enum") and (isinstance(x, bool) or x != int(x)):
+                # a Python component can leave any object in an Integer output
+                raise UnitError(f"unit {u.name}: Integer output {var} = {x!r} at t = {time:.9g} s "
+                                "is not an integer")
             x = float(x)
             if not math.isfinite(x):
                 raise UnitError(f"unit {u.name}: output {var} = {x} at t = {time:.9g} s" + log_suffix(u))
-            f, o = self.conv[(u.name, var)]
             self.values[s] = f * x + o

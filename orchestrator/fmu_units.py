@@ -217,6 +217,9 @@ class FMU3Unit(Unit):
             raise UnitError(f"unit {name}: {self.path} has no co-simulation interface")
         self.variables = fmu_variables(self.md)
         self.can_get_set_state = bool(getattr(self.md.coSimulation, "canGetAndSetFMUState", False))
+        # structural parameters that size an array: array sizes stay as declared
+        self.dimension_parameters = {d.variable.name for v in self.md.modelVariables
+                                     for d in v.dimensions if d.variable is not None}
         self.fmu = None
         self._dir = None
 

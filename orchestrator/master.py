@@ -170,6 +170,8 @@ class Simulation:
         rec = Recording.allocate([n for n, _ in rec_names], times, self.provenance(),
                                  types=[v.tinfo for _, v in rec_names])
         self._rec_slots = rec_slots
+        self._rec_index = np.asarray(rec_slots, dtype=np.int_)
+        self._object_columns = [(j, s) for j, s in enumerate(rec_slots) if s in ex.objects]
         started = _time.time()
         try:
             self._initialise()
@@ -241,15 +243,15 @@ class Simulation:
 
     def _record_row(self, rec: Recording, row: int) -> None:
         if self._rec_slots:
-            rec.data[row] = self.exchange.values[self._rec_slots]
-        self._record_objects(rec, row, row + 1)
+            rec.data[row] = self.exchange.values[self._rec_index]
+        if self._object_columns:
+            self._record_objects(rec, row, row + 1)
 
     def _record_objects(self, rec: Recording, lo: int, hi: int) -> None:
         """Rows lo..hi of the signals held as objects (the native loop records only floats; the
         units that produce objects are stepped in Python, so these are constant over a span)."""
-        for j, s in enumerate(self._rec_slots):
-            if s in self.exchange.objects:
-                rec.objects[j][lo:hi] = [self.exchange.objects[s]] * (hi - lo)
+        for j, s in self._object_columns:
+            rec.objects[j][lo:hi] = [self.exchange.objects[s]] * (hi - lo)
 
     def _last_step(self, rec: Recording, t: float, h: float) -> None:
         """The shortened last step, on the Python path (the native loop keeps one step length)."""
