@@ -29,8 +29,11 @@ class Exchange:
         if key not in self.slots:
             i = self.slots[key] = len(self.slots)
             self.conv[key] = (factor, offset)
-            if not exact_in_float64(self.units[unit].variables[var].tinfo):
-                self.objects[i] = None
+            t = self.units[unit].variables[var].tinfo
+            if not exact_in_float64(t):
+                # what a unit reads before the source has given a value (a loop broken by the
+                # order, at initialisation), as the float slots read 0.0
+                self.objects[i] = {"string": "", "binary": b""}.get(t.family, 0)
         return self.slots[key]
 
     def allocate(self) -> np.ndarray:

@@ -205,6 +205,15 @@ def test_fmi3_connections_only_where_lossless(fmus, src, dst, ok):
     assert "\n" not in msg
 
 
+def test_connection_units_checked(fmus):
+    """x is in s, r_in in m: refused naming both (r_out, in m, connects)."""
+    sysm = _pair(fmus[2], [])
+    sysm.connections = [Connection("a.x", "b.r_in")]
+    with pytest.raises(SystemError_, match=r"a.x is in s but b.r_in is in m; connected variables "
+                                           "need the same unit"):
+        Simulation(sysm).load()
+
+
 def test_fmi3_array_connected_whole_and_recorded_per_element(fmus):
     sysm = _pair(fmus[3], ["a"], {"a_in": [1.0, -1.0, 0.5]}, record=("b.a_out", "a.a_*"))
     rec = simulate(sysm)
@@ -244,12 +253,21 @@ def test_fmu_ends_the_run(fmus, tmp_path, version):
     assert saved.rows == 89 and saved.provenance["system"]["stopped_at"] == pytest.approx(8.8)
 
 
-def test_fmu_ending_mid_system_completes_the_step(fmus):
+@pytest.mark.parametrize("version, pairs", [(2, ["r"]), (2, ["r", "b"]), (3, ["f64", "b"])])
+@pytest.mark.parametrize("algorithm", ["gauss-seidel", "jacobi"])
+def test_fmu_ending_mid_system_completes_the_step(fmus, version, pairs, algorithm):
     """The unit that ends the run is first in the order: the unit after it still takes that
-    step, so the last row is whole."""
-    rec = simulate(_pair(fmus[2], ["r"], {"t_end": 0.5}, record=("b.r_out", "a.r_out")))
-    assert rec.rows == 6
-    np.testing.assert_array_equal(rec["b.r_out"], np.arange(6) * 1.0)
+    step, so the last row is whole. FMI 2 Real only: in the native loop; with a Boolean: on
+    the Python path."""
+    sim = Simulation(_pair(fmus[version], pairs, {"t_end": 0.5}, algorithm=algorithm,
+                           record=(f"b.{pairs[0]}_out", "b.b_out")))
+    rec = sim.run()
+    assert rec.rows == 6 and sim.stopped_at == pytest.approx(0.5)
+    assert sim._native_ok("a") == (version == 2 and "b" not in pairs)
+    n = np.arange(6)
+    # b's real output: a's output (of step n, Jacobi: of step n - 1) + 0.5 n
+    a_out = 0.5 * (n if algorithm == "gauss-seidel" else np.maximum(n - 1, 0))
+    np.testing.assert_array_equal(rec[f"b.{pairs[0]}_out"], a_out + 0.5 * n)
 
 
 def test_cli_run_of_an_ending_fmu_exits_0(fmus, tmp_path, capsys, monkeypatch):
@@ -281,6 +299,17 @@ def test_start_values_refused(fmus, version, params, match):
     with pytest.raises(SystemError_, match=match) as ei:
         simulate(_pair(fmus[version], [], params))
     assert "units.a.parameters" in str(ei.value) and "\n" not in str(ei.value)
+
+
+def test_string_read_before_its_source_gave_one(fmus):
+    """A loop of strings broken by the order: at initialisation b reads a's output before a
+    has one and gets the empty string (as a float input gets 0.0)."""
+    sysm = System(step=H, stop=N * H, order=["b", "a"],
+                  units=[UnitSpec("a", fmu=str(fmus[2])), UnitSpec("b", fmu=str(fmus[2]))],
+                  connections=[Connection("a.s_out", "b.s_in"), Connection("b.s_out", "a.s_in")],
+                  record=["b.s_out"])
+    rec = simulate(sysm)
+    assert rec["b.s_out"][0] == "#0" and rec["b.s_out"][1] == "#0#0#1"
 
 
 def test_integral_float_is_an_integer(fmus):
