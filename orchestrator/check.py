@@ -63,7 +63,8 @@ def check_fmu(path: str | Path, role: str | None = None, mapping: dict | None = 
 
 
 def _smoke(unit, step: float, verdict: FmuVerdict) -> None:
-    outputs = [n for n, v in unit.variables.items() if v.causality == "output" and v.type == "Real"]
+    outputs = [n for n, v in unit.variables.items()
+               if v.causality == "output" and v.type == "Real" and not v.shape]  # elements, not arrays
     try:
         unit.instantiate(0.0)
         unit.exit_initialization()

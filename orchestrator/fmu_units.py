@@ -119,6 +119,7 @@ class FMU2Unit(Unit):
         return f"unit {self.name}: {what} failed ({e})" + (f"\n  FMU log:\n  {tail}" if tail else "")
 
     def exit_initialization(self) -> None:
+        self.enter_initialization()
         self._guard("exitInitializationMode", self.fmu.exitInitializationMode)
 
     @staticmethod

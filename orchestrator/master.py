@@ -352,9 +352,7 @@ class Simulation:
                     rec.rows = step // every + 1
                     if ending is None:
                         continue
-                    if step % every == 0:
-                        self._record_row(rec, step // every)
-                    self.stopped_at = t0 + step * h
+                    self._end_at(rec, step)
                     break
                 t = t0 + step * h
                 if jacobi:
@@ -389,14 +387,14 @@ class Simulation:
                         self.stopped_at = t
                         break
                 step += 1
+                if ending is not None:
+                    self._end_at(rec, step)
+                    break
                 if step % every == 0:
                     self._record_row(rec, step // every)
                 rec.rows = step // every + 1
                 if progress:
                     progress.update(1)
-                if ending is not None:
-                    self.stopped_at = t0 + step * h
-                    break
         except _EndedEarly as e:
             # a unit asked to end the run but did not reach the end of its step: the run ends
             # at the step's start, the last row recorded
@@ -404,6 +402,21 @@ class Simulation:
             rec.rows = e.step // every + 1
         if progress:
             progress.close()
+
+    def _end_at(self, rec: Recording, step: int) -> None:
+        """A unit ended the run at the end of base step *step* - 1: the run stops there and its
+        last sample is recorded, as one more row when it falls between rows of the record grid."""
+        every, t = self.system.record_every, self.system.start + step * self.system.step
+        self.stopped_at = t
+        row = -(-step // every)  # the first grid row at or after the end
+        if row >= len(rec.time):
+            rec.time = np.append(rec.time, t)
+            rec.data = np.vstack([rec.data, np.full((1, rec.data.shape[1]), np.nan)])
+            for col in rec.objects.values():
+                col.append(None)
+        rec.time[row] = t
+        self._record_row(rec, row)
+        rec.rows = row + 1
 
     def _segments(self, plan_index: dict[str, int]) -> list:
         """The stepping order as runs of FMI 2 units (plan index ranges) and Python-stepped units."""

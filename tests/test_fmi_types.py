@@ -270,6 +270,21 @@ def test_fmu_ending_mid_system_completes_the_step(fmus, version, pairs, algorith
     np.testing.assert_array_equal(rec[f"b.{pairs[0]}_out"], a_out + 0.5 * n)
 
 
+@pytest.mark.parametrize("every, t_end", [(4, 8.8), (25, 8.8), (30, 9.5)])
+def test_fmu_ending_between_recorded_rows(fmus, every, t_end):
+    """Recording every 4th step, the end at 8.8 s (step 88) is on the grid; every 25th, it
+    falls between rows (7.5 s and 10 s); every 30th, an end at 9.5 s comes after the grid's
+    last row (9 s). Its sample is recorded in every case."""
+    sysm = System(step=H, stop=10.0, units=[UnitSpec("s", fmu=str(fmus[2]),
+                                                     parameters={"t_end": t_end})],
+                  record=["s.x"], record_every=every)
+    rec = simulate(sysm)
+    k = round(t_end / H)
+    assert rec.t[-1] == pytest.approx(t_end) and rec.rows == k // every + 1 + (k % every > 0)
+    np.testing.assert_allclose(rec["s.x"], 1.0 + rec.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.diff(rec.t[:-1]), every * H)
+
+
 def test_cli_run_of_an_ending_fmu_exits_0(fmus, tmp_path, capsys, monkeypatch):
     from components.cli import main
 
