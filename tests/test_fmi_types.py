@@ -185,6 +185,27 @@ def test_fmi3_every_type_and_an_array(fmus, tmp_path):
         np.testing.assert_array_equal(rec[f"a.a_out[{i}]"], ref["a_out"][:, i])
     np.testing.assert_array_equal(rec["a.x"], ref["x"])
 
+    # fmpy: b alone, its inputs at t_k being a's outputs at k + 1 (what Gauss-Seidel gives it)
+    dtypes = {"f32": np.float32, "f64": float, "i8": np.int8, "u8": np.uint8, "i16": np.int16,
+              "u16": np.uint16, "i32": np.int32, "u32": np.uint32, "i64": np.int64,
+              "u64": np.uint64, "b": bool, "e": np.int64}
+    inp = np.zeros(N + 1, dtype=[("time", float)] + [(f"{v}_in", d) for v, d in dtypes.items()])
+    arr = np.zeros(N + 1, dtype=[("time", float), ("a_in", float, (3,))])
+    inp["time"] = arr["time"] = n * H
+    nxt = np.minimum(n + 1, N)
+    for v, d in dtypes.items():
+        inp[f"{v}_in"] = np.array(list(rec[f"a.{v}_out"]), dtype=d)[nxt]
+    arr["a_in"] = np.stack([rec[f"a.a_out[{i}]"][nxt] for i in range(3)], axis=1)
+    # two runs: fmpy cannot stack a scalar and an array Float64 input in one table
+    ref_b = fmpy.simulate_fmu(str(fmus[3]), stop_time=N * H, step_size=H, output_interval=H,
+                              input=inp, output=[f"{v}_out" for v in dtypes])
+    ref_a = fmpy.simulate_fmu(str(fmus[3]), stop_time=N * H, step_size=H, output_interval=H,
+                              input=arr, output=["a_out"])
+    for v in dtypes:
+        assert list(rec[f"b.{v}_out"])[1:] == list(ref_b[f"{v}_out"])[1:], v
+    for i in range(3):
+        np.testing.assert_array_equal(rec[f"b.a_out[{i}]"][1:], ref_a["a_out"][1:, i])
+
 
 @pytest.mark.parametrize("src, dst, ok", [
     ("i8", "i32", True), ("f32", "f64", True), ("u16", "i32", True), ("e", "i64", True),
