@@ -1,14 +1,16 @@
 """The master algorithm: load units, check roles, wire, initialise, step on a fixed grid,
 record, and report faults with what was recorded so far.
 
-FMI 2.0 units are stepped by the native span loop (orchestrator/native/span.c): value
-references, slots and conversions are resolved once (:class:`~orchestrator.native.plan.SpanPlan`);
-between two steps of a slower Python or FMI 3.0 unit the whole span runs in C. Python components
-and FMI 3.0 units step in Python, here, at their own multiple of the communication step.
+FMI 2.0 units that exchange Real and Integer values are stepped by the native span loop
+(orchestrator/native/span.c): value references, slots and conversions are resolved once
+(:class:`~orchestrator.native.plan.SpanPlan`); between two steps of a slower Python-stepped unit
+the whole span runs in C. Python components, FMI 3.0 units and FMI 2.0 units with a Boolean or
+String exchange step in Python, here, at their own multiple of the communication step (the
+exchange, :mod:`orchestrator.exchange`, carries every FMI type). A unit that asks to end the
+run ends it at the time it reached (``stopped_at``), a normal end.
 """
 from __future__ import annotations
 
-import math
 import platform
 import sys
 import time as _time
@@ -197,25 +199,14 @@ class Simulation:
         return rec
 
     def _grid(self) -> tuple[int, float]:
-        """(steps, length of a shortened last step or 0): a stop that is not a whole number of
-        steps after start is reached by a shorter last step, said once in the notes."""
-        sysm = self.system
-        h, span = sysm.step, sysm.stop - sysm.start
-        n = int(round(span / h))
-        if abs(n * h - span) <= 1e-9 * max(1.0, abs(sysm.stop)):
-            return n, 0.0
-        n_full = int(math.floor(span / h))
-        h_last = span - n_full * h
-        slow = [u.name for u in sysm.units if u.step_multiple != 1]
-        if slow:
-            raise SystemError_(f"{sysm.source or 'system'}: stop - start = {span} is not a whole "
-                               f"number of steps of {h}, and units {slow} step at a multiple of it; "
-                               "choose a stop on their grid")
-        note = (f"stop - start = {span:.9g} s is not a whole number of steps of {h:.9g} s: "
-                f"the last step is shortened to {h_last:.9g} s to reach stop = {sysm.stop:.9g} s")
-        if note not in self.notes:
+        """(steps, length of a shortened last step or 0), the shortening said once in the notes."""
+        n, h_last = self.system.grid()
+        note = (f"stop - start = {self.system.stop - self.system.start:.9g} s is not a whole number "
+                f"of steps of {self.system.step:.9g} s: the last step is shortened to {h_last:.9g} s "
+                f"to reach stop = {self.system.stop:.9g} s")
+        if h_last and note not in self.notes:
             self.notes.append(note)
-        return n_full + 1, h_last
+        return n, h_last
 
     def _initialise(self) -> None:
         for spec in self.system.units:

@@ -365,6 +365,11 @@ def test_stop_between_steps_shortens_the_last_step(fmus):
     ref = fmpy.simulate_fmu(str(fmus[2]), stop_time=1.05, step_size=H, output_interval=H, output=["x"])
     np.testing.assert_allclose(rec["a.x"], ref["x"], rtol=0, atol=1e-12)
     assert rec.provenance["notes"] == sim.notes
+    # a unit stepping at a multiple of the step could not take the short step: refused
+    sysm.units[0].step_multiple = 2
+    with pytest.raises(SystemError_, match=r"not a whole number of steps of 0.1, and units \['a'\] "
+                                           "step at a multiple of it"):
+        Simulation(sysm).run()
 
 
 def test_record_whole_unit_and_patterns(fmus):
