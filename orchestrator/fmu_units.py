@@ -134,6 +134,12 @@ class FMU2Unit(Unit):
             setter = getattr(self.fmu, self.accessor(v, "set"))
             self._guard(f"setting {name}", lambda: setter([v.vr], [value]))
 
+    def set_input_derivatives(self, items: list[tuple[str, int, float]]) -> None:
+        """(input, order, value) for fmi2SetRealInputDerivatives."""
+        vrs = [self.variables[var].vr for var, _, _ in items]
+        self._guard("setRealInputDerivatives", lambda: self.fmu.setRealInputDerivatives(
+            vrs, [order for _, order, _ in items], [x for _, _, x in items]))
+
     def get_values(self, names: list[str]) -> list:
         out = []
         for name in names:

@@ -50,6 +50,7 @@ class _PyPort:
     unit: Unit
     multiple: int
     inputs: list[tuple[str, int, float, float]]   # (var, slot, scale, shift)
+    derivatives: list[tuple[str, int, float, int]]  # (var, slot, scale, order): FMI 2 only
 
 
 class _EndedEarly(Exception):
@@ -247,19 +248,20 @@ class Simulation:
     def _last_step(self, rec: Recording, t: float, h: float) -> None:
         """The shortened last step, on the Python path (the native loop keeps one step length)."""
         jacobi = self.system.algorithm == "jacobi"
-        units = [self.units[n] for n in self.order]
-        if jacobi:
-            for u in units:
-                self._set_inputs_from_slots(u)
-        for u in units:
+        ports = [self._py_port(n, 1) for n in self.order]
+        # Jacobi: every unit's inputs as they were before any unit stepped
+        snap = [(self._port_inputs(p), self._port_derivatives(p)) for p in ports] if jacobi else None
+        for i, p in enumerate(ports):
+            inputs, derivatives = snap[i] if jacobi else (self._port_inputs(p), self._port_derivatives(p))
+            p.unit.set_values(inputs)
+            if derivatives:
+                p.unit.set_input_derivatives(derivatives)
+            p.unit.do_step(t, h)
             if not jacobi:
-                self._set_inputs_from_slots(u)
-            u.do_step(t, h)
-            if not jacobi:
-                self.exchange.store_outputs(u, t + h)
+                self.exchange.store_outputs(p.unit, t + h)
         if jacobi:
-            for u in units:
-                self.exchange.store_outputs(u, t + h)
+            for p in ports:
+                self.exchange.store_outputs(p.unit, t + h)
         self._record_row(rec, len(rec.time) - 1)
         rec.rows = len(rec.time)
 
@@ -318,9 +320,11 @@ class Simulation:
                 span(err.unit + 1, last, s, 1, False)
             return s
 
-        def port_step(p: _PyPort, t: float, inputs: dict) -> bool:
+        def port_step(p: _PyPort, t: float, inputs: dict, derivatives: list) -> bool:
             """Step a Python-stepped unit; True if it asked to end the run after a whole step."""
             p.unit.set_values(inputs)
+            if derivatives:
+                p.unit.set_input_derivatives(derivatives)
             p.unit.do_step(t, p.multiple * h)
             if p.unit.ended_at is not None and p.unit.ended_at < t + p.multiple * h - 1e-9 * h:
                 raise _EndedEarly(step)
@@ -347,10 +351,11 @@ class Simulation:
                     break
                 t = t0 + step * h
                 if jacobi:
-                    snapshot = {n: self._port_inputs(ports[n]) for n in acting}
+                    snapshot = {n: (self._port_inputs(ports[n]), self._port_derivatives(ports[n]))
+                                for n in acting}
                     ending = span(0, len(fmi2), step, 1, False)
                     for n in acting:
-                        if port_step(ports[n], t, snapshot[n]):
+                        if port_step(ports[n], t, *snapshot[n]):
                             ending = step
                     for n in acting:
                         ex.store_outputs(ports[n].unit, t + ports[n].multiple * h)
@@ -367,7 +372,7 @@ class Simulation:
                                 ending = step
                         elif seg in acting:
                             p = ports[seg]
-                            if port_step(p, t, self._port_inputs(p)):
+                            if port_step(p, t, self._port_inputs(p), self._port_derivatives(p)):
                                 ending = step
                             ex.store_outputs(p.unit, t + p.multiple * h)
                             if p.unit.stop_requested():
@@ -434,10 +439,19 @@ class Simulation:
                     desc=self.system.name)
 
     def _py_port(self, name: str, multiple: int) -> _PyPort:
-        ins = [(c.target.var, self.exchange.slots[(c.source.unit, c.source.var)], 1.0 / c.target.factor,
+        slots = self.exchange.slots
+        ins = [(c.target.var, slots[(c.source.unit, c.source.var)], 1.0 / c.target.factor,
                 -c.target.offset / c.target.factor)
                for c in self.connections if c.target.unit == name and c.derivative_order == 0]
-        return _PyPort(self.units[name], multiple, ins)
+        ders = [(c.target.var, slots[(c.source.unit, c.source.var)], 1.0 / c.target.factor,
+                 c.derivative_order)
+                for c in self.connections if c.target.unit == name and c.derivative_order]
+        return _PyPort(self.units[name], multiple, ins, ders)
+
+    def _port_derivatives(self, p: _PyPort) -> list:
+        """Input derivatives (only FMI 2 units take them), scaled as the native loop does."""
+        values = self.exchange.values
+        return [(var, order, scale * values[s]) for var, s, scale, order in p.derivatives]
 
     def _port_inputs(self, p: _PyPort) -> dict:
         return {var: self.exchange.as_input(p.unit.variables[var], s, scale, shift)

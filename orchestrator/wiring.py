@@ -84,7 +84,7 @@ def expand_connections(system: System, units: dict[str, Unit],
                 raise SystemError_(f"{where}: {tu}.{d.var} is a {dv.causality}, not an input")
             _check_types(where, f"{su}.{s.var}", sv, f"{tu}.{d.var}", dv)
             if s.name == s.var and d.name == d.var:  # role bindings convert units themselves
-                _check_units(where, f"{su}.{s.var}", sv, f"{tu}.{d.var}", dv)
+                _check_units(where, f"{su}.{s.var}", sv, f"{tu}.{d.var}", dv, c.derivative_order)
             if c.derivative_order and (dv.type != "Real" or not units[tu].can_interpolate_inputs):
                 raise SystemError_(f"{where}: unit {tu} cannot take input derivatives "
                                    "(canInterpolateInputs is false)")
@@ -108,14 +108,19 @@ def _check_types(where: str, src: str, sv, dst: str, dv) -> None:
             "Integer <-> Enumeration)")
 
 
-def _check_units(where: str, src: str, sv, dst: str, dv) -> None:
-    """Both ends declare a unit definition: the same dimension and scale, or refused (the
-    exchange does not convert between an FMU's own units)."""
+def _check_units(where: str, src: str, sv, dst: str, dv, derivative_order: int = 0) -> None:
+    """Both ends declare a unit definition: the same dimension and scale (a k-th derivative:
+    the target's unit per s^k), or refused (the exchange does not convert between an FMU's own
+    units)."""
     if sv.base_exponents is None or dv.base_exponents is None:
         return
-    if (sv.base_exponents, sv.unit_factor, sv.unit_offset) != (dv.base_exponents, dv.unit_factor,
-                                                                dv.unit_offset):
-        raise SystemError_(f"{where}: {src} is in {sv.unit} but {dst} is in {dv.unit}; "
+    expected = list(dv.base_exponents)
+    expected[2] -= derivative_order  # the exponent of s (orchestrator.fmu_units._BASE)
+    offsets_match = derivative_order or sv.unit_offset == dv.unit_offset
+    if list(sv.base_exponents) != expected or sv.unit_factor != dv.unit_factor or not offsets_match:
+        what = f"the derivative {derivative_order} of {dst}" if derivative_order else dst
+        raise SystemError_(f"{where}: {src} is in {sv.unit} but {what} is in {dv.unit}"
+                           f"{'/s' + str(derivative_order) if derivative_order else ''}; "
                            "connected variables need the same unit")
 
 
