@@ -35,6 +35,9 @@ def fmu_variables(md) -> dict[str, VarInfo]:
             factor, offset = float(b.factor or 1.0), float(b.offset or 0.0)
             exps = tuple(int(getattr(b, k) or 0) for k in _BASE)
         shape = tuple(int(n) for n in (getattr(v, "shape", None) or ()))
+        if v.type == "Clock":
+            raise UnitError(f"variable {v.name} is a Clock: clocked co-simulation (event mode) "
+                            "is not supported")
         family = info(v.type, fmi3).family_name
         var = VarInfo(v.name, v.causality, family, v.unit, int(v.valueReference), v.start, factor,
                       offset, exps, fmi_type=v.type, variability=v.variability or "continuous",
@@ -222,7 +225,10 @@ class FMU3Unit(Unit):
             raise UnitError(f"unit {name}: {self.path} is FMI {self.md.fmiVersion}, not 3.0")
         if self.md.coSimulation is None:
             raise UnitError(f"unit {name}: {self.path} has no co-simulation interface")
-        self.variables = fmu_variables(self.md)
+        try:
+            self.variables = fmu_variables(self.md)
+        except UnitError as e:
+            raise UnitError(f"unit {name}: {self.path}: {e}") from None
         self.can_get_set_state = bool(getattr(self.md.coSimulation, "canGetAndSetFMUState", False))
         # structural parameters that size an array: array sizes stay as declared
         self.dimension_parameters = {d.variable.name for v in self.md.modelVariables

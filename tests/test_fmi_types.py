@@ -378,3 +378,21 @@ def test_record_whole_unit_and_patterns(fmus):
                            "b.r_out", "b.i_out", "b.b_out", "b.e_out", "b.s_out", "b.r_in"]
     with pytest.raises(SystemError_, match=r"record.signals: 'b.zz\*': no variable of unit b matches"):
         simulate(_pair(fmus[2], [], record=("b.zz*",)))
+
+
+def test_clocked_fmu_refused_saying_why(tmp_path):
+    """An FMI 3 variable type the master cannot exchange (a Clock) is named at load."""
+    from orchestrator.errors import UnitError
+    from orchestrator.fmu_units import load_fmu_unit
+
+    folder = tmp_path / "clocked"
+    folder.mkdir()
+    (folder / "model.c").write_text((HERE / "typed3" / "model.c").read_text())
+    md = (HERE / "typed3" / "modelDescription.xml").read_text().replace(
+        "  </ModelVariables>", '    <Clock name="tick" valueReference="300" causality="input" '
+        'intervalVariability="triggered"/>\n  </ModelVariables>')
+    (folder / "modelDescription.xml").write_text(md)
+    fmu = build_test_fmu(folder, tmp_path)
+    with pytest.raises(UnitError, match=f"unit c: {fmu}: variable tick is a Clock: clocked "
+                                        r"co-simulation \(event mode\) is not supported"):
+        load_fmu_unit("c", fmu)
