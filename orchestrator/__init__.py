@@ -5,13 +5,16 @@ Modules, each importing only modules listed before it (so there is no import cir
 
 * the base, importing at most ``errors`` and ``plugins``: ``errors`` (every exception, one base
   class), ``plugins`` (roles and FMU schemes other packages contribute, by entry point),
-  ``fmu_resolver``, ``tomlfile``, ``si``, ``component`` (the Python component API),
+  ``fmu_resolver``, ``tomlfile``, ``si``, ``fmi_types`` (types,
+  lossless connections, value checks, Parquet types), ``component`` (the Python component API),
   ``recording``, ``ssp_common``, ``native`` (the C span loop and its build),
   ``component_import`` (a ``module:Class`` found beside the system file, then on the path),
   ``sources`` (built-in signal sources: constant, step, ramp, sine, CSV table)
 * the model: ``system`` (System, TOML layout), ``units`` (the Unit interface)
 * units: ``fmu_units`` (FMI 2.0 / 3.0 through fmpy), ``component_unit``
-* binding: ``roles``, ``wiring``
+* binding: ``roles``, ``wiring``, ``start_values`` (what a master may set before
+  initialisation), ``record_select`` (``record.signals`` patterns), ``exchange`` (the run's
+  typed slots)
 * system files: ``ssp_load``, ``ssp_save``, ``loader`` (``load_system``: TOML or SSP by suffix)
 * running: ``native.plan`` (FMI 2 units resolved for the C loop), ``master`` (Simulation,
   ``simulate``)

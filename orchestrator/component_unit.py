@@ -54,3 +54,4 @@ class ComponentUnit(Unit):
 
     def provenance(self) -> dict:
         return {"kind": "python", **self.component.provenance()}
+

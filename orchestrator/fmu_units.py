@@ -3,22 +3,27 @@ their raw entry points for the native span loop, FMI 3.0 units step on the Pytho
 from __future__ import annotations
 
 import ctypes
+import dataclasses
+import math
 import shutil
 import tempfile
 from pathlib import Path
 
 from orchestrator.errors import UnitError
+from orchestrator.fmi_types import info
 from orchestrator.units import STATUS, Unit, VarInfo, sha256_file
 
-_TYPE_NAMES = {"Real": "Real", "Float64": "Real", "Float32": "Real", "Integer": "Integer",
-               "Int32": "Integer", "Int64": "Integer", "Boolean": "Boolean", "String": "String",
-               "Enumeration": "Integer"}
 _BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+# fmi2GetRealStatus / fmi2GetBooleanStatus kinds (fmi2StatusKind)
+_FMI2_LAST_SUCCESSFUL_TIME, _FMI2_TERMINATED = 2, 3
 
 
 def fmu_variables(md) -> dict[str, VarInfo]:
-    """The variables of a model description (fmpy's), with their declared units' SI conversion."""
+    """The variables of a model description (fmpy's), with their declared units' SI conversion.
+    An FMI 3 array ``x`` of shape (2, 3) is listed as itself and as its elements ``x[0]`` ...
+    ``x[5]`` (flat, row-major), so that connections and recordings can take it element-wise."""
     units = {u.name: u for u in (md.unitDefinitions or [])}
+    fmi3 = md.fmiVersion.startswith("3")
     out = {}
     for v in md.modelVariables:
         if v.causality == "independent":
@@ -29,9 +34,25 @@ def fmu_variables(md) -> dict[str, VarInfo]:
             b = u.baseUnit
             factor, offset = float(b.factor or 1.0), float(b.offset or 0.0)
             exps = tuple(int(getattr(b, k) or 0) for k in _BASE)
-        out[v.name] = VarInfo(v.name, v.causality, _TYPE_NAMES.get(v.type, v.type), v.unit,
-                              int(v.valueReference), v.start, factor, offset, exps)
+        shape = tuple(int(n) for n in (getattr(v, "shape", None) or ()))
+        if v.type == "Clock":
+            raise UnitError(f"variable {v.name} is a Clock: clocked co-simulation (event mode) "
+                            "is not supported")
+        family = info(v.type, fmi3).family_name
+        var = VarInfo(v.name, v.causality, family, v.unit, int(v.valueReference), v.start, factor,
+                      offset, exps, fmi_type=v.type, variability=v.variability or "continuous",
+                      initial=v.initial, shape=shape, fmi3=fmi3)
+        out[v.name] = var
+        for k in range(math.prod(shape) if shape else 0):
+            name = f"{v.name}[{k}]"
+            out[name] = dataclasses.replace(var, name=name, shape=(), element=(v.name, k),
+                                            start=None)
     return out
+
+
+def _get_scalar(unit, name: str, v: VarInfo):
+    getter = getattr(unit.fmu, unit.accessor(v, "get"))
+    return unit._guard(f"reading {name}", lambda: getter([v.vr]))[0]
 
 
 class FMU2Unit(Unit):
@@ -82,7 +103,9 @@ class FMU2Unit(Unit):
         self._callbacks = cb  # must outlive the instance
         self._guard("instantiate", lambda: self.fmu.instantiate(callbacks=cb, loggingOn=False))
         self._guard("setupExperiment", lambda: self.fmu.setupExperiment(startTime=t0))
-        self._guard("enterInitializationMode", self.fmu.enterInitializationMode)
+        # initialisation mode is entered after the start values are set (enter_initialization):
+        # a variable with initial="approx" may only be set before it
+        self._in_init = False
 
     def _on_log(self, env, instance, status, category, message) -> None:
         msg = message.decode(errors="replace") if isinstance(message, bytes) else str(message)
@@ -92,36 +115,67 @@ class FMU2Unit(Unit):
         try:
             return call()
         except Exception as e:  # fmpy raises a plain Exception carrying the status
-            tail = "\n  ".join(self.log_tail())
-            raise UnitError(f"unit {self.name}: {what} failed ({e})"
-                            + (f"\n  FMU log:\n  {tail}" if tail else "")) from None
+            raise UnitError(self._failure(what, e)) from None
+
+    def _failure(self, what: str, e: Exception) -> str:
+        tail = "\n  ".join(self.log_tail())
+        return f"unit {self.name}: {what} failed ({e})" + (f"\n  FMU log:\n  {tail}" if tail else "")
 
     def exit_initialization(self) -> None:
+        self.enter_initialization()
         self._guard("exitInitializationMode", self.fmu.exitInitializationMode)
+
+    @staticmethod
+    def accessor(v: VarInfo, verb: str) -> str:
+        """fmpy's method for the variable's type: FMI 2 has four (an Enumeration is an Integer)."""
+        return verb + {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean",
+                       "String": "String"}[v.type]
 
     def set_values(self, values: dict) -> None:
         for name, value in values.items():
             v = self.variables[name]
-            if v.type == "Real":
-                self._guard(f"setting {name}", lambda: self.fmu.setReal([v.vr], [float(value)]))
-            elif v.type == "Integer":
-                self._guard(f"setting {name}", lambda: self.fmu.setInteger([v.vr], [int(value)]))
-            elif v.type == "Boolean":
-                self._guard(f"setting {name}", lambda: self.fmu.setBoolean([v.vr], [bool(value)]))
-            else:
-                self._guard(f"setting {name}", lambda: self.fmu.setString([v.vr], [str(value)]))
+            setter = getattr(self.fmu, self.accessor(v, "set"))
+            self._guard(f"setting {name}", lambda: setter([v.vr], [value]))
+
+    def set_input_derivatives(self, items: list[tuple[str, int, float]]) -> None:
+        """(input, order, value) for fmi2SetRealInputDerivatives."""
+        vrs = [self.variables[var].vr for var, _, _ in items]
+        self._guard("setRealInputDerivatives", lambda: self.fmu.setRealInputDerivatives(
+            vrs, [order for _, order, _ in items], [x for _, _, x in items]))
 
     def get_values(self, names: list[str]) -> list:
         out = []
         for name in names:
-            v = self.variables[name]
-            getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,
-                      "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[v.type]
-            out.append(self._guard(f"reading {name}", lambda: getter([v.vr]))[0])
+            x = _get_scalar(self, name, self.variables[name])
+            out.append(x.decode("utf-8") if isinstance(x, bytes) else x)
         return out
 
     def do_step(self, t: float, h: float) -> None:
-        self._guard(f"doStep at t = {t:.9g} s", lambda: self.fmu.doStep(t, h))
+        try:
+            self.fmu.doStep(t, h)
+        except Exception as e:
+            if getattr(e, "status", None) == 2 and self.asked_to_end(t):
+                return
+            raise UnitError(self._failure(f"doStep at t = {t:.9g} s", e)) from None
+
+    def asked_to_end(self, t: float) -> bool:
+        """After a doStep from *t* returned fmi2Discard: did the FMU ask to end the run
+        (fmi2Terminated)? If so, :attr:`ended_at` is the time it reached."""
+        try:
+            if not self.fmu.getBooleanStatus(_FMI2_TERMINATED):
+                return False
+        except Exception:
+            return False  # an FMU that cannot say it terminated did not ask to
+        try:
+            self.ended_at = float(self.fmu.getRealStatus(_FMI2_LAST_SUCCESSFUL_TIME))
+        except Exception:
+            self.ended_at = t  # no time reached beyond the step's start is known
+        return True
+
+    def enter_initialization(self) -> None:
+        if not self._in_init:
+            self._guard("enterInitializationMode", self.fmu.enterInitializationMode)
+            self._in_init = True
 
     def entry_points(self) -> dict[str, int]:
         """Addresses of the FMI functions and the instance, for the native loop."""
@@ -171,8 +225,14 @@ class FMU3Unit(Unit):
             raise UnitError(f"unit {name}: {self.path} is FMI {self.md.fmiVersion}, not 3.0")
         if self.md.coSimulation is None:
             raise UnitError(f"unit {name}: {self.path} has no co-simulation interface")
-        self.variables = fmu_variables(self.md)
+        try:
+            self.variables = fmu_variables(self.md)
+        except UnitError as e:
+            raise UnitError(f"unit {name}: {self.path}: {e}") from None
         self.can_get_set_state = bool(getattr(self.md.coSimulation, "canGetAndSetFMUState", False))
+        # structural parameters that size an array: array sizes stay as declared
+        self.dimension_parameters = {d.variable.name for v in self.md.modelVariables
+                                     for d in v.dimensions if d.variable is not None}
         self.fmu = None
         self._dir = None
 
@@ -185,41 +245,80 @@ class FMU3Unit(Unit):
                              modelIdentifier=self.md.coSimulation.modelIdentifier,
                              instanceName=self.name)
         self._guard("instantiate", lambda: self.fmu.instantiate(logMessage=self._on_log))
-        self._guard("enterInitializationMode",
-                    lambda: self.fmu.enterInitializationMode(startTime=t0))
+        self._t0 = t0
+        self._in_init = False
+
+    def enter_initialization(self) -> None:
+        if not self._in_init:
+            self._guard("enterInitializationMode",
+                        lambda: self.fmu.enterInitializationMode(startTime=self._t0))
+            self._in_init = True
 
     def _on_log(self, env, status, category, message) -> None:
         msg = message.decode(errors="replace") if isinstance(message, bytes) else str(message)
         self.logs.append((STATUS[status] if 0 <= status < len(STATUS) else status, msg))
 
     _guard = FMU2Unit._guard
+    _failure = FMU2Unit._failure
 
     def exit_initialization(self) -> None:
+        self.enter_initialization()
         self._guard("exitInitializationMode", self.fmu.exitInitializationMode)
 
+    @staticmethod
+    def accessor(v: VarInfo, verb: str) -> str:
+        """fmpy's method for the variable's type (an FMI 3 Enumeration is an Int64)."""
+        return verb + ("Int64" if v.fmi_type == "Enumeration" else v.fmi_type)
+
     def set_values(self, values: dict) -> None:
+        arrays: dict[str, list] = {}
         for name, value in values.items():
             v = self.variables[name]
-            setter = {"Real": (self.fmu.setFloat64, float), "Integer": (self.fmu.setInt32, int),
-                      "Boolean": (self.fmu.setBoolean, bool), "String": (self.fmu.setString, str)}
-            fn, conv = setter[v.type]
-            self._guard(f"setting {name}", lambda: fn([v.vr], [conv(value)]))
+            if v.element is not None:
+                # one element of an array: the array is set whole, its other elements as they are
+                parent, k = v.element
+                if parent not in arrays:
+                    arrays[parent] = self._get_array(parent)
+                arrays[parent][k] = value
+            elif v.shape:
+                arrays[name] = list(value)
+            else:
+                setter = getattr(self.fmu, self.accessor(v, "set"))
+                self._guard(f"setting {name}", lambda: setter([v.vr], [value]))
+        for parent, flat in arrays.items():
+            v = self.variables[parent]
+            setter = getattr(self.fmu, self.accessor(v, "set"))
+            self._guard(f"setting {parent}", lambda: setter([v.vr], flat))
+
+    def _get_array(self, name: str) -> list:
+        v = self.variables[name]
+        getter = getattr(self.fmu, self.accessor(v, "get"))
+        return list(self._guard(f"reading {name}", lambda: getter([v.vr], math.prod(v.shape))))
 
     def get_values(self, names: list[str]) -> list:
+        arrays: dict[str, list] = {}
         out = []
         for name in names:
             v = self.variables[name]
-            getter = {"Real": self.fmu.getFloat64, "Integer": self.fmu.getInt32,
-                      "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[v.type]
-            out.append(self._guard(f"reading {name}", lambda: getter([v.vr]))[0])
+            if v.element is not None:
+                parent, k = v.element
+                if parent not in arrays:
+                    arrays[parent] = self._get_array(parent)
+                out.append(arrays[parent][k])
+            elif v.shape:
+                out.append(self._get_array(name))
+            else:
+                out.append(_get_scalar(self, name, v))
         return out
 
     def do_step(self, t: float, h: float) -> None:
         def step():
-            result = self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-            if result[1]:  # terminateSimulation
-                raise Exception("the FMU asked to terminate the simulation")
-        self._guard(f"doStep at t = {t:.9g} s", step)
+            return self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        _event, terminate, early, reached = self._guard(f"doStep at t = {t:.9g} s", step)
+        if terminate:
+            # the FMU asks to end the run: it has reached lastSuccessfulTime (t + h unless it
+            # returned early)
+            self.ended_at = float(reached) if early else t + h
 
     terminate = FMU2Unit.terminate
     free = FMU2Unit.free

@@ -38,6 +38,7 @@ import numpy as np
 from orchestrator.errors import LibcosimError, LibcosimUnsupported
 from orchestrator.fmu_units import FMU2Unit
 from orchestrator.master import Simulation
+from orchestrator.record_select import record_endpoints
 from orchestrator.recording import Recording
 from orchestrator.system import System
 
@@ -134,18 +135,19 @@ def _observed(sim: Simulation) -> list[tuple[str, str, str, float, float]]:
     :meth:`Simulation.run`: a connected input is recorded as the output that drives it."""
     out = []
     for pattern in sim.system.record:
-        unit, _, name = pattern.partition(".")
+        unit = pattern.partition(".")[0]
         if unit not in sim.units:
             raise LibcosimUnsupported(f"record.signals: {pattern!r}: no unit {unit!r}")
-        for e in sim._endpoint(unit, name, "record.signals"):
-            src = None
-            if sim.units[unit].variables[e.var].causality == "input":
-                src = next((c.source for c in sim.connections if c.target.unit == unit
-                            and c.target.var == e.var and c.derivative_order == 0), None)
-            if src is not None:
-                out.append((f"{unit}.{e.name}", src.unit, src.var, src.factor, src.offset))
-            else:
-                out.append((f"{unit}.{e.name}", unit, e.var, e.factor, e.offset))
+    # the same selection as the master's (whole units, patterns), so both engines record alike
+    for unit, e in record_endpoints(sim.units, sim.bindings, sim.system.record):
+        src = None
+        if sim.units[unit].variables[e.var].causality == "input":
+            src = next((c.source for c in sim.connections if c.target.unit == unit
+                        and c.target.var == e.var and c.derivative_order == 0), None)
+        if src is not None:
+            out.append((f"{unit}.{e.name}", src.unit, src.var, src.factor, src.offset))
+        else:
+            out.append((f"{unit}.{e.name}", unit, e.var, e.factor, e.offset))
     return out
 
 

@@ -47,6 +47,7 @@ mapping translates them), the unit's own names otherwise.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -100,6 +101,21 @@ class System:
             if u.name == name:
                 return u
         raise KeyError(name)
+
+    def grid(self) -> tuple[int, float]:
+        """(number of steps, length of a shortened last step): a stop that is not a whole number
+        of steps after start is reached by a shorter last step (0.0 when it is)."""
+        span = self.stop - self.start
+        n = int(round(span / self.step))
+        if abs(n * self.step - span) <= 1e-9 * max(1.0, abs(self.stop)):
+            return n, 0.0
+        n_full = int(math.floor(span / self.step))
+        slow = [u.name for u in self.units if u.step_multiple != 1]
+        if slow:
+            raise SystemError_(f"{self.source or 'system'}: stop - start = {span} is not a whole "
+                               f"number of steps of {self.step}, and units {slow} step at a multiple "
+                               "of it; choose a stop on their grid")
+        return n_full + 1, span - n_full * self.step
 
     def validate(self) -> None:
         where = self.source or "system"

@@ -9,6 +9,8 @@ from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
+from orchestrator.fmi_types import TypeInfo, info
+
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
 
@@ -16,7 +18,7 @@ STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 class VarInfo:
     name: str
     causality: str
-    type: str  # Real, Integer, Boolean, String (FMI 3 Float64 -> Real, Int32 -> Integer)
+    type: str  # family: Real, Integer, Boolean, String, Binary (Float32 -> Real, Int8 -> Integer)
     unit: str | None
     vr: int
     start: object = None
@@ -25,6 +27,16 @@ class VarInfo:
     unit_factor: float = 1.0
     unit_offset: float = 0.0
     base_exponents: tuple | None = None
+    fmi_type: str = ""         # as declared: Float32, Int8, Enumeration, ... ("" = type)
+    variability: str = "continuous"
+    initial: str | None = None  # exact, approx, calculated (None: not declared / not FMI)
+    shape: tuple = ()           # an FMI 3 array's dimensions; () for a scalar
+    element: tuple | None = None  # (array variable, flat index) for an array element
+    fmi3: bool = False
+
+    @property
+    def tinfo(self) -> TypeInfo:
+        return info(self.fmi_type or self.type, self.fmi3)
 
 
 def sha256_file(path: str | Path) -> str:
@@ -44,6 +56,9 @@ class Unit:
     variables: dict[str, VarInfo]
     can_interpolate_inputs = False
     max_output_derivative_order = 0
+    #: set by do_step when an FMU asks to end the run (FMI 2 fmi2Terminated, FMI 3
+    #: terminateSimulation): the time it reached
+    ended_at: float | None = None
 
     def __init__(self, name: str) -> None:
         self.name = name
@@ -54,6 +69,7 @@ class Unit:
 
     # life cycle
     def instantiate(self, t0: float) -> None: ...
+    def enter_initialization(self) -> None: ...
     def exit_initialization(self) -> None: ...
     def do_step(self, t: float, h: float) -> None: ...
     def terminate(self) -> None: ...

@@ -7,9 +7,11 @@ Every distinct source output gets one slot of the exchange array; values in slot
 from __future__ import annotations
 
 import difflib
+import math
 from dataclasses import dataclass
 
 from orchestrator.errors import AlgebraicLoopError, SystemError_
+from orchestrator.fmi_types import connectable
 from orchestrator.roles import Binding
 from orchestrator.system import System
 from orchestrator.units import Unit
@@ -46,6 +48,11 @@ def resolve(unit: Unit, bindings: dict[str, Binding], name: str, where: str) -> 
     """Scalar endpoints for *name* on *unit* (a vector prefix gives several)."""
     e = _lookup(unit, bindings, name)
     if e is not None:
+        v = unit.variables.get(e.var)
+        if v is not None and v.shape:
+            # an FMI 3 array: its elements, flat in row-major order
+            return [Endpoint(unit.name, f"{e.name}[{k}]", f"{e.var}[{k}]", e.factor, e.offset)
+                    for k in range(math.prod(v.shape))]
         return [e]
     for suffixes in VECTOR_SUFFIXES:
         parts = [_lookup(unit, bindings, f"{name}.{s}") for s in suffixes]
@@ -75,6 +82,9 @@ def expand_connections(system: System, units: dict[str, Unit],
                 raise SystemError_(f"{where}: {su}.{s.var} is a {sv.causality}, not an output")
             if dv.causality != "input":
                 raise SystemError_(f"{where}: {tu}.{d.var} is a {dv.causality}, not an input")
+            _check_types(where, f"{su}.{s.var}", sv, f"{tu}.{d.var}", dv)
+            if s.name == s.var and d.name == d.var:  # role bindings convert units themselves
+                _check_units(where, f"{su}.{s.var}", sv, f"{tu}.{d.var}", dv, c.derivative_order)
             if c.derivative_order and (dv.type != "Real" or not units[tu].can_interpolate_inputs):
                 raise SystemError_(f"{where}: unit {tu} cannot take input derivatives "
                                    "(canInterpolateInputs is false)")
@@ -84,6 +94,34 @@ def expand_connections(system: System, units: dict[str, Unit],
             seen_targets[key] = f"{su}.{s.var}"
             out.append(ScalarConnection(s, d, c.derivative_order))
     return out
+
+
+def _type_name(v) -> str:
+    return v.fmi_type or v.type
+
+
+def _check_types(where: str, src: str, sv, dst: str, dv) -> None:
+    if not connectable(sv.tinfo, dv.tinfo):
+        raise SystemError_(
+            f"{where}: {src} is {_type_name(sv)} but {dst} is {_type_name(dv)}; a connection needs "
+            "the same type or a lossless widening (Int8 -> Int32, Float32 -> Float64, "
+            "Integer <-> Enumeration)")
+
+
+def _check_units(where: str, src: str, sv, dst: str, dv, derivative_order: int = 0) -> None:
+    """Both ends declare a unit definition: the same dimension and scale (a k-th derivative:
+    the target's unit per s^k), or refused (the exchange does not convert between an FMU's own
+    units)."""
+    if sv.base_exponents is None or dv.base_exponents is None:
+        return
+    expected = list(dv.base_exponents)
+    expected[2] -= derivative_order  # the exponent of s (orchestrator.fmu_units._BASE)
+    offsets_match = derivative_order or sv.unit_offset == dv.unit_offset
+    if list(sv.base_exponents) != expected or sv.unit_factor != dv.unit_factor or not offsets_match:
+        what = f"the derivative {derivative_order} of {dst}" if derivative_order else dst
+        raise SystemError_(f"{where}: {src} is in {sv.unit} but {what} is in {dv.unit}"
+                           f"{'/s' + str(derivative_order) if derivative_order else ''}; "
+                           "connected variables need the same unit")
 
 
 def _tarjan(nodes: list[str], edges: dict[str, list[str]]) -> list[list[str]]:
@@ -138,9 +176,12 @@ def stepping_order(system: System, conns: list[ScalarConnection]) -> list[str]:
 
 
 def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
-                          feedthrough: dict[str, dict[str, list[str]]]) -> None:
-    """Refuse cycles made only of direct feed-through (output depends on input within a unit)
-    and connections: no step order can satisfy them without iteration."""
+                          feedthrough: dict[str, dict[str, list[str]]],
+                          broken_by: str | None = None) -> list[str]:
+    """Cycles made only of direct feed-through (output depends on input within a unit) and
+    connections: no step order satisfies them without iteration. Refused, unless the system
+    breaks them with a one-step delay (*broken_by*: an explicit order, or Jacobi); then each is
+    returned as a note to report."""
     edges: dict[str, list[str]] = {}
     for c in conns:
         if c.derivative_order == 0:
@@ -150,12 +191,18 @@ def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
             for i in ins:
                 edges.setdefault(f"{unit}.{i}", []).append(f"{unit}.{out}")
     nodes = sorted(set(edges) | {w for ws in edges.values() for w in ws})
+    notes = []
     for comp in _tarjan(nodes, edges):
         if len(comp) > 1:
-            raise AlgebraicLoopError(
-                "algebraic loop (outputs that depend instantaneously on each other): "
-                + " -> ".join(sorted(comp)) + ". Break it with a unit that has no direct "
-                "feed-through, or set the order explicitly and accept a one-step delay.")
+            loop = " -> ".join(sorted(comp))
+            if broken_by is None:
+                raise AlgebraicLoopError(
+                    f"algebraic loop (outputs that depend instantaneously on each other): {loop}. "
+                    "Break it with a unit that has no direct feed-through, or accept a one-step "
+                    "delay: set system.order (a unit reads the outputs of units after it one "
+                    'step late) or system.algorithm = "jacobi" (every input one step late).')
+            notes.append(f"algebraic loop {loop} broken by {broken_by}: one-step delay")
+    return notes
 
 
 def fmu_feedthrough(unit: Unit) -> dict[str, list[str]]:

@@ -42,8 +42,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
             problems = validate_fmu(str(path))
             for p in problems:
                 print(f"unit {name}: validation: {p}")
-    out = args.out or f"{system.name}.parquet"
+    from pathlib import Path
+
+    # an SSP archive's inner system is often just "root": the file names the run
+    default = Path(args.system).stem if str(args.system).lower().endswith(".ssp") else system.name
+    out = args.out or f"{default}.parquet"
     rec = sim.run(out)
+    for note in sim.notes:
+        print(f"note: {note}")
+    if sim.stopped_at is not None:
+        print(f"{system.name}: a unit ended the run at t = {sim.stopped_at:.9g} s")
     print(f"{system.name}: {rec.rows} rows x {len(rec.signals)} signals, "
           f"{rec.provenance['wall_time_s']:.2f} s wall -> {out}")
     return 0

@@ -42,6 +42,7 @@ class SpanError(ctypes.Structure):
                 ("status", ctypes.c_long), ("index", ctypes.c_long), ("warned", ctypes.c_long)]
 
 
+CALL_DO_STEP = 4  # span.c's CALL_DO_STEP
 CALLS = {1: "fmi2SetReal", 2: "fmi2SetInteger", 3: "fmi2SetRealInputDerivatives",
          4: "fmi2DoStep", 5: "fmi2GetReal", 6: "fmi2GetInteger", 7: "non-finite output"}
 

@@ -107,6 +107,10 @@ def _build(units: dict[str, Unit], names: list[str], connections: list[ScalarCon
             if c.target.unit != name:
                 continue
             v = u.variables[c.target.var]
+            if v.type not in ("Real", "Integer"):
+                # fmi2SetReal on a Boolean is what this loop once did: such units step in Python
+                raise ValueError(f"unit {name}: {v.name} is {v.type}; the native loop exchanges "
+                                 "Real and Integer only")
             s = slots[(c.source.unit, c.source.var)]
             if c.derivative_order:
                 der.append((v.vr, s, 1.0 / c.target.factor, c.derivative_order))
