@@ -15,7 +15,8 @@ the user; nothing of it is in this repository) runs through calbench and through
   calbench / fmpy (a model's events, as far as a co-simulation run shows them).
 * verdict: ``same`` (max diff <= --atol + --rtol * max|y|), ``differs``, ``calbench failed:
   <reason>`` or ``fmpy failed: <reason>``; FMUs without a co-simulation interface are listed as
-  ``not run: <reason>``.
+  ``not run: <reason>``; a model still running after ``--timeout`` seconds (default 120) is
+  ``timed out`` (Roberts' default experiment, 1e-5 to 1e8 s, is one).
 
 Run: ``python benchmarks/reference_fmus.py DIR [--atol A] [--rtol R]`` (DIR is searched for
 ``*.fmu`` recursively, e.g. the Reference-FMUs' ``build/`` or an unpacked release with ``2.0/``
@@ -101,8 +102,12 @@ def compare_model(path: Path, atol: float = 1e-12, rtol: float = 1e-12) -> Model
     rows_ours, rows_theirs = np.nonzero(ok)[0], j[ok]
     worst, scale, changes = 0.0, 0.0, [0, 0]
     discrete_ours, discrete_theirs = np.zeros(len(rows_ours), bool), np.zeros(len(rows_theirs), bool)
+    unrecorded = []
     for v in outputs:
         a = np.asarray(ours[1][v.name])[rows_ours]
+        if v.name not in (theirs.dtype.names or ()):  # fmpy records no String or Binary output
+            unrecorded.append(v.name)
+            continue
         b = np.asarray(theirs[v.name])[rows_theirs]
         if v.type == "String" or a.dtype.kind in "USO" or b.dtype.kind in "USO":
             worst = max(worst, float(np.sum(a != b)))
@@ -119,6 +124,8 @@ def compare_model(path: Path, atol: float = 1e-12, rtol: float = 1e-12) -> Model
             discrete_theirs[1:] |= np.any((b[1:] != b[:-1]).reshape(len(b) - 1, -1), axis=1)
     changes = [int(discrete_ours.sum()), int(discrete_theirs.sum())]
     line.max_diff, line.steps, line.changes = worst, len(t_ours) - 1, tuple(changes)
+    if unrecorded:
+        line.note = (line.note + "; " if line.note else "") + f"not recorded by fmpy: {', '.join(unrecorded)}"
     missing = len(t_ours) - len(rows_ours)
     if missing:
         line.note = (line.note + "; " if line.note else "") + f"{missing} calbench rows have no fmpy row"
@@ -135,7 +142,14 @@ def _calbench(path: Path, start: float, stop: float, step: float, names: list[st
     rec = simulate(system, progress=False)
     if not rec.complete:
         raise RuntimeError(rec.fault or "incomplete run")
-    return rec.t, {n: rec[f"m.{n}"] for n in names}
+    def values(n: str):
+        if f"m.{n}" in rec.signals:
+            return rec[f"m.{n}"]
+        # an array variable is recorded one column per element, m.y[0], m.y[1], ... (row-major)
+        elements = [s for s in rec.signals if s.startswith(f"m.{n}[")]
+        return np.stack([rec[s] for s in elements], axis=1)
+
+    return rec.t, {n: values(n) for n in names}
 
 
 def _fmpy(path: Path, start: float, stop: float, step: float, names: list[str]):
@@ -145,11 +159,41 @@ def _fmpy(path: Path, start: float, stop: float, step: float, names: list[str]):
                         output_interval=step, fmi_type="CoSimulation", output=names, validate=False)
 
 
+def _compare_with_limit(path: Path, atol: float, rtol: float, timeout: float) -> ModelLine:
+    """compare_model in a child process, ended after *timeout* s: a model whose default
+    experiment asks for more than a fixed-step co-simulation can do in time (Roberts: 1e-5 to
+    1e8 s) must not stop the rest of the list."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=lambda: queue.put(compare_model(path, atol, rtol)))
+    child.start()
+    child.join(timeout)
+    if child.is_alive():
+        child.kill()
+        child.join()
+        try:
+            from fmpy import read_model_description
+
+            md = read_model_description(str(path))
+            fmi, model = str(md.fmiVersion)[:3], md.modelName or path.stem
+        except Exception:
+            fmi, model = "?", path.stem
+        return ModelLine(fmi, model, f"timed out after {timeout:g} s")
+    try:
+        return queue.get(timeout=10)
+    except Exception:
+        return ModelLine("?", path.stem, f"failed: the child process ended with code {child.exitcode}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("directory", type=Path, help="searched recursively for *.fmu")
     ap.add_argument("--atol", type=float, default=1e-12)
     ap.add_argument("--rtol", type=float, default=1e-12)
+    ap.add_argument("--timeout", type=float, default=120.0,
+                    help="seconds per model (both engines); a model still running then is reported as timed out")
     args = ap.parse_args(argv)
     fmus = sorted(args.directory.rglob("*.fmu"))
     if not fmus:
@@ -158,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER)
     lines = []
     for p in fmus:
-        line = compare_model(p, args.atol, args.rtol)
+        line = _compare_with_limit(p, args.atol, args.rtol, args.timeout)
         lines.append(line)
         print(line, flush=True)
     ran = [x for x in lines if not x.verdict.startswith("not run")]
