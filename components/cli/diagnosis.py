@@ -24,11 +24,9 @@ def _print_comparison(c, coloured: bool = False) -> None:
     for k, v in c.channels.items():
         print(f"{k:8s} {v['rms']:11.4g} {v['noise_floor']:11.4g} {v['rms'] / v['noise_floor']:9.3f} "
               f"{v['chi2_per_dof']:9.3f} {v['fit_percent']:9.4f} {v['whiteness_p']:8.3f}")
-    worst = sorted(((max((x for x in vals if x is not None), default=0), s)
-                    for s, vals in c.per_segment.items()), reverse=True)[:5]
-    if worst:
-        print("segments with the largest normalised residual (block RMS, 1 = noise): "
-              + ", ".join(f"{s} {v:.2f}" for v, s in worst))
+    if c.misfits is not None:
+        # only what is significant given how many cells were looked at (components.diagnosis.misfit)
+        print("where it fails: " + "\n                ".join(c.misfits.lines()))
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
@@ -36,7 +34,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     from components.diagnosis.compare import compare
     from components.diagnosis.noise_choice import choose_noise
-    from components.diagnosis.residual_export import write_residuals
+    from components.diagnosis.residual_export import write_block_residuals, write_residuals
     from components.errors import UserError
     from components.model.result import fitted_on
 
@@ -77,6 +75,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             json.dump(c.summary(), f, indent=1)
     if args.residuals:
         write_residuals(args.residuals, log, c)
+    if args.block_residuals:
+        write_block_residuals(args.block_residuals, c)
     return 0
 
 
@@ -232,7 +232,11 @@ def register(sub) -> None:
                    help="also replay the logged commands through the turntable FMU (the built-in "
                         "one, or a system's turntable unit) and compare with the logged angles")
     c.add_argument("--json", help="write the per-channel figures as JSON")
-    c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units)")
+    c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units; column "
+                                       "encoder_limited = 1 inside moves, where the gyro prediction is rebuilt "
+                                       "from encoder counts)")
+    c.add_argument("--block-residuals", metavar="F.csv", help="write the normalised block residuals the "
+                                                              "statistics use (1 = noise), with the misfit flag")
     noise_option.add(c)
     log_option.add(c)
     c.set_defaults(func=_cmd_compare)
