@@ -99,10 +99,17 @@ def _print_servo(log, system_file) -> None:
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     import json
 
+    from components.diagnosis.candidate_notes import (
+        LEGEND,
+        RANKING_HEADER,
+        candidate_notes_lines,
+        ranking_line,
+        verdict_lines,
+    )
     from components.diagnosis.diagnose import NOISE_CANDIDATES, diagnose
     from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
-    from components.model.effects import EFFECTS, parse_effects
+    from components.model.effects import parse_effects
 
     log, data = log_option.read(args)
     model = _load_model(args.model)
@@ -118,19 +125,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"noise: {said}")
     d = diagnose(data, model, candidates=cands, alpha=args.alpha, noise=noise)
     print(f"model: {', '.join(model.effects)}; chi2/dof = {d.base_chi2_per_dof:.3f} over {d.rows} block rows")
-    print(f"{'rank':4s} {'effect':16s} {'F':>10s} {'p (Holm)':>10s} {'dBIC':>10s} {'explains':>8s}  magnitude"
-          "  [95 % detection threshold]")
+    print(RANKING_HEADER)
     for i, c in enumerate(d.ranking[: args.top], 1):
-        e = EFFECTS[c.effect]
-        unit, scale = e.display
-        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))
-        mag = f"{best[0]} = {best[1][0] / scale:+.4g} ± {best[1][1] / scale:.2g} {unit}"
-        thr = c.threshold.get(best[0])
-        mark = "*" if c.passes else " "
-        print(f"{i:3d}{mark} {c.effect:16s} {c.statistic:10.3g} {c.p_adjusted:10.2g} {c.bic_delta:10.4g} "
-              f"{100 * c.explained_fraction:7.1f}%  {mag}" + (f"  [{thr / scale:.2g}]" if thr else ""))
-        for other, rho, advice in c.indistinguishable:
-            print(f"       cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+        print(ranking_line(i, c))
+        for note in candidate_notes_lines(c):
+            print("       " + note)
+    print(LEGEND)
     if d.unseeable:
         print("not tested, this log cannot see them at any plausible magnitude: " + "; ".join(
             f"{e} (needs {why})" for e, why in d.unseeable.items()))
@@ -139,14 +139,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         for n in d.noise_candidates:
             print(f"     {n['term']:16s} log-likelihood gain {n['loglik_gain']:9.2f}  (Akaike {n['aic_gain']:+.1f})"
                   f"  {'significant' if n['significant'] else 'not significant'}")
-    if d.verdict is None:
-        print("verdict: no significant effect is missing and the noise model suffices")
-    elif d.verdict_kind == "noise":
-        print(f"verdict: the noise model is too simple: {d.verdict} explains the residual better than any "
-              "effect (a stochastic term, not a missing effect; add it with `calbench add --effect "
-              f"{d.verdict}`)" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
-    else:
-        print(f"verdict: {d.verdict} is missing" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
+    for line in verdict_lines(d):
+        print(line)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(d.to_json(), f, indent=1)
