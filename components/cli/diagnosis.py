@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from components.cli import log_option, noise_option
+from components.cli import report as report_option
 
 
 def _load_model(path: str):
@@ -77,6 +78,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         write_residuals(args.residuals, log, c)
     if args.block_residuals:
         write_block_residuals(args.block_residuals, c)
+    if args.report:
+        if not data.has_table or args.model.endswith((".toml", ".ssp")):
+            raise UserError("compare --report: the page needs a calibration result and a log with table angles")
+        report_option.write(args.report, log, data, model, args.model, noise, diagnose_models="none")
     return 0
 
 
@@ -144,6 +149,11 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.json:
         with open(args.json, "w") as f:
             json.dump(d.to_json(), f, indent=1)
+    if args.report:
+        if not data.has_table:
+            raise UserError("diagnose --report: the page needs a log with table angles")
+        report_option.write(args.report, log, data, model, args.model, noise,
+                            diagnoses={_name(model): d})
     return 0
 
 
@@ -188,7 +198,15 @@ def _cmd_add(args: argparse.Namespace) -> int:
     res.save(args.out)
     print("\n".join(ladder_lines(ladder)))
     print(f"-> {args.out}")
+    if args.report:
+        report_option.write(args.report, log, data, res, args.out, noise, baseline=model)
     return 0
+
+
+def _name(model) -> str:
+    from components.diagnosis.report_run import model_name
+
+    return model_name(model)
 
 
 def _add_positions(args, log, data, model, effects, new, noise_terms, noise, ladder) -> int:
@@ -233,6 +251,7 @@ def register(sub) -> None:
                                                               "statistics use (1 = noise), with the misfit flag")
     noise_option.add(c)
     log_option.add(c)
+    report_option.add_option(c)
     c.set_defaults(func=_cmd_compare)
 
     d = sub.add_parser("diagnose", help="which effect of the vocabulary is missing from the model")
@@ -244,6 +263,7 @@ def register(sub) -> None:
     d.add_argument("--top", type=int, default=10, help="ranking lines to print")
     noise_option.add(d)
     log_option.add(d)
+    report_option.add_option(d)
     d.set_defaults(func=_cmd_diagnose)
 
     a = sub.add_parser("add", help="add an effect to a model and refit all parameters")
@@ -254,4 +274,5 @@ def register(sub) -> None:
     a.add_argument("--out", required=True, help="the new model (JSON), with the ladder")
     noise_option.add(a)
     log_option.add(a)
+    report_option.add_option(a)
     a.set_defaults(func=_cmd_add)
