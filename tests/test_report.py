@@ -157,3 +157,23 @@ def test_before_after_page_names_its_models_and_centres_the_heat_map_on_noise(be
         assert min(r, g, b) > 225, f"the colour at 1 (noise) is {rows[len(rows) // 2]}, not white"
         assert rows[0][0] > rows[0][2] + 60, f"the top (above noise) is {rows[0]}, not red"
         assert rows[-1][2] > rows[-1][0] + 60, f"the bottom (below noise) is {rows[-1]}, not blue"
+
+
+def test_report_command_and_a_bad_truth_file(conformance, tmp_path, capsys):
+    from components.cli import main
+
+    model = tmp_path / "m.json"
+    assert main(["calibrate", str(conformance / "example"), "--out", str(model)]) == 0
+    page = tmp_path / "page.html"
+    assert main(["report", str(conformance / "example"), "--model", str(model), "--out", str(page),
+                 "--diagnose", "none", "--no-noise"]) == 0
+    text = page.read_text()
+    assert "Where gyro.bias+gyro.sf+gyro.mis+acc.bias+acc.sf+acc.mis fails" in text
+    assert "no segment × channel misfits beyond noise" in text
+    bad = tmp_path / "truth.json"
+    bad.write_text(json.dumps({"seed": 1}))
+    capsys.readouterr()
+    assert main(["report", str(conformance / "example"), "--model", str(model), "--out", str(page),
+                 "--truth", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(bad) in err[0] and '"effects"' in err[0], err
