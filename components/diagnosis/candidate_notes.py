@@ -94,11 +94,14 @@ def annotate(diagnosis) -> None:
         elif c.passes and noise_verdict:
             c.status = "noise explains it"
             c.why = (f"the noise term {noise_verdict} explains the residual better (Akaike gain {noise_gain:.4g} "
-                     f"against {c.aic_gain:.4g}); not significant once it is in the noise model")
+                     f"against {c.aic_gain:.4g})" + ("; forward selection, with it in the noise model, did "
+                                                     "not name this effect" if diagnosis.forward else ""))
         elif c.passes:
             c.status = "also significant"
-            c.why = ("significant on its own, not once the effects found are in the model" if diagnosis.found
-                     else "significant")
+            c.why = (f"significant on its own; forward selection, with {', '.join(diagnosis.found)} in the model, "
+                     "did not name it" if diagnosis.forward else
+                     f"significant on its own; {diagnosis.verdict} explains more (add it and diagnose again to see "
+                     "whether this one remains)")
         else:
             c.status, c.why = "not significant", f"Holm-adjusted p ≥ α = {alpha}"
 

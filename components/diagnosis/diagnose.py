@@ -98,6 +98,7 @@ class Diagnosis:
     noise: object = None              # the noise model after the selection (NoiseModel or None)
     # candidates this log cannot see at any plausible magnitude: effect -> the motion it needs
     unseeable: dict = field(default_factory=dict)
+    forward: bool = True  # forward selection ran (each passing candidate was re-tested after the verdict)
 
     def to_json(self) -> dict:
         return {"verdict": self.verdict, "verdict_kind": self.verdict_kind, "found": self.found,
@@ -304,7 +305,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     out = Diagnosis(found[0] if found else None, first_ranking or [], found, steps,
                     chi2_first or float("nan"), design.n, alpha,
                     [{k: v for k, v in n.items() if k != "model"} for n in (first_noise or [])],
-                    kinds[0] if kinds else None, noise_now, unseeable)
+                    kinds[0] if kinds else None, noise_now, unseeable, forward)
     annotate(out)
     return out
 
