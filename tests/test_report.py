@@ -177,3 +177,26 @@ def test_report_command_and_a_bad_truth_file(conformance, tmp_path, capsys):
                  "--truth", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(bad) in err[0] and '"effects"' in err[0], err
+
+
+def test_demo_page_shows_before_after_and_the_truth(tmp_path, capsys):
+    """The demo writes the same page: the baseline's heat map and diagnosis under the baseline's
+    name, the corrected model's under its own, the hidden effect against its truth; the corrected
+    model flags nothing, the baseline does (the JSON twin's cells, not the page's words)."""
+    from components.cli.demo import run_demo
+
+    assert run_demo(tmp_path / "demo", dwell=2.0) == 0
+    html_text = (tmp_path / "demo" / "report.html").read_text()
+    twin = json.loads((tmp_path / "demo" / "report.json").read_text())
+    names = [v["model"] for v in twin["views"]]
+    assert names == ["baseline", "+ acc.k2"], names
+    for name, role in zip(names, ("before", "after")):
+        assert f"Where {name} fails ({role})" in html_text
+        assert f"Diagnosis of {name}" in html_text
+    before, after = (v["comparison"]["misfits"]["flagged"] for v in twin["views"])
+    assert any(c["channel"] == "acc_z" for c in before["segment"]), before["segment"]
+    assert not any(after.values()), after
+    assert twin["views"][0]["diagnosis"]["verdict"] == "acc.k2"
+    assert twin["views"][1]["diagnosis"]["verdict"] is None
+    assert "Recovered against the truth: + acc.k2" in html_text
+    assert twin["truth"] and twin["truth"][0].startswith("acc.k2.z: truth +40 ug/g2, recovered")
