@@ -80,6 +80,105 @@ def test_report_is_self_contained(report):
     assert not re.search(r'(src|href)="(https?:)?//', html)
 
 
+@pytest.fixture(scope="module")
+def before_after(tmp_path_factory, conformance):
+    """`calbench report`'s page for the spec's example: a result made by `add` (biases only ->
+    + scale factors and misalignments, the example's true model), so the page has a before and
+    an after."""
+    from components.diagnosis.compare import compare
+    from components.diagnosis.ladder import ladder_entry
+    from components.diagnosis.report_run import write_model_report
+    from components.model.result import result_from_fit
+
+    out = tmp_path_factory.mktemp("before_after")
+    log = read_log(conformance / "example")
+    data = LogData.from_log(log)
+    first = ["gyro.bias", "acc.bias"]
+    before = result_from_fit(calibrate(data, first), first, data, log)
+    full = list(DEFAULT_EFFECTS)
+    after = result_from_fit(calibrate(data, full), full, data, log)
+    after.extra["ladder"] = [ladder_entry(compare(data, before, fitted_parameters=len(before.values)), first, "biases"),
+                             ladder_entry(compare(data, after, fitted_parameters=len(after.values)), full,
+                                          "+ sf, mis")]
+    html_path, json_path = write_model_report(out / "page.html", log, data, after, title="example before/after")
+    return html_path, json_path
+
+
+def _legend(svg_dom: str, gid: str):
+    """(tick label -> y, y span of the colour bar, PNG rows from the displayed top) of a heat map's
+    colour bar, read from the rendered DOM."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    start = svg_dom.index(f'id="{gid}"')
+    end = svg_dom.index("</g>\n  </g>", start) if "</g>\n  </g>" in svg_dom[start:] else len(svg_dom)
+    seg = svg_dom[start:end]
+    img = re.search(r'<image[^>]*href="data:image/png;base64,([^"]+)"[^>]*>', seg)
+    assert img, "the colour bar is an inline image"
+    tag = img.group(0)
+    png = Image.open(io.BytesIO(base64.b64decode(img.group(1)))).convert("RGB")
+    rows = [png.getpixel((png.size[0] // 2, r)) for r in range(png.size[1])]
+    if "scale(1 -1)" in tag or "scale(1, -1)" in tag:  # drawn flipped: the PNG's last row is on top
+        rows = rows[::-1]
+    ticks = {m.group(2): float(m.group(1)) for m in re.finditer(r'<text[^>]*\by="([-\d.]+)"[^>]*>([\d.]+)</text>', seg)}
+    ys = [float(v) for v in re.findall(r'<use[^>]*\by="([-\d.]+)"', seg)]
+    return ticks, (min(ys), max(ys)), rows
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium on this machine (.ci/run installs it)")
+def test_before_after_page_names_its_models_and_centres_the_heat_map_on_noise(before_after, tmp_path):
+    html_path, json_path = before_after
+    dom, console = render(html_path, tmp_path)
+    assert console == [], console
+    headings = [re.sub(r"<[^>]+>", "", h) for h in re.findall(r"<h2[^>]*>(.*?)</h2>", dom)]
+    names = ("biases", "+ sf, mis")
+    for h in headings:
+        if not h.startswith(("Ladder", "Provenance")):
+            assert any(n in h for n in names), f"section {h!r} does not say which model it shows"
+    assert any(h.startswith("Where biases fails (before)") for h in headings), headings
+    assert any(h.startswith("Where + sf, mis fails (after)") for h in headings), headings
+    assert any(h.startswith("Diagnosis of + sf, mis") for h in headings), headings
+    assert any(h.startswith("Noise") and "+ sf, mis" in h for h in headings), headings
+    # the after-model is the example's true model: nothing misfits beyond noise; the before-model
+    # lacks scale factors and misalignments: flagged (independent of the page: the twin's cells)
+    twin = json.loads(json_path.read_text())
+    after, before = twin["views"][1]["comparison"]["misfits"], twin["views"][0]["comparison"]["misfits"]
+    assert not any(after["flagged"].values()) and before["flagged"]["segment"]
+    assert "no segment × channel misfits beyond noise" in dom
+    for k in (0, 1):
+        ticks, (top, bottom), rows = _legend(dom, f"misfit-map-{k}-legend")
+        assert "1" in ticks
+        # the legend's 1 sits in the middle of the bar, values above it higher up
+        assert abs(ticks["1"] - (top + bottom) / 2) < 0.01 * (bottom - top) + 4, (ticks, top, bottom)
+        assert all(ticks[t] < ticks["1"] for t in ticks if float(t) > 1)
+        r, g, b = rows[len(rows) // 2]
+        assert min(r, g, b) > 225, f"the colour at 1 (noise) is {rows[len(rows) // 2]}, not white"
+        assert rows[0][0] > rows[0][2] + 60, f"the top (above noise) is {rows[0]}, not red"
+        assert rows[-1][2] > rows[-1][0] + 60, f"the bottom (below noise) is {rows[-1]}, not blue"
+
+
+def test_report_command_and_a_bad_truth_file(conformance, tmp_path, capsys):
+    from components.cli import main
+
+    model = tmp_path / "m.json"
+    assert main(["calibrate", str(conformance / "example"), "--out", str(model)]) == 0
+    page = tmp_path / "page.html"
+    assert main(["report", str(conformance / "example"), "--model", str(model), "--out", str(page),
+                 "--diagnose", "none", "--no-noise"]) == 0
+    text = page.read_text()
+    assert "Where gyro.bias+gyro.sf+gyro.mis+acc.bias+acc.sf+acc.mis fails" in text
+    assert "no segment × channel misfits beyond noise" in text
+    bad = tmp_path / "truth.json"
+    bad.write_text(json.dumps({"seed": 1}))
+    capsys.readouterr()
+    assert main(["report", str(conformance / "example"), "--model", str(model), "--out", str(page),
+                 "--truth", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(bad) in err[0] and '"effects"' in err[0], err
+
+
 def test_demo_page_shows_before_after_and_the_truth(tmp_path, capsys):
     """The demo writes the same page: the baseline's heat map and diagnosis under the baseline's
     name, the corrected model's under its own, the hidden effect against its truth; the corrected

@@ -14,7 +14,7 @@ import sys
 import warnings
 
 # in the order the commands appear in --help
-COMMAND_MODULES = ("cosim", "simulation", "log_import", "calibration", "diagnosis", "noise", "planning", "procedures",
+COMMAND_MODULES = ("cosim", "simulation", "log_import", "calibration", "diagnosis", "noise", "report", "planning", "procedures",
                    "navigation", "campaign", "demo")
 
 

@@ -24,7 +24,7 @@ def run_demo(out_dir: str | Path = "calbench-demo", seed: int | None = None, dwe
     from components.diagnosis.compare import compare
     from components.diagnosis.diagnose import diagnose
     from components.diagnosis.ladder import ladder_entry, ladder_lines
-    from components.diagnosis.report import build_report
+    from components.diagnosis.report_run import write_model_report
     from components.estimation.log_data import LogData
     from components.estimation.lsq import calibrate
     from components.logs.logfile import read_log
@@ -56,13 +56,14 @@ def run_demo(out_dir: str | Path = "calbench-demo", seed: int | None = None, dwe
     ladder = [ladder_entry(comp, effects, "baseline")]
     model.extra["ladder"] = list(ladder)
     model.save(out / "model0.json")
+    baseline = model
     print(f"3. compare: chi2/dof = {comp.chi2_per_dof:.3f} (a correct model scores 1 ± "
           f"{(2 / comp.dof) ** 0.5:.3f})")
     diag = None
-    first_diag = None
+    diagnosed: dict = {}  # model name (its ladder rung) -> its diagnosis
     for step in range(1, max_added + 1):
         diag = diagnose(data, model, forward=False)
-        first_diag = first_diag or diag
+        diagnosed[ladder[-1]["model"]] = diag
         if diag.verdict is None:
             print(f"4.{step} diagnose: no significant effect is missing")
             break
@@ -96,12 +97,15 @@ def run_demo(out_dir: str | Path = "calbench-demo", seed: int | None = None, dwe
                   f"{model.values[p] / scale:+.4g} ± {model.sigmas[p] / scale:.2g} {unit}")
         else:
             print(f"   hidden {p}: truth {v / scale:+.4g} {unit}, not recovered")
-    prov = {"log": str(out / "run"), "scenario": str(_scenario_path()), "truth_file": str(out / "run.truth.json"),
-            "model": str(out / f"model{len(ladder) - 1}.json"), "software": model.to_dict()["software"],
+    prov = {"scenario": str(_scenario_path()), "truth_file": str(out / "run.truth.json"),
             "fmus": {u: {"fmu": run.truth[u]["fmu"], "sha256": run.truth[u]["sha256"]}
                      for u in ("turntable", "imu")}}
-    html, js = build_report(out / "report", title=f"calbench demo: {sc.name}", comparison=comp,
-                            diagnosis=first_diag, ladder=ladder, provenance=prov)
+    # the page calbench report writes: before (the baseline, with the diagnosis that found the
+    # effect) and after (the final model, its own diagnosis), the hidden effect against its truth
+    html, js = write_model_report(out / "report", log, data, model, model_path=out / f"model{len(ladder) - 1}.json",
+                                  title=f"calbench demo: {sc.name}", truth=hidden, diagnoses=diagnosed,
+                                  baseline=baseline if len(ladder) > 1 else None, diagnose_models="none",
+                                  extra_provenance=prov)
     print(f"7. report: {html} (and {js.name})")
     (out / "ladder.json").write_text(json.dumps(ladder, indent=1))
     return 0

@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from components.cli import log_option, noise_option
+from components.cli import report as report_option
 
 
 def _load_model(path: str):
@@ -24,11 +25,9 @@ def _print_comparison(c, coloured: bool = False) -> None:
     for k, v in c.channels.items():
         print(f"{k:8s} {v['rms']:11.4g} {v['noise_floor']:11.4g} {v['rms'] / v['noise_floor']:9.3f} "
               f"{v['chi2_per_dof']:9.3f} {v['fit_percent']:9.4f} {v['whiteness_p']:8.3f}")
-    worst = sorted(((max((x for x in vals if x is not None), default=0), s)
-                    for s, vals in c.per_segment.items()), reverse=True)[:5]
-    if worst:
-        print("segments with the largest normalised residual (block RMS, 1 = noise): "
-              + ", ".join(f"{s} {v:.2f}" for v, s in worst))
+    if c.misfits is not None:
+        # only what is significant given how many cells were looked at (components.diagnosis.misfit)
+        print("where it fails: " + "\n                ".join(c.misfits.lines()))
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
@@ -36,7 +35,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     from components.diagnosis.compare import compare
     from components.diagnosis.noise_choice import choose_noise
-    from components.diagnosis.residual_export import write_residuals
+    from components.diagnosis.residual_export import write_block_residuals, write_residuals
     from components.errors import UserError
     from components.model.result import fitted_on
 
@@ -77,6 +76,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             json.dump(c.summary(), f, indent=1)
     if args.residuals:
         write_residuals(args.residuals, log, c)
+    if args.block_residuals:
+        write_block_residuals(args.block_residuals, c)
+    if args.report:
+        if not data.has_table or args.model.endswith((".toml", ".ssp")):
+            raise UserError("compare --report: the page needs a calibration result and a log with table angles")
+        report_option.write(args.report, log, data, model, args.model, noise, diagnose_models="none")
     return 0
 
 
@@ -99,10 +104,17 @@ def _print_servo(log, system_file) -> None:
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     import json
 
+    from components.diagnosis.candidate_notes import (
+        LEGEND,
+        RANKING_HEADER,
+        candidate_notes_lines,
+        ranking_line,
+        verdict_lines,
+    )
     from components.diagnosis.diagnose import NOISE_CANDIDATES, diagnose
     from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
-    from components.model.effects import EFFECTS, parse_effects
+    from components.model.effects import parse_effects
 
     log, data = log_option.read(args)
     model = _load_model(args.model)
@@ -118,19 +130,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"noise: {said}")
     d = diagnose(data, model, candidates=cands, alpha=args.alpha, noise=noise)
     print(f"model: {', '.join(model.effects)}; chi2/dof = {d.base_chi2_per_dof:.3f} over {d.rows} block rows")
-    print(f"{'rank':4s} {'effect':16s} {'F':>10s} {'p (Holm)':>10s} {'dBIC':>10s} {'explains':>8s}  magnitude"
-          "  [95 % detection threshold]")
+    print(RANKING_HEADER)
     for i, c in enumerate(d.ranking[: args.top], 1):
-        e = EFFECTS[c.effect]
-        unit, scale = e.display
-        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))
-        mag = f"{best[0]} = {best[1][0] / scale:+.4g} ± {best[1][1] / scale:.2g} {unit}"
-        thr = c.threshold.get(best[0])
-        mark = "*" if c.passes else " "
-        print(f"{i:3d}{mark} {c.effect:16s} {c.statistic:10.3g} {c.p_adjusted:10.2g} {c.bic_delta:10.4g} "
-              f"{100 * c.explained_fraction:7.1f}%  {mag}" + (f"  [{thr / scale:.2g}]" if thr else ""))
-        for other, rho, advice in c.indistinguishable:
-            print(f"       cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+        print(ranking_line(i, c))
+        for note in candidate_notes_lines(c):
+            print("       " + note)
+    print(LEGEND)
     if d.unseeable:
         print("not tested, this log cannot see them at any plausible magnitude: " + "; ".join(
             f"{e} (needs {why})" for e, why in d.unseeable.items()))
@@ -139,17 +144,16 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         for n in d.noise_candidates:
             print(f"     {n['term']:16s} log-likelihood gain {n['loglik_gain']:9.2f}  (Akaike {n['aic_gain']:+.1f})"
                   f"  {'significant' if n['significant'] else 'not significant'}")
-    if d.verdict is None:
-        print("verdict: no significant effect is missing and the noise model suffices")
-    elif d.verdict_kind == "noise":
-        print(f"verdict: the noise model is too simple: {d.verdict} explains the residual better than any "
-              "effect (a stochastic term, not a missing effect; add it with `calbench add --effect "
-              f"{d.verdict}`)" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
-    else:
-        print(f"verdict: {d.verdict} is missing" + (f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""))
+    for line in verdict_lines(d):
+        print(line)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(d.to_json(), f, indent=1)
+    if args.report:
+        if not data.has_table:
+            raise UserError("diagnose --report: the page needs a log with table angles")
+        report_option.write(args.report, log, data, model, args.model, noise,
+                            diagnoses={_name(model): d})
     return 0
 
 
@@ -194,7 +198,15 @@ def _cmd_add(args: argparse.Namespace) -> int:
     res.save(args.out)
     print("\n".join(ladder_lines(ladder)))
     print(f"-> {args.out}")
+    if args.report:
+        report_option.write(args.report, log, data, res, args.out, noise, baseline=model)
     return 0
+
+
+def _name(model) -> str:
+    from components.diagnosis.report_run import model_name
+
+    return model_name(model)
 
 
 def _add_positions(args, log, data, model, effects, new, noise_terms, noise, ladder) -> int:
@@ -232,9 +244,14 @@ def register(sub) -> None:
                    help="also replay the logged commands through the turntable FMU (the built-in "
                         "one, or a system's turntable unit) and compare with the logged angles")
     c.add_argument("--json", help="write the per-channel figures as JSON")
-    c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units)")
+    c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units; column "
+                                       "encoder_limited = 1 inside moves, where the gyro prediction is rebuilt "
+                                       "from encoder counts)")
+    c.add_argument("--block-residuals", metavar="F.csv", help="write the normalised block residuals the "
+                                                              "statistics use (1 = noise), with the misfit flag")
     noise_option.add(c)
     log_option.add(c)
+    report_option.add_option(c)
     c.set_defaults(func=_cmd_compare)
 
     d = sub.add_parser("diagnose", help="which effect of the vocabulary is missing from the model")
@@ -246,6 +263,7 @@ def register(sub) -> None:
     d.add_argument("--top", type=int, default=10, help="ranking lines to print")
     noise_option.add(d)
     log_option.add(d)
+    report_option.add_option(d)
     d.set_defaults(func=_cmd_diagnose)
 
     a = sub.add_parser("add", help="add an effect to a model and refit all parameters")
@@ -256,4 +274,5 @@ def register(sub) -> None:
     a.add_argument("--out", required=True, help="the new model (JSON), with the ladder")
     noise_option.add(a)
     log_option.add(a)
+    report_option.add_option(a)
     a.set_defaults(func=_cmd_add)

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from components.diagnosis.misfit import CHANNELS, Misfits, misfits
 from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import sensor_columns
 from components.estimation.log_data import LogData
@@ -41,8 +42,7 @@ from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
 from components.model.table_parameters import apply_table_parameter
 
-CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
-
+__all__ = ["CHANNELS", "Comparison", "assess", "compare", "locate", "model_geometry"]
 
 def model_geometry(data: LogData, model: CalibrationResult):
     geo = data.geometry
@@ -81,6 +81,7 @@ class Comparison:
     per_segment: dict = field(default_factory=dict)
     conditions: dict = field(default_factory=dict)
     coloured: bool = False         # the block residuals are whitened with a coloured noise model
+    misfits: Misfits | None = None  # which segments / conditions / channels misfit beyond noise
 
     @property
     def chi2_per_dof(self) -> float:
@@ -89,7 +90,8 @@ class Comparison:
     def summary(self) -> dict:
         return {"chi2_per_dof": self.chi2_per_dof, "dof": self.dof,
                 "channels": self.channels, "segments": self.per_segment,
-                "conditions": self.conditions}
+                "conditions": self.conditions,
+                "misfits": self.misfits.to_json() if self.misfits is not None else None}
 
 
 def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
@@ -181,9 +183,18 @@ def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: i
     comp = Comparison(data.time, data.segment, motion.static, resid, pred, sigma, channels, chi2,
                       dof, rows)
     comp.coloured = noise is not None and noise.coloured
-    comp.per_segment = _per_segment(data, rows)
-    comp.conditions = _conditions(data, motion, rows)
+    locate(comp, data, motion, rows)
     return comp
+
+
+def locate(comp: Comparison, data: LogData, motion, rows: dict) -> None:
+    """Where the misfit is: per segment and per condition (RMS, 1 = noise) and the cells that
+    misfit beyond noise given how many were looked at (components.diagnosis.misfit)."""
+    comp.per_segment = _per_segment(data, rows)
+    masks = _condition_masks(data, motion, rows)
+    comp.conditions = _conditions(rows, masks)
+    seg = np.asarray(data.segment).astype(str)[rows["start"]] if data.segment is not None else None
+    comp.misfits = misfits(rows, seg, masks)
 
 
 def _per_segment(data: LogData, rows: dict) -> dict:
@@ -200,10 +211,9 @@ def _per_segment(data: LogData, rows: dict) -> dict:
     return out
 
 
-def _conditions(data: LogData, motion, rows: dict) -> dict:
-    """Normalised block-residual RMS split by condition."""
+def _condition_masks(data: LogData, motion, rows: dict) -> dict:
+    """Condition name -> which block rows it holds."""
     mid = (rows["start"] + rows["stop"] - 1) // 2
-    z = rows["z"]
     f = motion.f_q[mid, 0, :]
     w = motion.omega_q[mid, 0, :]
     cond: dict[str, np.ndarray] = {}
@@ -228,6 +238,12 @@ def _conditions(data: LogData, motion, rows: dict) -> dict:
         cond["temperature low"] = T <= lo
         cond["temperature mid"] = (T > lo) & (T <= hi)
         cond["temperature high"] = T > hi
+    return cond
+
+
+def _conditions(rows: dict, cond: dict) -> dict:
+    """Normalised block-residual RMS split by condition."""
+    z = rows["z"]
     out = {}
     for name, sel in cond.items():
         vals = []

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.diagnosis.compare import CHANNELS, Comparison, _conditions, _per_segment, ljung_box
+from components.diagnosis.compare import CHANNELS, Comparison, ljung_box, locate
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.log_data import LogData
 from components.estimation.positions import SUPPORTED, calibrate_positions
@@ -99,7 +99,6 @@ def compare_positions(data: LogData, model: CalibrationResult, *, fitted_paramet
         }
     comp = Comparison(data.time, data.segment, rest, resid, pred, sigma, channels, chi2, dof, rows)
     comp.coloured = noise is not None and noise.coloured
-    comp.per_segment = _per_segment(data, rows)
-    comp.conditions = _conditions(data, motion, rows)
+    locate(comp, data, motion, rows)
     comp.attitudes = C  # type: ignore[attr-defined]
     return comp

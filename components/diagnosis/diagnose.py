@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
+from components.diagnosis.candidate_notes import annotate, separation_advice
 from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import design
 from components.estimation.log_data import LogData
@@ -40,36 +41,8 @@ from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import channel_rows, whiten
 from components.model.effects import EFFECTS, effect_of, parameters_of
 from components.model.noise import NoiseModel
+from components.model.plausibility import plausible_limit
 from components.model.result import CalibrationResult
-
-# Which schedule change separates two effects (order-free pairs), else a generic hint per effect.
-_SEPARATE = {
-    frozenset({"acc.temp", "acc.drift"}): "make the temperature non-monotonic in time (a heat/cool cycle), so temperature and elapsed time differ",
-    frozenset({"gyro.temp", "gyro.drift"}): "make the temperature non-monotonic in time (a heat/cool cycle), so temperature and elapsed time differ",
-    frozenset({"acc.k2", "acc.sf_asym"}): "add ±45° positions: K2 grows with f² (half at 45°), the asymmetry with |f|",
-    frozenset({"acc.k2", "acc.bias"}): "add positions with the axis horizontal and at ±45°: K2 vanishes at 0 g, a bias does not",
-    frozenset({"acc.k3", "acc.sf"}): "add ±45° positions: K3 scales with f³, the scale factor with f",
-    frozenset({"table.base_tilt", "acc.mis"}): "index the outer (azimuth) axis through 0/90/180/270° (seed 000): a base tilt turns with the outer axis, a misalignment does not",
-    frozenset({"table.base_tilt", "acc.bias"}): "index the outer axis through 0/90/180/270°: a tilt reverses sign between opposite positions",
-    frozenset({"gyro.sf_asym", "gyro.bias"}): "rotate at two different rates in both directions",
-    frozenset({"acc.lever", "acc.k2"}): "rotate at two rates about each axis: the lever term grows with ω², K2 does not change with rate",
-    frozenset({"imu.time_offset", "acc.lever"}): "index with different accelerations: the time offset follows df/dt, the tangential lever term ω̇",
-    frozenset({"acc.time_offset", "acc.lever"}): "index with different accelerations: the time offset follows df/dt, the tangential lever term ω̇",
-    frozenset({"imu.time_offset", "acc.time_offset"}): "the gyro rows here are rest-to-rest sums, which no time shift changes, so both move only the accelerometer rows: the system-level filter (calbench kf) separates them — a late accelerometer against the gyros shows in the navigation velocity, the whole IMU late against the table does not",
-}
-_GENERIC = {
-    "gyro": "add rotations about each axis in both directions at two rates, and more attitudes",
-    "acc": "add attitudes (±1 g and ±45° on each axis)",
-    "imu": "add fast indexing moves in several directions",
-    "table": "rotate each stage through full turns with the IMU in two mountings",
-}
-
-
-def separation_advice(a: str, b: str) -> str:
-    key = frozenset({a, b})
-    if key in _SEPARATE:
-        return _SEPARATE[key]
-    return f"{a}: {_GENERIC[EFFECTS[a].target]}; {b}: {_GENERIC[EFFECTS[b].target]}"
 
 
 @dataclass
@@ -85,6 +58,11 @@ class Candidate:
     passes: bool = False
     indistinguishable: list = field(default_factory=list)  # [(effect, correlation, advice)]
     implausible: list = field(default_factory=list)  # parameters fitted far outside the physical range
+    unidentifiable: list = field(default_factory=list)  # parameters with σ beyond the physical range
+    limits: dict = field(default_factory=dict)  # parameter -> the magnitude beyond which it is implausible
+    aic_gain: float = 0.0  # Δχ²/2 − k: what the effect gains by Akaike (compared with a noise term's)
+    status: str = ""  # candidate_notes.annotate: verdict, implausible, unidentifiable, ...
+    why: str = ""     # the sentence that explains the status
     correlated: list = field(default_factory=list)  # [(param, other param, rho)] within the fit
     signature: dict | None = None
     threshold: dict = field(default_factory=dict)  # parameter -> magnitude detected with 95 % power
@@ -100,7 +78,8 @@ class Candidate:
                 "parameters_display": {p: [v / scale, s / scale] for p, (v, s) in self.parameters.items()},
                 "indistinguishable": [{"effect": o, "correlation": r, "advice": a}
                                       for o, r, a in self.indistinguishable],
-                "implausible": list(self.implausible),
+                "implausible": list(self.implausible), "unidentifiable": list(self.unidentifiable),
+                "status": self.status, "why": self.why,
                 "threshold": dict(self.threshold),
                 "threshold_display": {p: v / scale for p, v in self.threshold.items()}}
 
@@ -119,6 +98,7 @@ class Diagnosis:
     noise: object = None              # the noise model after the selection (NoiseModel or None)
     # candidates this log cannot see at any plausible magnitude: effect -> the motion it needs
     unseeable: dict = field(default_factory=dict)
+    forward: bool = True  # forward selection ran (each passing candidate was re-tested after the verdict)
 
     def to_json(self) -> dict:
         return {"verdict": self.verdict, "verdict_kind": self.verdict_kind, "found": self.found,
@@ -322,10 +302,12 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
                       "p_adjusted": winner.p_adjusted, "bic_delta": winner.bic_delta})
         if not available:
             break
-    return Diagnosis(found[0] if found else None, first_ranking or [], found, steps,
-                     chi2_first or float("nan"), design.n, alpha,
-                     [{k: v for k, v in n.items() if k != "model"} for n in (first_noise or [])],
-                     kinds[0] if kinds else None, noise_now, unseeable)
+    out = Diagnosis(found[0] if found else None, first_ranking or [], found, steps,
+                    chi2_first or float("nan"), design.n, alpha,
+                    [{k: v for k, v in n.items() if k != "model"} for n in (first_noise or [])],
+                    kinds[0] if kinds else None, noise_now, unseeable, forward)
+    annotate(out)
+    return out
 
 
 def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
@@ -430,14 +412,20 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         # (sensor effects are linear in their parameters, so only an absurd value is suspect: the
         # typical magnitudes are navigation grade, tactical grade is up to 1000 times them, and a
         # drift or temperature coefficient must be far above them to show in a short run)
+        # (and anything beyond what a real IMU or table of any grade has: plausibility.py)
         typical = EFFECTS[effect].typical
         factor = 1000 if EFFECTS[effect].target == "table" else 1e5
-        implausible = [p for p in ps if abs(values[p][0]) > max(factor * typical,
-                                                                  0.01 if EFFECTS[effect].unit == "rad" else 0)]
+        limits = {p: min(plausible_limit(p), max(factor * typical, 0.01 if EFFECTS[effect].unit == "rad" else 0))
+                  for p in ps}
+        implausible = [p for p in ps if abs(values[p][0]) > limits[p]]
         cand = Candidate(effect, float(F), math.exp(logp), 1.0,
                          float(chi2_c - chi2_b + k * math.log(design.n)),
                          float(dchi2 / chi2_b) if chi2_b > 0 else 0.0, k,
                          {p: values[p] for p in ps})
+        # a σ wider than the physical range: the log does not bound the parameter, its value is a guess
+        cand.unidentifiable = [p for p in ps if p not in implausible and values[p][1] > plausible_limit(p)]
+        cand.aic_gain = 0.5 * dchi2 - k
+        cand.limits = limits
         cand._logp = logp  # type: ignore[attr-defined]
         cand.implausible = implausible
         cand._basis = basis  # type: ignore[attr-defined]
@@ -462,7 +450,7 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         adj = min(1.0, (m - i) * math.exp(c._logp))  # type: ignore[attr-defined]
         running = max(running, adj)
         c.p_adjusted = running
-        c.passes = c.p_adjusted < alpha and not c.implausible
+        c.passes = c.p_adjusted < alpha and not c.implausible and not c.unidentifiable
     # candidates that cannot be told apart from a passing one
     for c in out[:6]:
         if not c.passes:
@@ -472,7 +460,8 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
                 continue
             s = np.linalg.svd(c._basis.T @ d._basis, compute_uv=False)  # type: ignore[attr-defined]
             if len(s) and s[0] > 0.98:
-                c.indistinguishable.append((d.effect, float(s[0]), separation_advice(c.effect, d.effect)))
+                c.indistinguishable.append((d.effect, float(s[0]), separation_advice(
+                    c.effect, d.effect, c.signature["parameter"], d.signature["parameter"])))
     # theoretical thresholds: the non-centrality the F test needs for 95 % power at α/m, per
     # parameter through its information beyond the base model's columns
     for c in out:
@@ -485,6 +474,9 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
             if info > 0:
                 c.threshold[p] = math.sqrt(lam / info)
         del c._basis  # type: ignore[attr-defined]
+    # what is shown first is what could be an estimate: implausible and unidentifiable candidates
+    # go below the others (the order among each group stays by evidence)
+    out.sort(key=lambda c: bool(c.implausible or c.unidentifiable))
     return out, chi2_b, dof_b
 
 

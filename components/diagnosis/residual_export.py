@@ -1,8 +1,20 @@
-"""Per-sample residuals of a comparison written as CSV in the log's own output units, for users
-who plot them with their own tools."""
+"""Residuals of a comparison written as CSV for users who plot them with their own tools.
+
+Two files, because two different things are measured:
+
+- per sample (``--residuals``), in the log's own output units, with a column
+  ``encoder_limited``: 1 inside moves, where the gyro prediction is the motion rebuilt from
+  encoder counts (differentiated quantised angles: on a correct model its 1-s sums there are
+  several times the noise); only the rest-to-rest sum of a move is exact (docs/compare.md).
+- per block (``--block-residuals``): the normalised block residuals z the statistics use
+  (N(0, 1) under a correct model, whatever the motion), with the misfit test of their
+  segment × channel cell.
+"""
 from __future__ import annotations
 
 import numpy as np
+
+from components.diagnosis.misfit import CHANNELS
 
 
 def write_residuals(path: str, log, comparison) -> None:
@@ -16,7 +28,28 @@ def write_residuals(path: str, log, comparison) -> None:
         elif kind == "counts":
             r[:, s] /= w
     seg = np.asarray(log.segment).astype(str) if log.segment is not None else np.full(log.n, "")
+    limited = ~np.asarray(comparison.static, dtype=bool)
     with open(path, "w") as f:
-        f.write("time,segment,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z\n")
+        f.write("time,segment,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z,encoder_limited\n")
         for k in range(log.n):
-            f.write(f"{log.time[k]!r},{seg[k]}," + ",".join(repr(float(x)) for x in r[k]) + "\n")
+            f.write(f"{float(log.time[k])!r},{seg[k]}," + ",".join(repr(float(x)) for x in r[k])
+                    + f",{int(limited[k])}\n")
+
+
+def write_block_residuals(path: str, comparison) -> None:
+    """One row per block and channel: its time span, segment, whether it is a move, the
+    normalised residual z, and whether its segment × channel cell misfits beyond noise."""
+    rows = comparison.rows
+    t = np.asarray(comparison.time, dtype=float)
+    seg = (np.asarray(comparison.segment).astype(str)[rows["start"]] if comparison.segment is not None
+           else np.full(len(rows["z"]), ""))
+    mis = comparison.misfits
+    flagged = {(c.name, c.channel) for c in mis.flagged("segment")} if mis is not None else set()
+    order = np.lexsort((rows["channel"], rows["start"]))
+    with open(path, "w") as f:
+        f.write("t_start,t_stop,segment,channel,moving,z,segment_channel_flagged\n")
+        for i in order:
+            ch = CHANNELS[int(rows["channel"][i])]
+            stop = t[min(int(rows["stop"][i]), len(t)) - 1]
+            f.write(f"{float(t[rows['start'][i]])!r},{float(stop)!r},{seg[i]},{ch},{int(bool(rows['moving'][i]))},"
+                    f"{float(rows['z'][i])!r},{int((seg[i], ch) in flagged)}\n")

@@ -1,0 +1,71 @@
+"""``calbench report LOG --model RESULT.json``: one self-contained HTML page for the model on the
+log — before and after from the result's ladder, where each model fails, the diagnosis with its
+statuses explained, the noise, the provenance (components.diagnosis.report_run). ``add_option``
+gives compare / diagnose / add their ``--report PAGE.html``."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from components.cli import log_option, noise_option
+
+
+def add_option(parser) -> None:
+    parser.add_argument("--report", metavar="PAGE.html", help="also write the HTML report of the model on this log "
+                                                              "(as `calbench report`)")
+
+
+def load_truth(path: str) -> dict:
+    """parameter -> SI value from a truth file written by `calbench simulate` (its "effects")."""
+    from components.errors import UserError
+
+    try:
+        d = json.loads(open(path).read())
+    except (OSError, ValueError) as e:
+        raise UserError(f"--truth {path}: cannot read it as JSON ({e})") from None
+    if not isinstance(d, dict) or not isinstance(d.get("effects"), dict):
+        raise UserError(f"--truth {path}: no \"effects\" object (parameter -> SI value), expected the "
+                        "STEM.truth.json `calbench simulate` writes")
+    return {str(k): float(v) for k, v in d["effects"].items()}
+
+
+def write(page: str, log, data, model, model_path: str | None, noise, **kw) -> None:
+    from components.diagnosis.report_run import write_model_report
+
+    html_path, _ = write_model_report(page, log, data, model, model_path=model_path, noise=noise, **kw)
+    print(f"report: {html_path}")
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from components.diagnosis.noise_choice import choose_noise
+    from components.errors import UserError
+    from components.model.result import CalibrationResult
+
+    log, data = log_option.read(args)
+    if not data.has_table:
+        raise UserError(f"report: {args.log} has no table angles: the page's heat map, time plot and noise need "
+                        "them; use `calbench compare` and `calbench diagnose` on this log")
+    model = CalibrationResult.load(args.model)
+    baseline = CalibrationResult.load(args.baseline) if args.baseline else None
+    noise, said, _ = choose_noise(args.noise, data, model)
+    print(f"noise: {said}")
+    truth = load_truth(args.truth) if args.truth else None
+    write(args.out, log, data, model, args.model, noise, diagnose_models=args.diagnose,
+          identify=not args.no_noise, truth=truth, baseline=baseline)
+    return 0
+
+
+def register(sub) -> None:
+    r = sub.add_parser("report", help="one self-contained HTML page: before/after, where each model fails, "
+                                      "the diagnosis, the noise, the provenance")
+    r.add_argument("log")
+    r.add_argument("--model", required=True, help="calibration result (JSON); its ladder gives the before-model")
+    r.add_argument("--out", default="report.html", help="the page (and its JSON twin beside it)")
+    r.add_argument("--baseline", help="the before-model (default: the ladder's first rung refitted on this log)")
+    r.add_argument("--diagnose", choices=("after", "both", "none"), default="after",
+                   help="which models to diagnose (default: the result)")
+    r.add_argument("--truth", help="STEM.truth.json of a simulated log: recovered values against it")
+    r.add_argument("--no-noise", action="store_true", help="leave out the noise identification")
+    noise_option.add(r)
+    log_option.add(r)
+    r.set_defaults(func=_cmd_report)

@@ -1,0 +1,170 @@
+"""What a person reads about each candidate of a diagnosis, so no line shows a nonsense number
+as an estimate and no line contradicts the verdict.
+
+Each candidate gets a ``status`` and a ``why``:
+
+- ``verdict``: the effect named missing.
+- ``also significant``: passes the test but ranks below the verdict (forward selection names
+  it in turn if it is still significant once the verdict is in the model).
+- ``implausible``: a parameter fitted beyond anything a real IMU or table has
+  (components.model.plausibility), or beyond the diagnosis's own limit: the linearised model is
+  absorbing something else, so its value is not shown as an estimate.
+- ``unidentifiable``: a parameter the log bounds no better than the plausible range (σ beyond
+  the plausible limit): its value is a guess, not shown either.
+- ``noise explains it``: significant, but a noise term the model lacks explains the residual
+  better (the verdict is then the noise model).
+- ``not significant``: its Holm-adjusted p is at or above α.
+
+Two candidates that cannot be told apart get advice that separates them: the motion each
+parameter needs (components.model.excitation), or the schedule change known for that pair.
+"""
+from __future__ import annotations
+
+from components.model.effects import EFFECTS, effect_of
+from components.model.excitation import needs
+from components.model.plausibility import plausible_limit
+
+# Which schedule change separates two effects (order-free pairs): the change that moves one
+# and leaves the other.
+SEPARATE = {
+    frozenset({"acc.temp", "acc.drift"}): "make the temperature non-monotonic in time (a heat/cool cycle), so temperature and elapsed time differ",
+    frozenset({"gyro.temp", "gyro.drift"}): "make the temperature non-monotonic in time (a heat/cool cycle), so temperature and elapsed time differ",
+    frozenset({"acc.k2", "acc.sf_asym"}): "add ±45° positions: K2 grows with f² (half at 45°), the asymmetry with |f|",
+    frozenset({"acc.k2", "acc.bias"}): "add positions with the axis horizontal and at ±45°: K2 vanishes at 0 g, a bias does not",
+    frozenset({"acc.k3", "acc.sf"}): "add ±45° positions: K3 scales with f³, the scale factor with f",
+    frozenset({"table.base_tilt", "acc.mis"}): "index the outer (azimuth) axis through 0/90/180/270° (seed 000): a base tilt turns with the outer axis, a misalignment does not",
+    frozenset({"table.base_tilt", "acc.bias"}): "index the outer axis through 0/90/180/270°: a tilt reverses sign between opposite positions",
+    frozenset({"gyro.sf_asym", "gyro.bias"}): "rotate at two different rates in both directions",
+    frozenset({"acc.lever", "acc.k2"}): "rotate at two rates about each axis: the lever term grows with ω², K2 does not change with rate",
+    frozenset({"imu.time_offset", "acc.lever"}): "index with different accelerations: the time offset follows df/dt, the tangential lever term ω̇",
+    frozenset({"acc.time_offset", "acc.lever"}): "index with different accelerations: the time offset follows df/dt, the tangential lever term ω̇",
+    frozenset({"imu.time_offset", "acc.time_offset"}): "the gyro rows here are rest-to-rest sums, which no time shift changes, so both move only the accelerometer rows: the system-level filter (calbench kf) separates them — a late accelerometer against the gyros shows in the navigation velocity, the whole IMU late against the table does not",
+    frozenset({"table.nonorth", "table.wobble"}): "mount the IMU a second way on the plate (turned 90° about the inner axis) and turn each stage through full turns: a wobble is a tilt that turns with its stage and changes with the mounting, a non-orthogonality is fixed between the axes",
+}
+
+
+def separation_advice(a: str, b: str, pa: str | None = None, pb: str | None = None) -> str:
+    """How to tell effect *a* from effect *b* (their strongest parameters *pa*, *pb*): the known
+    schedule change for the pair, else the motion each needs that the other does not."""
+    key = frozenset({a, b})
+    if key in SEPARATE:
+        return SEPARATE[key]
+    na = needs(pa or EFFECTS[a].parameters[0])
+    nb = needs(pb or EFFECTS[b].parameters[0])
+    if na == nb:
+        return (f"both need {na}, and on this schedule their columns coincide: vary what one depends on "
+                f"and the other does not ({a}: {EFFECTS[a].description}; {b}: {EFFECTS[b].description})")
+    return f"{a} is seen by {na}, {b} by {nb}: add the motion one has and the other lacks"
+
+
+def display(parameter: str, value: float, sigma: float) -> str:
+    e = effect_of(parameter)
+    unit, scale = e.display
+    return f"{parameter} = {value / scale:+.4g} ± {sigma / scale:.2g} {unit}"
+
+
+def limit_text(parameter: str, limit: float | None = None) -> str:
+    e = effect_of(parameter)
+    unit, scale = e.display
+    return f"{(plausible_limit(parameter) if limit is None else limit) / scale:.3g} {unit}"
+
+
+def annotate(diagnosis) -> None:
+    """Set ``status`` and ``why`` on every candidate of *diagnosis* (see the module docstring)."""
+    alpha = diagnosis.alpha
+    noise_verdict = diagnosis.verdict if diagnosis.verdict_kind == "noise" else None
+    noise_gain = next((n["aic_gain"] for n in diagnosis.noise_candidates if n["term"] == noise_verdict), None)
+    for c in diagnosis.ranking:
+        if c.implausible:
+            p = c.implausible[0]
+            c.status = "implausible"
+            c.why = (f"{p} would be {display(p, *c.parameters[p]).split(' = ', 1)[1]}, beyond the plausible range "
+                     f"(limit {limit_text(p, c.limits.get(p))}): the linearised model absorbs something else here (angles beyond "
+                     "the small-angle range, a near-degenerate column, or a wrong input); not an estimate")
+        elif c.unidentifiable:
+            p = c.unidentifiable[0]
+            c.status = "unidentifiable"
+            c.why = (f"this log bounds {p} only to ± {display(p, *c.parameters[p]).split(' ± ', 1)[1]}, wider "
+                     f"than any real IMU's range ({limit_text(p)}): its value is a guess; it needs {needs(p)}")
+        elif c.effect == diagnosis.verdict and diagnosis.verdict_kind == "effect":
+            c.status, c.why = "verdict", ""
+        elif c.passes and c.effect in diagnosis.found:
+            c.status = "also significant"
+            c.why = f"found in turn once {', '.join(diagnosis.found[:diagnosis.found.index(c.effect)])} is in the model"
+        elif c.passes and noise_verdict:
+            c.status = "noise explains it"
+            c.why = (f"the noise term {noise_verdict} explains the residual better (Akaike gain {noise_gain:.4g} "
+                     f"against {c.aic_gain:.4g})" + ("; forward selection, with it in the noise model, did "
+                                                     "not name this effect" if diagnosis.forward else ""))
+        elif c.passes:
+            c.status = "also significant"
+            c.why = (f"significant on its own; forward selection, with {', '.join(diagnosis.found)} in the model, "
+                     "did not name it" if diagnosis.forward else
+                     f"significant on its own; {diagnosis.verdict} explains more (add it and diagnose again to see "
+                     "whether this one remains)")
+        else:
+            c.status, c.why = "not significant", f"Holm-adjusted p ≥ α = {alpha}"
+
+
+def magnitude_text(c) -> str:
+    """The candidate's strongest parameter as an estimate, or why it is not one."""
+    if c.status in ("implausible", "unidentifiable"):
+        return f"{c.status} (not an estimate)"
+    best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))
+    return display(best[0], *best[1])
+
+
+LEGEND = ("* significant (Holm-adjusted p < α) and plausible; ! not an estimate (implausible or unidentifiable: "
+          "its note says why); ~ significant, but a missing noise term explains it better")
+RANKING_HEADER = (f"{'rank':4s} {'effect':16s} {'F':>10s} {'p (Holm)':>10s} {'dBIC':>10s} {'explains':>8s}  magnitude"
+                  "  [95 % detection threshold]")
+# the mark after the rank: the verdict and what passes the test, what is significant but cannot
+# be an estimate, and the rest
+MARKS = {"verdict": "*", "also significant": "*", "implausible": "!", "unidentifiable": "!",
+         "noise explains it": "~"}
+
+
+def ranking_line(i: int, c) -> str:
+    """One console line of the ranking; implausible and unidentifiable candidates show their
+    status instead of a value."""
+    thr = ""
+    if c.status not in ("implausible", "unidentifiable") and c.threshold:
+        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))[0]
+        if best in c.threshold:
+            unit, scale = effect_of(best).display
+            thr = f"  [{c.threshold[best] / scale:.2g}]"
+    mark = MARKS.get(c.status, " ")
+    return (f"{i:3d}{mark} {c.effect:16s} {c.statistic:10.3g} {c.p_adjusted:10.2g} {c.bic_delta:10.4g} "
+            f"{100 * c.explained_fraction:7.1f}%  {magnitude_text(c)}{thr}")
+
+
+def candidate_notes_lines(c) -> list[str]:
+    """The why of a candidate's status (when there is one to say) and its look-alikes."""
+    out = []
+    if c.status in ("implausible", "unidentifiable", "noise explains it", "also significant") and c.why:
+        out.append(f"{c.status}: {c.why}")
+    for other, rho, advice in c.indistinguishable:
+        out.append(f"cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+    return out
+
+
+def verdict_lines(d) -> list[str]:
+    """The verdict, and — when candidates with p < α are not it — which and why, so the verdict
+    never contradicts the table above it."""
+    found = f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""
+    if d.verdict is None:
+        lines = ["verdict: no significant effect is missing and the noise model suffices"]
+    elif d.verdict_kind == "noise":
+        lines = [f"verdict: the noise model is too simple: {d.verdict} explains the residual better than any "
+                 "effect (a stochastic term, not a missing effect; add it with `calbench add --effect "
+                 f"{d.verdict}`){found}"]
+    else:
+        lines = [f"verdict: {d.verdict} is missing{found}"]
+    others = [c for c in d.ranking if c.p_adjusted < d.alpha and c.status != "verdict"]
+    if others:
+        by = {}
+        for c in others:
+            by.setdefault(c.status, []).append(c.effect)
+        lines.append(f"   {len(others)} other candidate(s) with p < α = {d.alpha} are not the verdict: "
+                     + "; ".join(f"{s}: {', '.join(es)}" for s, es in by.items()) + " (each line says why)")
+    return lines

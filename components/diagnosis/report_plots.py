@@ -1,0 +1,167 @@
+"""The report's plots, each an inline SVG string (matplotlib, Agg, deterministic ids, no metadata)."""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+from components.diagnosis.misfit import CHANNELS
+
+
+def svg_of(fig) -> str:
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    s = buf.getvalue()
+    s = s[s.index("<svg"):]
+    # the RDF metadata block only names the generator; drop it so the page holds no URLs
+    a, b = s.find("<metadata>"), s.find("</metadata>")
+    return s[:a] + s[b + len("</metadata>"):] if a >= 0 and b > a else s
+
+
+def pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams["svg.fonttype"] = "none"
+    plt.rcParams["svg.hashsalt"] = "calbench"  # deterministic element ids
+    return plt
+
+
+def segment_map(comparison, model_name: str, gid: str = "misfit-map") -> str:
+    """Segment × channel heat map of the block RMS / noise on a diverging scale centred on 1 (white
+    = noise, blue = below, red = above), logarithmic so that ½ and 2 are equally far from 1; cells
+    that misfit beyond noise given how many were looked at (components.diagnosis.misfit) are
+    marked ×."""
+    from matplotlib.colors import LogNorm
+
+    plt = pyplot()
+    segs = list(comparison.per_segment)
+    if not segs:
+        return ""
+    M = np.array([[np.nan if v is None else v for v in comparison.per_segment[s]] for s in segs])
+    top = max(3.0, float(np.nanmax(M)) if np.isfinite(M).any() else 3.0)
+    fig, ax = plt.subplots(figsize=(7, 0.25 * len(segs) + 1.5))
+    im = ax.imshow(np.clip(M, 1 / top, top), aspect="auto", cmap="RdBu_r", norm=LogNorm(1 / top, top),
+                   interpolation="nearest")
+    ax.set_xticks(range(6), CHANNELS)
+    ax.set_yticks(range(len(segs)), segs, fontsize=7)
+    mis = comparison.misfits
+    if mis is not None:
+        for c in mis.flagged("segment"):
+            ax.text(CHANNELS.index(c.channel), segs.index(c.name), "×", ha="center", va="center", fontsize=9)
+    ticks = [t for t in (1 / top, 0.5, 1.0, 2.0, top) if 1 / top <= t <= top]
+    cb = fig.colorbar(im, ax=ax, label="block RMS / noise (1 = noise)", ticks=ticks)
+    cb.ax.set_yticklabels([f"{t:.3g}" for t in ticks])
+    cb.ax.minorticks_off()
+    cb.ax.set_gid(f"{gid}-legend")
+    ax.set_gid(gid)
+    ax.set_title(f"where {model_name} fails: segment × channel (× = beyond noise)", fontsize=9)
+    return svg_of(fig)
+
+
+def residual_vs_time(comparison, model_name: str) -> str:
+    plt = pyplot()
+    rows = comparison.rows
+    t = comparison.time
+    fig, axes = plt.subplots(6, 1, figsize=(9, 8), sharex=True)
+    seg = np.asarray(comparison.segment).astype(str) if comparison.segment is not None else None
+    for k, ax in enumerate(axes):
+        sel = rows["channel"] == k
+        tm = t[np.minimum((rows["start"][sel] + rows["stop"][sel]) // 2, len(t) - 1)]
+        ax.plot(tm, rows["z"][sel], ".", ms=2, color="C0" if k < 3 else "C1")
+        ax.axhline(3, color="grey", lw=0.5)
+        ax.axhline(-3, color="grey", lw=0.5)
+        ax.set_ylabel(CHANNELS[k], fontsize=8)
+        if seg is not None:
+            change = np.nonzero(seg[1:] != seg[:-1])[0] + 1
+            bounds = np.concatenate([[0], change, [len(seg)]])
+            for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+                if i % 2:
+                    ax.axvspan(t[a], t[b - 1], color="0.92", lw=0)
+    axes[0].set_title(f"{model_name}: normalised block residual against time (segments shaded alternately; "
+                      "±3 = noise bound)", fontsize=9)
+    axes[-1].set_xlabel("time [s]")
+    return svg_of(fig)
+
+
+def conditions_plot(comparison, model_name: str) -> str:
+    plt = pyplot()
+    names = list(comparison.conditions)
+    if not names:
+        return ""
+    M = np.array([[np.nan if v is None else v for v in comparison.conditions[n]] for n in names])
+    fig, ax = plt.subplots(figsize=(9, 3.5))
+    x = np.arange(len(names))
+    for k in range(6):
+        ax.bar(x + (k - 2.5) * 0.13, M[:, k], 0.13, label=CHANNELS[k])
+    ax.axhline(1, color="k", lw=0.7)
+    mis = comparison.misfits
+    if mis is not None:
+        for c in mis.flagged("condition"):
+            i, k = names.index(c.name), CHANNELS.index(c.channel)
+            ax.text(i + (k - 2.5) * 0.13, c.ratio, "×", ha="center", va="bottom", fontsize=8)
+    ax.set_xticks(x, names, rotation=40, ha="right", fontsize=7)
+    ax.set_ylabel("block RMS / noise")
+    ax.legend(fontsize=7, ncol=6)
+    ax.set_title(f"{model_name}: residual split by condition (× = beyond noise)", fontsize=9)
+    return svg_of(fig)
+
+
+def signature_plot(candidate) -> str:
+    plt = pyplot()
+    sig = candidate.signature
+    if not sig:
+        return ""
+    fig, ax = plt.subplots(figsize=(4, 3))
+    ax.plot(sig["x"], sig["y"], ".", ms=2)
+    lim = np.nanmax(np.abs(sig["x"])) if len(sig["x"]) else 1
+    ax.plot([-lim, lim], [-lim, lim], "r-", lw=0.8, label="fitted magnitude")
+    ax.set_xlabel(f"{sig['parameter']} contribution (normalised)")
+    ax.set_ylabel("model residual (normalised)")
+    ax.set_title(candidate.effect, fontsize=9)
+    ax.legend(fontsize=7)
+    return svg_of(fig)
+
+
+def ladder_plot(ladder: list[dict]) -> str:
+    plt = pyplot()
+    if not ladder:
+        return ""
+    fig, ax = plt.subplots(figsize=(6, 2.8))
+    ax.semilogy(range(len(ladder)), [e["chi2_per_dof"] for e in ladder], "o-")
+    ax.axhline(1, color="grey", lw=0.7)
+    ax.set_xticks(range(len(ladder)), [e["model"][:24] for e in ladder], rotation=20, ha="right", fontsize=7)
+    ax.set_ylabel("χ²/dof")
+    ax.set_title("the ladder: error falling as effects are added")
+    return svg_of(fig)
+
+
+def allan_plot(identification) -> str:
+    """Allan deviation of each channel's residual (68 % interval) with the identified model."""
+    from components.model.noise import CHANNELS as NAMES
+    from components.model.noise import TERMS, sensor_of
+
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 3, figsize=(10, 5.5), sharex=True)
+    for k, c in enumerate(identification.channels):
+        ax = axes[k // 3, k % 3]
+        av = c.fast.allan
+        lo, hi = av.interval()
+        _, _, dunit, scale = TERMS[sensor_of(k)]["bias_instability"]
+        ax.fill_between(av.tau, lo / scale, hi / scale, color="#9ecae1", alpha=0.6, lw=0, label="68 % interval")
+        ax.loglog(av.tau, av.adev / scale, "o", ms=3, color="#08519c", label="residual")
+        tau = np.geomspace(av.tau[0], av.tau[-1] * 30, 80)
+        ax.loglog(tau, np.sqrt(c.noise.avar(tau)) / scale, "-", color="#d95f02", label="identified model")
+        ax.set_title(NAMES[k], fontsize=9)
+        ax.set_ylabel(f"ADEV [{dunit}]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if k >= 3:
+            ax.set_xlabel("τ [s]", fontsize=8)
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    return svg_of(fig)
