@@ -21,6 +21,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
           f"{len(result.controller.labels)} segment labels -> " + ", ".join(str(p) for p in paths))
     for line in injection_notes(result.truth):
         print(line)
+    from components.cli import json_option
+
+    json_option.record(args, scenario=sc.name, schedule=sc.schedule.name, samples=int(log.n),
+                       duration_s=float(log.time[-1]), out=[str(p) for p in paths],
+                       not_injected=result.truth.get("not_injected", {}))
     return 0
 
 
