@@ -17,10 +17,13 @@ def _cmd_build_fmus(args: argparse.Namespace) -> int:
     from fmus.build import FMI_VERSIONS, MODELS, build_fmu
 
     versions = FMI_VERSIONS if args.fmi is None else (args.fmi,)
+    built = []
     for model in MODELS:
         for v in versions:
             path = build_fmu(model, v, force=True)
             print(f"built {model:9s} FMI {v}.0  {path}")
+            built.append({"model": model, "fmi": v, "path": str(path)})
+    json_option.record(args, built=built)
     return 0
 
 

@@ -19,4 +19,5 @@ def write_residuals(path: str, log, comparison) -> None:
     with open(path, "w") as f:
         f.write("time,segment,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z\n")
         for k in range(log.n):
-            f.write(f"{log.time[k]!r},{seg[k]}," + ",".join(repr(float(x)) for x in r[k]) + "\n")
+            # float(): a numpy scalar's repr is "np.float64(0.005)", which no CSV reader takes
+            f.write(f"{float(log.time[k])!r},{seg[k]}," + ",".join(repr(float(x)) for x in r[k]) + "\n")
