@@ -93,7 +93,7 @@ def refuse_bare_number(name: str, v, where: str) -> None:
         e = effect_of(name)
     except KeyError:
         return  # effect_value names the unknown parameter
-    units = ", ".join(f'"{v:g} {u}"' for u in list(effect_units(name))[:3])
+    units = ", ".join(f'"{v:g} {u}"' for u in [u for u in effect_units(name) if u != "1"][:3])
     if e.unit != "1":
         raise QuantityError(f"{where}: {name} = {v!r}: a bare number for an effect in {e.unit}; write it with its "
                             f"unit, e.g. {units}")
