@@ -45,8 +45,10 @@ def test_seed001_example_kf_is_within_its_sigmas_of_the_truth(capsys, tmp_path):
 
 def test_six_position_example_calibrates_to_its_truth(capsys, tmp_path):
     code, sim = _run_json(capsys, ["simulate", str(EXAMPLES / "six_position.toml"), "--dwell", "10",
-                                   "--out", str(tmp_path / "six")])
+                                   "--out", str(tmp_path / "six"), "--check"])
     assert code == 0 and sim["samples"] == 14400
+    checked = {r["parameter"]: r["error"] / r["sigma"] for r in sim["errors_against_truth"]}
+    assert len(checked) == 24 and max(abs(v) for v in checked.values()) < 4.0, checked
     truth = json.loads((tmp_path / "six.truth.json").read_text())["effects"]
     code, res = _run_json(capsys, ["calibrate", str(tmp_path / "six"), "--out", str(tmp_path / "r.json")])
     assert code == 0
