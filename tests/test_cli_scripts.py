@@ -149,3 +149,18 @@ def test_declared_kinds_and_units_are_checked_against_physics(logs, tmp_path, ca
     assert re.search(evidence, err), err
     main(["calibrate", str(logs / "example"), "--out", str(tmp_path / "good.json")])
     assert "warning" not in capsys.readouterr().err      # the right declaration: nothing said
+
+
+def test_check_fmu_run_and_noise_json(imu_fmu, tmp_path, capsys):
+    code, doc, text = _json_stdout(capsys, ["check-fmu", str(imu_fmu), "--role", "imu", "--no-cost"])
+    assert code == 0 and doc["accepted"] is True and doc["validation"] == [] and "verdict: ACCEPTED" in text
+    examples = __import__("pathlib").Path(__file__).resolve().parents[1] / "examples"
+    code, doc, _ = _json_stdout(capsys, ["run", str(examples / "tumble.toml"), "--stop", "1",
+                                         "--out", str(tmp_path / "r.parquet")])
+    from orchestrator.recording import Recording
+
+    rec = Recording.load(tmp_path / "r.parquet")
+    assert code == 0 and doc["rows"] == rec.rows and doc["signals"] == list(rec.signals)
+    code, doc, _ = _json_stdout(capsys, ["noise", str(examples / "formats" / "log"), "--out", str(tmp_path / "n.json")])
+    written = json.loads((tmp_path / "n.json").read_text())
+    assert code == 0 and doc["channels"] == written["channels"]
