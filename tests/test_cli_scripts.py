@@ -103,8 +103,7 @@ def test_apply_json_names_what_it_wrote(logs, capsys, tmp_path):
 
 
 def test_diagnose_fail_on_verdict(logs, capsys):
-    # the ideal model on the example log: refitted first; the example's own effects make the
-    # verdict no missing effect (its truth is the default set) — the flag only fails on a verdict
+    # the exit status follows the verdict in the JSON: 1 exactly when it names something missing
     code, doc, _ = _json_stdout(capsys, ["diagnose", str(logs / "example"), "--model", str(logs / "example.r.json"),
                                          "--fail-on-verdict", "--top", "3"])
     assert code == (1 if doc["verdict"] else 0)
