@@ -163,3 +163,15 @@ def test_check_fmu_run_and_noise_json(imu_fmu, tmp_path, capsys):
     code, doc, _ = _json_stdout(capsys, ["noise", str(examples / "formats" / "log"), "--out", str(tmp_path / "n.json")])
     written = json.loads((tmp_path / "n.json").read_text())
     assert code == 0 and doc["channels"] == written["channels"]
+
+
+def test_tumble_json_residuals_are_noise(capsys):
+    """The two FMUs through six attitudes: IMU − truth − injected errors per attitude in the JSON;
+    the largest of them over the dwell mean's noise σ is the reported figure, and noise-sized."""
+    code, doc, text = _json_stdout(capsys, ["tumble", "--dwell", "2"])
+    assert code == 0 and doc["verdict"] == "PASS" and len(doc["attitudes"]) == 6
+    worst = max(max(max(abs(x) for x in a["acc_residual_ug"]) / doc["noise_sigma_acc_ug"],
+                    max(abs(x) for x in a["gyro_residual_deg_per_h"]) / doc["noise_sigma_gyro_deg_per_h"])
+                for a in doc["attitudes"].values())
+    assert worst == pytest.approx(doc["largest_residual_sigma"], rel=1e-9) and worst < 5
+    assert f"largest residual {worst:.2f} sigma" in text
