@@ -149,13 +149,15 @@ def is_number(v) -> bool:
 
 def parse_value(name: str, v, where: str) -> float:
     """SI value of a varied quantity: an effect parameter, a noise name or schedule.<param>."""
-    from components.model.quantities import NOISE_UNITS, QuantityError, effect_value, noise_value
+    from components.model.quantities import NOISE_UNITS, QuantityError, effect_value, noise_value, refuse_bare_number
 
     if name.startswith("schedule."):
         if not is_number(v):
             raise CampaignError(f"{where}: {name} = {v!r}: expected a number (the schedule's unit)")
         return float(v)
     try:
+        if name not in NOISE_UNITS:
+            refuse_bare_number(name, v, where)
         return noise_value(name, v, where) if name in NOISE_UNITS else effect_value(name, v, where)
     except QuantityError as e:
         raise CampaignError(str(e)) from None

@@ -4,7 +4,8 @@ diagnose, plan, verify.
 The command line only dispatches: each module of this package registers its sub-commands
 (``register(sub)``), parses, calls one library function of ``components`` and prints. Errors for
 users come from ``components.errors`` (and ``orchestrator``'s and the FMU build's): one line on
-stderr, exit 2; everything else is a bug and keeps its traceback.
+stderr, exit 2 (bad input) or 3 (could not run: a unit or the build failed); everything else is a
+bug and keeps its traceback. Every command takes ``--json [FILE|-]`` (``json_option``).
 """
 from __future__ import annotations
 
@@ -23,25 +24,56 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(f"components.cli.{name}").register(sub)
+    from components.cli import json_option
+
+    for parser in sub.choices.values():
+        if not json_option.has(parser):
+            json_option.add(parser)
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    from components.errors import CalbenchError
+def _error_classes():
+    """(could-not-run classes, bad-input classes): a run that failed underway (a unit's fault, the
+    FMU build, a table that never settled, a missing engine) exits 3, any other user error 2."""
+    from components.errors import CalbenchError, ScheduleFault
     from fmus.build import BuildError
-    from orchestrator.errors import OrchestratorError
+    from orchestrator.errors import (
+        LibcosimError,
+        LibcosimUnsupported,
+        NativeSpanFault,
+        OrchestratorError,
+        SimulationFault,
+    )
 
+    return ((SimulationFault, NativeSpanFault, LibcosimError, LibcosimUnsupported, BuildError, ScheduleFault),
+            (CalbenchError, OrchestratorError))
+
+
+def main(argv: list[str] | None = None) -> int:
+    from components.cli import json_option
+
+    COULD_NOT_RUN, BAD_INPUT = _error_classes()
     args = build_parser().parse_args(argv)
-    with warnings.catch_warnings(record=True) as caught:
+    stdout = sys.stdout
+    with warnings.catch_warnings(record=True) as caught, json_option.redirect_text(args):
         # numpy's and scipy's warnings are calbench's to handle: a user sees one line each, said
         # as what it is, never a raw stack of them
         warnings.simplefilter("always", RuntimeWarning)
+        code, error = None, None  # stays None on a bug: no JSON then, the traceback speaks
         try:
-            return args.func(args)
-        except (CalbenchError, OrchestratorError, BuildError) as e:
+            code = args.func(args)
+            return code
+        except COULD_NOT_RUN as e:
+            code, error = json_option.COULD_NOT_RUN, str(e)
+            print(f"calbench: error: could not run: {e}", file=sys.stderr)
+            return code
+        except BAD_INPUT as e:
+            code, error = json_option.BAD_INPUT, str(e)
             print(f"calbench: error: {e}", file=sys.stderr)
-            return 2
+            return code
         finally:
+            if code is not None:
+                json_option.write(args, code, stdout, error)
             seen = set()
             for w in caught:
                 if issubclass(w.category, RuntimeWarning) and str(w.message) not in seen:

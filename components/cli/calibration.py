@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from components.cli import log_option, noise_option
+from components.cli import json_option, log_option, noise_option
 
 
 def _print_result(res) -> None:
@@ -56,6 +56,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     res.save(args.out)
     _print_result(res)
     print(f"-> {args.out}")
+    json_option.record(args, **result_json(res), out=args.out)
     return strict_status(args, res)
 
 
@@ -79,6 +80,7 @@ def _calibrate_positions(args, log, data, effects, noise) -> int:
     res.save(args.out)
     print("\n".join(fit.lines()))
     print(f"-> {args.out}")
+    json_option.record(args, **result_json(res), out=args.out)
     return strict_status(args, res)
 
 
@@ -92,7 +94,23 @@ def _cmd_apply(args: argparse.Namespace) -> int:
     out = correct_log(log, res)
     paths = write_log(args.out, out)
     print(f"corrected {log.n} samples with {args.result} -> {', '.join(map(str, paths))}")
+    json_option.record(args, samples=int(log.n), result=args.result, out=[str(p) for p in paths])
     return 0
+
+
+def result_json(res) -> dict:
+    """What --json gives of a result: each parameter's value and σ in SI and in its display unit,
+    the fit, and the flags (weak, implausible, not determined)."""
+    from components.model.effects import effect_of
+
+    params = {}
+    for p in res.parameters if hasattr(res, "parameters") else res.values:
+        unit, scale = effect_of(p).display
+        v, s = res.values[p], res.sigmas.get(p, float("nan"))
+        params[p] = {"value": v, "sigma": s, "display_value": v / scale, "display_sigma": s / scale,
+                     "display_unit": unit}
+    return {"effects": list(res.effects), "parameters": params, "fit": res.fit,
+            "determinability": res.extra.get("determinability", {})}
 
 
 def register(sub) -> None:

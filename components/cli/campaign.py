@@ -34,6 +34,12 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
     except CampaignError as e:
         raise UserError(str(e)) from None
     c = summary["counts"]
+    from components.cli import json_option
+
+    json_option.record(args, campaign=camp.name, counts=c, complete=summary["complete"],
+                       all_passed=summary["all_passed"], expected=summary["expected"],
+                       cases=[{k: row.get(k) for k in ("id", "verdict", "reason")} for row in summary["cases"]],
+                       out=str(args.out))
     print(f"campaign {camp.name}: ran {len(session['ran'])} case(s) now; {c['pass']} passed, {c['fail']} failed, "
           f"{c['error']} errored, {c['missing']} missing of {c['total']} -> {args.out}/report.html, junit.xml, "
           "summary.json")

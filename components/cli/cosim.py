@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from components.cli import json_option
 from components.errors import UserError
 
 # verify's exit codes beyond the shared 0 (fine) and 2 (bad input)
@@ -16,10 +17,13 @@ def _cmd_build_fmus(args: argparse.Namespace) -> int:
     from fmus.build import FMI_VERSIONS, MODELS, build_fmu
 
     versions = FMI_VERSIONS if args.fmi is None else (args.fmi,)
+    built = []
     for model in MODELS:
         for v in versions:
             path = build_fmu(model, v, force=True)
             print(f"built {model:9s} FMI {v}.0  {path}")
+            built.append({"model": model, "fmi": v, "path": str(path)})
+    json_option.record(args, built=built)
     return 0
 
 
@@ -54,6 +58,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"{system.name}: a unit ended the run at t = {sim.stopped_at:.9g} s")
     print(f"{system.name}: {rec.rows} rows x {len(rec.signals)} signals, "
           f"{rec.provenance['wall_time_s']:.2f} s wall -> {out}")
+    json_option.record(args, system=system.name, rows=int(rec.rows), signals=list(rec.signals), out=str(out))
     return 0
 
 
@@ -81,6 +86,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(f"calbench verify: could not run {args.system}: {e}", file=sys.stderr)
         return VERIFY_COULD_NOT_RUN
     print(report.table())
+    json_option.record(args, ok=bool(report.ok), engine_missing=bool(report.engine_missing), table=report.table())
     if not report.ok:
         return VERIFY_OUT_OF_TOLERANCE
     if report.engine_missing:
@@ -125,18 +131,25 @@ def _cmd_check_fmu(args: argparse.Namespace) -> int:
     mapping = _parse_mapping(args.map)
     verdict = check_fmu(args.fmu, args.role, mapping, options, args.step)
     print(verdict.report())
+    json_option.record(args, fmu=str(args.fmu), role=args.role, accepted=bool(verdict.ok),
+                       validation=verdict.validation, smoke=verdict.smoke, cannot_run=verdict.cannot_run,
+                       role_check=verdict.role_check.report() if verdict.role_check is not None else None)
     if args.role == "imu" and verdict.ok and not args.no_cost:
         from components.simulation.interface_cost import interface_cost
 
-        print(interface_cost(args.fmu, mapping, options, parameters, args.step, args.grade,
-                             args.noise_fraction).report())
+        cost = interface_cost(args.fmu, mapping, options, parameters, args.step, args.grade, args.noise_fraction)
+        print(cost.report())
+        json_option.record(args, interface_cost=cost.report())
     return 0 if verdict.ok else 1
 
 
 def _cmd_tumble(args: argparse.Namespace) -> int:
     from components.simulation.tumble import run_tumble
 
-    return run_tumble(seed=args.seed, dwell=args.dwell, step=args.step)
+    summary: dict = {}
+    code = run_tumble(seed=args.seed, dwell=args.dwell, step=args.step, summary=summary)
+    json_option.record(args, **summary)
+    return code
 
 
 def register(sub) -> None:

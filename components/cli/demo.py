@@ -112,7 +112,13 @@ def run_demo(out_dir: str | Path = "calbench-demo", seed: int | None = None, dwe
 
 
 def _cmd_demo(args) -> int:
-    return run_demo(args.out, seed=args.seed, dwell=args.dwell)
+    code = run_demo(args.out, seed=args.seed, dwell=args.dwell)
+    from components.cli import json_option
+
+    # the demo keeps its ladder beside the report; --json gives it with where the files are
+    ladder = Path(args.out) / "ladder.json"
+    json_option.record(args, out=str(args.out), ladder=json.loads(ladder.read_text()) if ladder.exists() else None)
+    return code
 
 
 def register(sub) -> None:

@@ -6,14 +6,20 @@ import argparse
 
 import numpy as np
 
-from components.cli import log_option, noise_option
+from components.cli import json_option, log_option, model_option, noise_option
 from components.cli import report as report_option
+from components.cli.json_option import CHECK_FAILED, OK
+
+_load_model = model_option.load
 
 
-def _load_model(path: str):
-    from components.model.result import CalibrationResult
-
-    return CalibrationResult.load(path)
+def _fail_above(args, chi2_per_dof: float) -> int:
+    """Exit status of ``--fail-above CHI2``: 1 when the model's χ²/dof exceeds it (said)."""
+    limit = getattr(args, "fail_above", None)
+    if limit is not None and chi2_per_dof > limit:
+        print(f"--fail-above {limit:g}: chi2/dof {chi2_per_dof:.3f} exceeds it: exit 1")
+        return CHECK_FAILED
+    return OK
 
 
 def _print_comparison(c, coloured: bool = False) -> None:
@@ -31,8 +37,6 @@ def _print_comparison(c, coloured: bool = False) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    import json
-
     from components.diagnosis.compare import compare
     from components.diagnosis.noise_choice import choose_noise
     from components.diagnosis.residual_export import write_block_residuals, write_residuals
@@ -49,6 +53,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         model = _load_model(args.model)
         noise, said, _ = choose_noise(args.noise, data, model)
         print(f"noise: {said}")
+        model, refit = model_option.own(model, args.model, log, data, noise)
+        json_option.record(args, refit=refit)
         c = compare_positions(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0,
                               noise=noise)
         print("model: the rests' attitudes fitted with the model's parameters held (no table angles)")
@@ -66,14 +72,14 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         model = _load_model(args.model)
         noise, said, _ = choose_noise(args.noise, data, model)
         print(f"noise: {said}")
+        model, refit = model_option.own(model, args.model, log, data, noise)
+        json_option.record(args, refit=refit)
         c = compare(data, model, fitted_parameters=len(model.values) if fitted_on(model, log) else 0,
                     noise=noise)
     _print_comparison(c, noise is not None and noise.coloured)
     if args.servo is not None:
         _print_servo(log, None if args.servo == "builtin" else args.servo)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(c.summary(), f, indent=1)
+    json_option.record(args, **c.summary())
     if args.residuals:
         write_residuals(args.residuals, log, c)
     if args.block_residuals:
@@ -82,7 +88,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         if not data.has_table or args.model.endswith((".toml", ".ssp")):
             raise UserError("compare --report: the page needs a calibration result and a log with table angles")
         report_option.write(args.report, log, data, model, args.model, noise, diagnose_models="none")
-    return 0
+    return _fail_above(args, c.chi2_per_dof)
 
 
 def _print_servo(log, system_file) -> None:
@@ -102,8 +108,6 @@ def _print_servo(log, system_file) -> None:
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    import json
-
     from components.diagnosis.candidate_notes import (
         LEGEND,
         RANKING_HEADER,
@@ -128,6 +132,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             raise UserError(f"--candidates: {e} (noise terms: {', '.join(NOISE_CANDIDATES)})") from None
     noise, said, _ = choose_noise(args.noise, data, model)
     print(f"noise: {said}")
+    model, refit = model_option.own(model, args.model, log, data, noise)
     d = diagnose(data, model, candidates=cands, alpha=args.alpha, noise=noise)
     print(f"model: {', '.join(model.effects)}; chi2/dof = {d.base_chi2_per_dof:.3f} over {d.rows} block rows")
     print(RANKING_HEADER)
@@ -146,15 +151,17 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                   f"  {'significant' if n['significant'] else 'not significant'}")
     for line in verdict_lines(d):
         print(line)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(d.to_json(), f, indent=1)
+    json_option.record(args, **d.to_json(), refit=refit)
     if args.report:
         if not data.has_table:
             raise UserError("diagnose --report: the page needs a log with table angles")
         report_option.write(args.report, log, data, model, args.model, noise,
                             diagnoses={_name(model): d})
-    return 0
+    status = _fail_above(args, d.base_chi2_per_dof)
+    if args.fail_on_verdict and d.verdict is not None:
+        print(f"--fail-on-verdict: {d.verdict} is missing: exit 1")
+        status = CHECK_FAILED
+    return status
 
 
 def _cmd_add(args: argparse.Namespace) -> int:
@@ -178,8 +185,11 @@ def _cmd_add(args: argparse.Namespace) -> int:
         raise UserError(f"--effect: {e} (noise terms: {', '.join(NOISE_CANDIDATES)})") from None
     noise, said, _ = choose_noise(args.noise, data, model)
     print(f"noise: {said}")
+    model, refit = model_option.own(model, args.model, log, data, noise)
+    json_option.record(args, refit=refit)
     effects = list(dict.fromkeys(list(model.effects) + new))
-    ladder = list(model.extra.get("ladder", []))
+    # a foreign model's ladder belongs to its own log: the ladder here starts from the refit
+    ladder = list(model.extra.get("ladder", [])) if refit is None else []
     if not data.has_table:
         return _add_positions(args, log, data, model, effects, new, noise_terms, noise, ladder)
     if not ladder:
@@ -195,11 +205,14 @@ def _cmd_add(args: argparse.Namespace) -> int:
     ladder.append(ladder_entry(compare(data, res, fitted_parameters=len(res.values), noise=noise), effects,
                                f"+ {', '.join(new + noise_terms)}"))
     res.extra["ladder"] = ladder
+    if refit is not None:
+        res.extra["refit_from"] = refit
     res.save(args.out)
     print("\n".join(ladder_lines(ladder)))
     print(f"-> {args.out}")
     if args.report:
         report_option.write(args.report, log, data, res, args.out, noise, baseline=model)
+    json_option.record(args, ladder=ladder, out=args.out)
     return 0
 
 
@@ -227,6 +240,9 @@ def _add_positions(args, log, data, model, effects, new, noise_terms, noise, lad
     ladder.append(ladder_entry(compare_positions(data, res, fitted_parameters=len(res.values), noise=noise), effects,
                                f"+ {', '.join(new)}"))
     res.extra["ladder"] = ladder
+    if "refit_from" in model.extra:
+        res.extra["refit_from"] = model.extra["refit_from"]
+    json_option.record(args, ladder=ladder, out=args.out)
     res.save(args.out)
     print("\n".join(fit.lines()))
     print("\n".join(ladder_lines(ladder)))
@@ -243,7 +259,8 @@ def register(sub) -> None:
     c.add_argument("--servo", nargs="?", const="builtin", metavar="SYSTEM",
                    help="also replay the logged commands through the turntable FMU (the built-in "
                         "one, or a system's turntable unit) and compare with the logged angles")
-    c.add_argument("--json", help="write the per-channel figures as JSON")
+    json_option.add(c, "write χ²/dof and the per-channel figures as JSON to FILE, or stdout with '-'")
+    c.add_argument("--fail-above", type=float, metavar="CHI2", help="exit 1 when chi2/dof exceeds CHI2 (for CI)")
     c.add_argument("--residuals", help="write per-sample residuals (CSV, the log's output units; column "
                                        "encoder_limited = 1 inside moves, where the gyro prediction is rebuilt "
                                        "from encoder counts)")
@@ -257,7 +274,11 @@ def register(sub) -> None:
     d = sub.add_parser("diagnose", help="which effect of the vocabulary is missing from the model")
     d.add_argument("log")
     d.add_argument("--model", required=True)
-    d.add_argument("--json", help="write verdict and ranking as JSON")
+    json_option.add(d, "write verdict and ranking as JSON to FILE, or stdout with '-'")
+    d.add_argument("--fail-above", type=float, metavar="CHI2",
+                   help="exit 1 when the model's chi2/dof (before any candidate) exceeds CHI2 (for CI)")
+    d.add_argument("--fail-on-verdict", action="store_true",
+                   help="exit 1 when the verdict names a missing effect or noise term (for CI)")
     d.add_argument("--alpha", type=float, default=0.01, help="family-wise error rate (Holm)")
     d.add_argument("--candidates", help="comma list of effects to test (default: all not in the model)")
     d.add_argument("--top", type=int, default=10, help="ranking lines to print")

@@ -22,6 +22,11 @@ def _cmd_import(args: argparse.Namespace) -> int:
     for n in imp.notes:
         print(f"  {n}")
     print(f"-> {', '.join(map(str, paths))}")
+    from components.cli import json_option
+
+    json_option.record(args, samples=int(log.n), duration_s=float(log.time[-1] - log.time[0] + log.dt),
+                       sample_rate_hz=float(log.sample_rate_hz), timing=log.timing, axes=list(log.axis_names),
+                       format=log.version, notes=list(imp.notes), out=[str(p) for p in paths])
     return 0
 
 

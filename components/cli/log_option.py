@@ -52,6 +52,14 @@ def read(args, *, say: bool = True):
             print(line)
         if log.has_table:
             print(resolution_note(data.angles, data.encoder_resolution))
+    import sys
+
+    from components.estimation.semantics import check_semantics
+
+    # the declared kinds and units against physics: a warning naming the evidence (stderr, so a
+    # script's JSON on stdout stays whole), before a fit that would converge on nonsense
+    for line in check_semantics(data, log):
+        print(f"calbench: warning: {line}", file=sys.stderr)
     return log, data
 
 

@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
-from components.cli import log_option
+from components.cli import json_option, log_option
+from components.cli.calibration import result_json
 
 
 def _cmd_kf(args: argparse.Namespace) -> int:
@@ -23,7 +25,7 @@ def _cmd_kf(args: argparse.Namespace) -> int:
         from components.simulation.run import run_scenario
         from components.simulation.scenario import load_scenario
 
-        run = run_scenario(load_scenario(args.simulate), progress=False)
+        run = run_scenario(load_scenario(args.simulate), progress=False if args.quiet else None)
         log, truth = run.log, run.truth
         source = args.simulate
     elif args.log:
@@ -31,18 +33,18 @@ def _cmd_kf(args: argparse.Namespace) -> int:
         source, truth = args.log, None
     else:
         raise UserError("kf: give a LOG or --simulate SCENARIO")
+    bar = _progress_bar(cfg, args.quiet)
     try:
-        res, _ = calibrate_system(log, cfg, parse_exclude(args.exclude))
+        res, _ = calibrate_system(log, cfg, parse_exclude(args.exclude),
+                                  progress=None if bar is None else bar.step)
     except ValueError as e:  # a window no label matches, no rest to align on, ...
         raise UserError(f"kf: {source} with configuration {cfg.name}: {e}") from None
+    finally:
+        if bar is not None:
+            bar.close()
+    json_option.record(args, config=cfg.name, source=str(source), **result_json(res), out=args.out)
     if truth is not None:
-        from components.procedures.common import errors_against_truth, print_errors
-
-        rows = errors_against_truth(res, truth)
-        res.extra["errors_against_truth"] = rows
-        res.save(args.out)
-        print(f"errors against the truth of {args.simulate}:")
-        print_errors(rows)
+        _print_truth(args, res, truth)
     else:
         res.save(args.out)
         undetermined = res.extra.get("determinability", {}).get("undetermined", {})
@@ -62,8 +64,56 @@ def _cmd_kf(args: argparse.Namespace) -> int:
         print("the filter is not consistent with the data; do not use these estimates:")
         for p in problems:
             print(f"  {p}")
+        json_option.record(args, problems=problems)
         return 1
     return 0
+
+
+def _print_truth(args, res, truth: dict) -> None:
+    """Errors against the simulation's truth, in the frame the configuration estimates in
+    (components.navigation.truth_frame), with the injected parameters it has no state for."""
+    from components.navigation.truth_frame import estimation_frame, not_estimated, truth_in_frame
+    from components.procedures.common import errors_against_truth, print_errors
+
+    frame = estimation_frame(list(res.values))
+    injected = truth.get("effects", {})
+    rows = errors_against_truth(res, {**truth, "effects": truth_in_frame(injected, frame)})
+    missing = not_estimated(injected, list(res.values), frame)
+    res.extra["errors_against_truth"] = rows
+    res.extra["truth_frame"] = frame
+    res.save(args.out)
+    print(f"errors against the truth of {args.simulate}, misalignments in the "
+          + ("table frame (the frame the table-referenced gyros realise)" if frame == "table" else
+             "accelerometer-defined frame (x along the x accelerometer, y in the x-y accelerometer plane; "
+             "the truth turned into it)") + ":")
+    print_errors(rows)
+    if missing:
+        print("injected but not estimated by this configuration (the estimates above may be biased by them): "
+              + ", ".join(missing))
+    json_option.record(args, errors_against_truth=rows, truth_frame=frame, not_estimated=missing)
+
+
+class _Progress:
+    """A tqdm bar on stderr over the configuration's stages and filter passes (the filter is
+    silent for tens of seconds); none when stderr is not a terminal or with --quiet."""
+
+    def __init__(self, total: int):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total, unit="pass", file=sys.stderr, leave=False, dynamic_ncols=True)
+
+    def step(self, what: str) -> None:
+        self.bar.set_description(what)
+        self.bar.update(1)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def _progress_bar(cfg, quiet: bool):
+    if quiet or not sys.stderr.isatty():
+        return None
+    return _Progress(sum(int(st.settings.get("passes", 1)) if st.kind == "kf" else 1 for st in cfg.stages))
 
 
 def register(sub) -> None:
@@ -79,5 +129,6 @@ def register(sub) -> None:
     k.add_argument("--grade", choices=("navigation", "mems"), default="navigation",
                    help="the IMU's grade: the filter's priors and initial attitude uncertainty "
                         "(default navigation; mems for consumer/industrial MEMS)")
+    k.add_argument("--quiet", action="store_true", help="no progress bar (none either when stderr is not a terminal)")
     log_option.add(k)
     k.set_defaults(func=_cmd_kf)

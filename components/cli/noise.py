@@ -76,9 +76,9 @@ def _cmd_noise(args: argparse.Namespace) -> int:
         with open(args.out, "w") as f:
             json.dump(out, f, indent=1)
         print(f"-> {args.out} (use it with --noise {args.out})")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(out, f, indent=1)
+    from components.cli import json_option
+
+    json_option.record(args, **out)
     if args.report:
         from components.diagnosis.compare import compare
         from components.diagnosis.report import build_report
@@ -101,7 +101,9 @@ def register(sub) -> None:
     n.add_argument("--terms", help="terms to look for, comma list of q, arw (vrw), bi, rrw (default: all)")
     n.add_argument("--bootstrap", type=int, default=30, help="parametric bootstrap replicates for the σ (30)")
     n.add_argument("--out", help="write the noise model (JSON) for --noise")
-    n.add_argument("--json", help="write the Allan deviations and the model as JSON")
+    from components.cli import json_option
+
+    json_option.add(n, "write the Allan deviations and the model as JSON to FILE, or stdout with '-'")
     n.add_argument("--report", metavar="PAGE.html", help="write the HTML page: the model against the log under the "
                                                          "identified noise, the Allan deviations with the model")
     n.set_defaults(func=_cmd_noise)

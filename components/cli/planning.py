@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from components.cli import noise_option
+from components.cli import json_option, noise_option
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
@@ -55,12 +55,18 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     hours = (log.time[-1] - log.time[0] + log.dt) / 3600
     print(f"Cramér–Rao bound for {target}: {hours * 60:.1f} min, noise ({noise.source}): {describe(noise)}")
     print(f"{'parameter':22s} {'sigma':>12s}  unit       {'sigma x sqrt(hours)':>20s}")
+    bounds = {}
     for p, s in crb.items():
         unit, scale = effect_of(p).display
+        bounds[p] = {"sigma": float(s) if np.isfinite(s) else None, "display_unit": unit,
+                     "display_sigma": float(s / scale) if np.isfinite(s) else None,
+                     "needs": None if np.isfinite(s) else needs(p)}
         if not np.isfinite(s):
             print(f"{p:22s} {'not determined':>12s}  (the schedule needs {needs(p)})")
             continue
         print(f"{p:22s} {s / scale:12.4g}  {unit:10s} {s / scale * hours ** 0.5:20.4g}")
+    json_option.record(args, target=str(target), duration_s=float(hours * 3600), noise=describe(noise),
+                       effects=effects, crb=bounds)
     if args.observability:
         from components.navigation.observability import plan_observability
 

@@ -92,6 +92,11 @@ def _cmd_procedure(args: argparse.Namespace) -> int:
             rows = errors_against_truth(res, truth)
             print_errors(rows)
             res.extra["errors_against_truth"] = rows
+    from components.cli import json_option
+    from components.cli.calibration import result_json
+
+    json_option.record(args, procedure=name, **result_json(res), out=args.out,
+                       errors_against_truth=res.extra.get("errors_against_truth"))
     if args.out:
         res.save(args.out)
         print(f"-> {args.out}")

@@ -21,7 +21,37 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
           f"{len(result.controller.labels)} segment labels -> " + ", ".join(str(p) for p in paths))
     for line in injection_notes(result.truth):
         print(line)
+    from components.cli import json_option
+
+    json_option.record(args, scenario=sc.name, schedule=sc.schedule.name, samples=int(log.n),
+                       duration_s=float(log.time[-1]), out=[str(p) for p in paths],
+                       not_injected=result.truth.get("not_injected", {}))
+    if args.check:
+        _check_against_truth(args, log, result.truth)
     return 0
+
+
+def _check_against_truth(args, log, truth: dict) -> None:
+    """The least squares with the default effects and every injected one, on the log just
+    simulated, printed against the truth as ``procedure --simulate`` does: a check that the run
+    holds what the scenario says (each error against its σ)."""
+    from components.cli import json_option
+    from components.errors import UserError
+    from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
+    from components.model.effects import DEFAULT_EFFECTS, effect_of
+    from components.model.result import result_from_fit
+    from components.procedures.common import errors_against_truth, print_errors
+
+    if not log.has_table:
+        raise UserError("simulate --check: the log has no table angles; check it with calbench kf or calibrate")
+    effects = list(dict.fromkeys(list(DEFAULT_EFFECTS) + [effect_of(p).name for p in truth.get("effects", {})]))
+    data = LogData.from_log(log)
+    res = result_from_fit(calibrate(data, effects), effects, data)
+    rows = errors_against_truth(res, truth)
+    print(f"check: least squares with {', '.join(effects)}; errors against the truth of {args.scenario}:")
+    print_errors(rows)
+    json_option.record(args, errors_against_truth=rows)
 
 
 def injection_notes(truth: dict) -> list[str]:
@@ -45,4 +75,7 @@ def register(sub) -> None:
     sm.add_argument("--dwell", type=float, help="override the schedule's dwell parameter [s]")
     sm.add_argument("--seed", type=int, help="override the IMU noise seed")
     sm.add_argument("--format", choices=("csv", "parquet", "both"), default="csv", help="sample file format")
+    sm.add_argument("--check", action="store_true",
+                    help="calibrate the simulated log (default effects and the injected ones) and print the errors "
+                         "against the truth, in σ")
     sm.set_defaults(func=_cmd_simulate)

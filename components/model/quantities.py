@@ -80,6 +80,29 @@ def effect_value(name: str, v, where: str) -> float:
     return quantity(v, name, where, units, effect_of(name).unit)
 
 
+def refuse_bare_number(name: str, v, where: str) -> None:
+    """A value a person wrote in a file without its unit, for an effect parameter: taken as SI it
+    is refused when the effect's unit is not 1 (``"acc.bias.x" = 60`` would be 60 m/s²: ask for
+    "60 ug") or when it is beyond what any real IMU has (``"acc.sf.z" = 35`` would be 3500 %:
+    ask for "35 ppm"). Programs that build scenarios in SI do not come through here."""
+    from components.model.plausibility import plausible_limit
+
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return
+    try:
+        e = effect_of(name)
+    except KeyError:
+        return  # effect_value names the unknown parameter
+    units = ", ".join(f'"{v:g} {u}"' for u in [u for u in effect_units(name) if u != "1"][:3])
+    if e.unit != "1":
+        raise QuantityError(f"{where}: {name} = {v!r}: a bare number for an effect in {e.unit}; write it with its "
+                            f"unit, e.g. {units}")
+    limit = plausible_limit(name)
+    if abs(v) > limit:
+        raise QuantityError(f"{where}: {name} = {v!r} is {abs(v) * 100:g} % as a bare number (SI ratio), beyond any "
+                            f"real IMU's {limit * 100:g} %; write it with its unit, e.g. {units}")
+
+
 def noise_value(name: str, v, where: str) -> float:
     """SI value of the noise parameter *name* (``gyro.noise.arw``) written as *v*."""
     if name not in NOISE_UNITS:

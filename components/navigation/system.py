@@ -125,7 +125,8 @@ def joint_prior(outputs: list, names: list[str]) -> np.ndarray:
 
 
 def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
-                 dt: float, earlier_sigma: dict | None = None, earlier: list | None = None) -> StageOutput:
+                 dt: float, earlier_sigma: dict | None = None, earlier: list | None = None,
+                 progress=None) -> StageOutput:
     params = stage.parameters or parameters_of(stage.effects)
     consider = []
     if stage.consider_earlier and earlier:
@@ -179,7 +180,9 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     passes = []
     out = None
     n_passes = settings.passes
-    for _ in range(n_passes):
+    for i_pass in range(n_passes):
+        if progress is not None:
+            progress(f"{stage.name} pass {i_pass + 1}/{n_passes}")
         # the regressors on the motion corrected by this pass's linearisation point
         regs = Regressors.on_estimated_motion(params + consider, np.concatenate(
             [theta, np.zeros(len(consider))]), g, ac, dt, temp, static=st)
@@ -264,9 +267,11 @@ def rests_of(data: LogData) -> np.ndarray:
     return np.isin(np.asarray(data.segment).astype(str), labels) & data.usable
 
 
-def calibrate_system(log, config: Config, exclude: list | None = None) -> tuple[CalibrationResult, list[StageOutput]]:
+def calibrate_system(log, config: Config, exclude: list | None = None,
+                     progress=None) -> tuple[CalibrationResult, list[StageOutput]]:
     """Run a configuration's stages on a MeasurementLog (``exclude``: more to leave out, as
-    components.estimation.log_data.LogData.from_log takes it)."""
+    components.estimation.log_data.LogData.from_log takes it). ``progress(text)``, when given, is
+    called before each table or CW/CCW stage and each filter pass."""
     data = LogData.from_log(log, exclude)
     dt = float(log.dt)
     static = rests_of(data)
@@ -282,6 +287,8 @@ def calibrate_system(log, config: Config, exclude: list | None = None) -> tuple[
             notes.append(f"stage {stage.name!r} skipped: it fits {', '.join(stage.parameters or stage.effects)} "
                          "against the table angles, which this log does not have (left at 0)")
             continue
+        if progress is not None and stage.kind in ("cwccw", "table"):
+            progress(stage.name)
         if stage.kind == "cwccw":
             so = run_cwccw_stage(log, stage)
         elif stage.kind == "table":
@@ -289,7 +296,7 @@ def calibrate_system(log, config: Config, exclude: list | None = None) -> tuple[
         elif stage.kind != "kf":
             raise ValueError(f"stage {stage.name!r}: kind {stage.kind!r}, expected kf, table or cwccw")
         else:
-            so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas), outputs)
+            so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas), outputs, progress)
         for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
             fixed[p] = fixed.get(p, 0.0) + float(v)
             sigmas[p] = float(s)

@@ -291,4 +291,18 @@ def _param(v, key: str, where: str):
 def load_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
     p = Path(path)
     data = read_toml(p, ScenarioError, "scenario")
+    _refuse_bare_numbers(data, str(p))
     return scenario_from_dict(data, str(p), p.parent.resolve(), overrides)
+
+
+def _refuse_bare_numbers(data: dict, source: str) -> None:
+    """Effect values a person wrote without a unit (components.model.quantities.refuse_bare_number)."""
+    from components.model.quantities import refuse_bare_number
+
+    for unit in ("imu", "turntable"):
+        effects = data.get(unit, {}).get("effects", {}) if isinstance(data.get(unit), dict) else {}
+        for k, v in (effects.items() if isinstance(effects, dict) else ()):
+            try:
+                refuse_bare_number(k, v, f"{source}: [{unit}.effects]")
+            except QuantityError as e:
+                raise ScenarioError(str(e)) from None

@@ -81,7 +81,9 @@ IMU_OUT = [f"gyro.{c}" for c in "xyz"] + [f"acc.{c}" for c in "xyz"]
 
 
 def run_tumble(seed: int = 1, dwell: float = 10.0, step: float = 0.005,
-               settle_timeout: float = 10.0) -> int:
+               settle_timeout: float = 10.0, summary: dict | None = None) -> int:
+    """Exit status 0 when every attitude's IMU output matches truth + injected errors within 5 σ of
+    the dwell mean's noise; *summary* (when given) receives the per-attitude figures for --json."""
     table = _Unit(fmu_path("turntable"), "table", {})
     # the table's integrals over each step make the IMU's increments exact through the servo
     # transients (input_integrals 1: see fmus/imu/model.c)
@@ -137,6 +139,10 @@ def run_tumble(seed: int = 1, dwell: float = 10.0, step: float = 0.005,
         ra, rg = (acc - acc_model) / UG, (gyro - gyro_model) / DEG_PER_H
         worst = max(worst, np.max(np.abs(acc - acc_model)) / sigma_f,
                     np.max(np.abs(gyro - gyro_model)) / sigma_w)
+        if summary is not None:
+            summary.setdefault("attitudes", {})[label] = {
+                "settle_s": float(settle), "acc_mean_mps2": acc.tolist(), "acc_residual_ug": ra.tolist(),
+                "gyro_residual_deg_per_h": rg.tolist()}
         print(f"{label:8s} {settle:6.2f}s  "
               f"{acc[0]:+10.6f} {acc[1]:+10.6f} {acc[2]:+10.6f}  "
               f"{ra[0]:+8.2f} {ra[1]:+8.2f} {ra[2]:+8.2f}  {rg[0]:+9.5f} {rg[1]:+9.5f} {rg[2]:+9.5f}")
@@ -144,5 +150,8 @@ def run_tumble(seed: int = 1, dwell: float = 10.0, step: float = 0.005,
     imu.close()
     print(f"noise sigma of a dwell mean: acc {sigma_f / UG:.2f} ug, gyro {sigma_w / DEG_PER_H:.5f} deg/h")
     verdict = "PASS" if worst < 5.0 else "FAIL"
+    if summary is not None:
+        summary.update(largest_residual_sigma=float(worst), verdict=verdict,
+                       noise_sigma_acc_ug=float(sigma_f / UG), noise_sigma_gyro_deg_per_h=float(sigma_w / DEG_PER_H))
     print(f"largest residual {worst:.2f} sigma -> {verdict} (IMU output = truth + injected errors + noise)")
     return 0 if verdict == "PASS" else 1

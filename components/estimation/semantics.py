@@ -1,0 +1,78 @@
+"""Does a log mean what its metadata say? Checks of the declared output kinds and angle units
+against physics, before anything is fitted (a fit on a mis-declared log converges all the same,
+to a scale factor of −99.5 % or a χ²/dof of 10⁹, and says nothing of why).
+
+- the accelerometers at rest measure gravity: their mean magnitude over the static samples,
+  read as the metadata say, is g; dt·g says increments were declared as specific force (rates),
+  g/dt the reverse, 1/g or g² (in m/s²) that g and m/s² were confused;
+- during the table's moves the gyros turn as the table angles do: the ratio of the gyros'
+  rotation to the rotation the angles give is 1; dt or 1/dt says rates and increments were
+  confused, 57.3 or 1/57.3 degrees and radians (in the gyro or in the table angles).
+
+Each finding is one line naming the evidence; the caller prints it as a warning (the estimate's
+own plausibility check, components.model.plausibility, flags the result too).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# a measured ratio within this factor of a mistake's ratio is taken as that mistake; the right
+# declaration gives 1 within a few per cent (a scale factor error, the table's own servo error)
+MATCH = 1.3
+
+
+def _near(ratio: float, target: float) -> bool:
+    return ratio > 0 and target > 0 and abs(math.log(ratio / target)) < math.log(MATCH)
+
+
+def check_semantics(data, log) -> list[str]:
+    """Findings (one line each) where the log's numbers contradict its declared kinds or units."""
+    out: list[str] = []
+    dt = float(log.dt)
+    use = data.usable
+    g = float(log.gravity) if getattr(log, "gravity", None) else 9.80665
+    static = _static(data) & use
+    if static.sum() >= 10:
+        # per sample (the rests differ in attitude: their mean vector would cancel)
+        f = float(np.median(np.linalg.norm(data.acc[static], axis=1))) / dt
+        r = f / g
+        for target, what in ((dt, "increments declared as specific force (rates): the values are g·dt"),
+                             (1 / dt, "specific force (rates) declared as increments: the values are g/dt"),
+                             (1 / g, "values in g declared as m/s²"), (g, "values in m/s² declared as g")):
+            if _near(r, target):
+                out.append(f"{log.source or 'log'}: the accelerometers at rest measure {f:.4g} m/s² as declared "
+                           f"({log.acc_output}), {r:.4g} × gravity {g:.5g} m/s²: {what}?")
+                break
+    if data.has_table:
+        motion = data.motion(data.geometry)
+        moving = ~motion.static & use
+        if moving.sum() >= 10:
+            expected = np.linalg.norm(motion.ideal_gyro[moving], axis=1).sum()
+            measured = np.linalg.norm(data.gyro[moving], axis=1).sum()
+            if expected > 0:
+                r = measured / expected
+                for target, what in ((dt, "increments declared as rates"), (1 / dt, "rates declared as increments"),
+                                     (180 / math.pi, "gyro values in degrees declared as radians, or table angles "
+                                                     "in radians declared as degrees"),
+                                     (math.pi / 180, "table angles in degrees declared as radians, or gyro values "
+                                                     "in radians declared as degrees")):
+                    if _near(r, target):
+                        span = float(np.ptp(data.angles[use], axis=0).max()) if data.angles.size else 0.0
+                        out.append(f"{log.source or 'log'}: during the table's moves the gyros turn {r:.4g} × what "
+                                   f"the table angles give (the angles span {span:.4g} rad = {math.degrees(span):.4g}° "
+                                   f"as declared): {what}?")
+                        break
+    return out
+
+
+def _static(data) -> np.ndarray:
+    """Samples where no table angle changed (or, without a table, every sample: a log of rests
+    and turns is mostly at rest, and its mean magnitude is still gravity's order)."""
+    if data.has_table:
+        a = np.asarray(data.angles)
+        still = np.ones(len(a), bool)
+        still[1:] = np.all(np.diff(a, axis=0) == 0, axis=1)
+        return still
+    return np.ones(len(data.time), bool)
