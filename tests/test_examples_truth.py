@@ -9,9 +9,10 @@ Examples and where they are run against their truth:
 - examples/libcosim_pair.toml: tests/test_verify.py
 - examples/tumble.toml: here (at rest, |f| is normal gravity and |ω| Earth rate once the injected
   effects are removed, their directions those of the commanded gimbal angles)
-- not yet run against a truth by a test (loaded only, tests/test_formats_doc.py):
-  examples/campaigns/smoke.toml; components/simulation/scenarios/demo_hidden_k2.toml runs only
-  through the demo
+- examples/campaigns/smoke.toml: here (every case run and passed, every acc.bias within 30 µg of
+  the scenario's and the grid's values, from the per-case records)
+- not yet run against a truth by a test: components/simulation/scenarios/demo_hidden_k2.toml
+  runs only through the demo
 """
 from __future__ import annotations
 
@@ -207,3 +208,51 @@ def test_tumble_example_at_rest_senses_gravity_and_earth_rate(tmp_path):
         # the angle the commanded rotation turns gravity through (90° each here), to 4 counts
         assert angle(f_rest[k - 1], f_rest[k]) == pytest.approx(angle(f_expect[k - 1], f_expect[k]),
                                                                 abs=4 * ENCODER_COUNT), k
+
+
+# ---------------------------------------------------------------- units, independently of the code's
+
+G0 = 9.80665  # standard gravity [m/s²]
+UNITS = {"ug": 1e-6 * G0, "ppm": 1e-6, "arcsec": np.pi / 648000, "deg/h": np.pi / 180 / 3600,
+         "ug/g2": 1e-6 * G0 / G0**2}
+
+
+def _si(text: str) -> float:
+    value, unit = text.split(" ", 1)
+    return float(value) * UNITS[unit]
+
+
+# ---------------------------------------------------------------- examples/campaigns/smoke.toml
+
+def test_smoke_campaign_example_recovers_its_accelerometer_biases(capsys, tmp_path):
+    """examples/campaigns/smoke.toml (8 cases, ~25 s with one worker): every case ran, every
+    criterion it was judged on passed or says why it does not apply, and from the per-case records
+    (not their verdicts) every estimated acc.bias is within 30 µg of the injected truth, which is
+    itself the scenario's and the grid's values converted here."""
+    import tomllib
+
+    path = ROOT / "examples" / "campaigns" / "smoke.toml"
+    cfg = tomllib.loads(path.read_text())
+    scenario = tomllib.loads((path.parent / cfg["scenario"]["file"]).read_text())
+    code, doc = _run_json(capsys, ["campaign", str(path), "--out", str(tmp_path / "c"), "--workers", "1"])
+    assert code == 0, doc
+    n = len(cfg["systems"]) * len(cfg["variations"]["acc.bias.x"]["values"]) * cfg["campaign"]["replicates"]
+    assert n == 8 and doc["counts"]["total"] == n and doc["complete"]
+    assert {c["verdict"] for c in doc["cases"]} == {"pass"}
+    records = [json.loads(f.read_text()) for f in sorted((tmp_path / "c" / "cases").glob("*.json"))]
+    assert sorted(r["id"] for r in records) == sorted(c["id"] for c in doc["cases"])
+    limit = _si(cfg["criteria"][0]["tolerance"])
+    assert cfg["criteria"][0]["id"] == "ACC-BIAS" and limit == pytest.approx(30e-6 * G0)
+    grid = [_si(v) for v in cfg["variations"]["acc.bias.x"]["values"]]
+    for r in records:
+        # the criteria a case is judged on: those not restricted to other systems
+        meant = {c["id"] for c in cfg["criteria"] if r["system"] in c.get("systems", [r["system"]])}
+        assert {c["id"] for c in r["criteria"]} == meant, r["id"]
+        for c in r["criteria"]:
+            assert c["passed"] or (c.get("applicable") is False and len(c["message"]) > len("not applicable: ")), (r["id"], c)
+        truth = {"x": grid[r["grid"]], "y": _si(scenario["imu"]["effects"]["acc.bias.y"]),
+                 "z": _si(scenario["imu"]["effects"]["acc.bias.z"])}
+        for axis, injected in truth.items():
+            est = r["estimates"][f"acc.bias.{axis}"]
+            assert est["truth"] == pytest.approx(injected, rel=1e-12) == r["truth"][f"acc.bias.{axis}"], (r["id"], axis)
+            assert abs(est["value"] - injected) < limit, (r["id"], axis, (est["value"] - injected) / (1e-6 * G0))
