@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import re
 
 import numpy as np
@@ -127,12 +128,12 @@ def test_a_result_of_another_log_is_refitted_first(logs, capsys, tmp_path):
     assert json.loads((tmp_path / "k2.json").read_text())["refit_from"]["model"].endswith("ideal.r.json")
 
 
-@pytest.mark.parametrize("mistake, evidence", [
-    ("gyro rate", r"gyros turn 0\.005 × .*increments declared as rates"),
-    ("angles in degrees", r"gyros turn 0\.0175\d × .*table angles in degrees declared as radians"),
-    ("acc specific force", r"0\.005 × gravity.*increments declared as specific force"),
+@pytest.mark.parametrize("mistake, evidence, ratio", [
+    ("gyro rate", r"gyros turn ([\d.e+-]+) × .*increments declared as rates", 0.005),
+    ("angles in degrees", r"gyros turn ([\d.e+-]+) × .*table angles in degrees declared as radians", math.pi / 180),
+    ("acc specific force", r"([\d.e+-]+) × gravity.*increments declared as specific force", 0.005),
 ])
-def test_declared_kinds_and_units_are_checked_against_physics(logs, tmp_path, capsys, mistake, evidence):
+def test_declared_kinds_and_units_are_checked_against_physics(logs, tmp_path, capsys, mistake, evidence, ratio):
     log = read_log(logs / "example")
     dt = log.dt
     assert dt == pytest.approx(0.005)     # the ratios the evidence names are dt and π/180
@@ -145,7 +146,10 @@ def test_declared_kinds_and_units_are_checked_against_physics(logs, tmp_path, ca
     write_log(tmp_path / "bad", bad)
     main(["calibrate", str(tmp_path / "bad"), "--out", str(tmp_path / "r.json")])
     err = capsys.readouterr().err
-    assert re.search(evidence, err), err
+    found = re.search(evidence, err)
+    assert found, err
+    # the evidence printed is the mistake's own ratio (dt or π/180), to the 4 digits shown
+    assert float(found.group(1)) == pytest.approx(ratio, rel=2e-3), err
     main(["calibrate", str(logs / "example"), "--out", str(tmp_path / "good.json")])
     assert "warning" not in capsys.readouterr().err      # the right declaration: nothing said
 

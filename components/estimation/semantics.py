@@ -49,10 +49,13 @@ def check_semantics(data, log) -> list[str]:
         motion = data.motion(data.geometry)
         moving = ~motion.static & use
         if moving.sum() >= 10:
-            expected = np.linalg.norm(motion.ideal_gyro[moving], axis=1).sum()
-            measured = np.linalg.norm(data.gyro[moving], axis=1).sum()
-            if expected > 0:
-                r = measured / expected
+            expected = np.linalg.norm(motion.ideal_gyro[moving], axis=1)
+            measured = np.linalg.norm(data.gyro[moving], axis=1)
+            # per sample and the median: a mis-declaration scales every sample alike, while one
+            # corrupt angle cell (a jump of hundreds of radians) must not pass for a unit mistake
+            turning = expected > 0.1 * np.median(expected) if expected.size else expected
+            if turning.sum() >= 10:
+                r = float(np.median(measured[turning] / expected[turning]))
                 for target, what in ((dt, "increments declared as rates"), (1 / dt, "rates declared as increments"),
                                      (180 / math.pi, "gyro values in degrees declared as radians, or table angles "
                                                      "in radians declared as degrees"),
