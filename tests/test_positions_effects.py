@@ -154,6 +154,11 @@ def test_the_loop_on_a_log_without_angles(handheld, capsys):
         assert abs(r1.values[p] - v) < 0.1 * r1.sigmas[p], (p, r1.values[p], v, r1.sigmas[p])
     out = _run(capsys, "diagnose", stem, "--model", d / "r1.json", "--json", d / "d1.json")
     assert json.loads((d / "d1.json").read_text())["verdict"] is None, out
+    # the page needs table angles: add --report says so before it fits, as compare and diagnose do
+    assert main(["add", str(stem), "--model", str(d / "r0.json"), "--effect", "acc.k2", "--out", str(d / "r2.json"),
+                 "--report", str(d / "page.html")]) == 2
+    assert "add --report: the page needs a log with table angles" in capsys.readouterr().err
+    assert not (d / "page.html").exists() and not (d / "r2.json").exists()
 
 
 def test_exclude_on_the_command_line(handheld, capsys):

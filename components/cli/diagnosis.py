@@ -191,6 +191,8 @@ def _cmd_add(args: argparse.Namespace) -> int:
     # a foreign model's ladder belongs to its own log: the ladder here starts from the refit
     ladder = list(model.extra.get("ladder", [])) if refit is None else []
     if not data.has_table:
+        if args.report:  # said before the fit, as compare and diagnose say it
+            raise UserError("add --report: the page needs a log with table angles; run add without --report")
         return _add_positions(args, log, data, model, effects, new, noise_terms, noise, ladder)
     if not ladder:
         ladder.append(ladder_entry(compare(data, model, fitted_parameters=len(model.values), noise=noise),
