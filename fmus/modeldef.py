@@ -63,12 +63,14 @@ _BASE_UNITS = {
     "deg/h": {"rad": 1, "s": -1},
     "mg": {"m": 1, "s": -2},
     "urad": {"rad": 1},
+    "arcsec": {"rad": 1},
+    "mm/s": {"m": 1, "s": -1},
     "deg/sqrt(h)": {"rad": 1},   # density: the sqrt is not expressible; the factor is deg/sqrt(h) in rad/sqrt(s)
 }
 _BASE_UNIT_OFFSET = {"degC": 273.15}
 _BASE_UNIT_FACTOR = {"deg": 0.017453292519943295, "deg/s": 0.017453292519943295,
                      "deg/s2": 0.017453292519943295, "g": 9.80665, "deg/h": 0.017453292519943295 / 3600,
-                     "mg": 9.80665e-3, "urad": 1e-6, "deg/sqrt(h)": 0.017453292519943295 / 60}
+                     "mg": 9.80665e-3, "urad": 1e-6, "arcsec": 0.017453292519943295 / 3600, "mm/s": 1e-3, "deg/sqrt(h)": 0.017453292519943295 / 60}
 
 
 @dataclass(frozen=True)

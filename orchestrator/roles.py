@@ -26,6 +26,8 @@ class RoleVariable:
     # how an output refines when the step is halved (verify): "sample" a value at an instant,
     # "sum" a per-interval total (an increment, a count), "mean" a per-interval mean (a mean rate)
     aggregate: str = "sample"
+    # a Real the unit may also give as an Integer (a pulse count): read as a number all the same
+    accepts_integer: bool = False
 
 
 @dataclass
@@ -136,7 +138,7 @@ def check_unit(unit: Unit, role: Role, mapping: dict[str, str] | None = None) ->
             rv.causality == "parameter" and v.causality in ("parameter", "calculatedParameter"))
         if not caus_ok:
             res.problems.append(f"{name}: causality {v.causality}, role {role.name} needs {rv.causality}")
-        if v.type != rv.type:
+        if v.type != rv.type and not (rv.accepts_integer and v.type == "Integer"):
             res.problems.append(f"{name}: type {v.type}, role {role.name} needs {rv.type}")
         conv = _conversion(rv, v)
         if isinstance(conv, str):

@@ -37,13 +37,14 @@ def _procedure(proc: dict, log):
     data = LogData.from_log(log)
     if proc["method"] == "lsq":
         opts = dict(proc.get("options", {}))
-        if "noise" in opts:
-            # the procedure's noise model (--noise specifications: identify, a grade, NAME=VALUE ...)
+        if "noise" in opts or any(data.count_weight):
+            # the procedure's noise model (--noise specifications: identify, a grade, NAME=VALUE ...);
+            # pulse counts without one as calibrate does: their quantization from the count weight
             from components.diagnosis.noise_choice import choose_noise
 
-            specs = opts.pop("noise")
-            opts["noise"] = choose_noise([specs] if isinstance(specs, str) else list(specs), data,
-                                         effects=list(proc["effects"]), bootstrap=10)[0]
+            specs = opts.pop("noise", None)
+            specs = None if specs is None else [specs] if isinstance(specs, str) else list(specs)
+            opts["noise"] = choose_noise(specs, data, effects=list(proc["effects"]), bootstrap=10)[0]
         fit = calibrate(data, list(proc["effects"]), **opts)
         return data, result_from_fit(fit, list(proc["effects"]), data)
     from components import procedures

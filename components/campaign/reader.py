@@ -181,7 +181,7 @@ def _system(name: str, d, src, base: Path) -> System:
     w = f"[systems.{name}]"
     _expect(isinstance(d, dict), src, w, d, "a table")
     _keys(d, {"imu", "mapping", "gyro_output", "acc_output", "role_options", "parameters", "effect_map", "noise_map",
-              "seed_parameter", "effects", "timeout_s", "replicates"}, src, w)
+              "seed_parameter", "count_weight", "effects", "timeout_s", "replicates"}, src, w)
     if "effects" in d:
         raise CampaignError(f"{src}: {w}.effects: renamed effect_map (the same table: vocabulary name = [the FMU's "
                             "parameter, its unit]), as in scenario files (docs/supplier.md)")
@@ -223,9 +223,26 @@ def _system(name: str, d, src, base: Path) -> System:
         _expect(is_number(t) and t > 0, src, f"{w} timeout_s", t, "a positive number [s]")
     for k in ("gyro_output", "acc_output"):
         _expect(isinstance(d.get(k, ""), str), src, f"{w} {k}", d.get(k), "text")
+    _count_weights_known(d, maps["imu_count_weight"] or {}, path, src, w)
     return System(name, imu, path, dict(mp), d.get("gyro_output", "increment"), d.get("acc_output", "increment"),
                   dict(params), maps["imu_effect_map"], None if t is None else float(t), reps,
-                  maps["imu_noise_map"], maps["imu_seed_parameter"])
+                  maps["imu_noise_map"], maps["imu_seed_parameter"], maps["imu_count_weight"])
+
+
+def _count_weights_known(d: dict, stated: dict, path: Path, src, w: str) -> None:
+    """Count outputs need the weight of a count: stated, or the FMU's own parameter (ours);
+    refused before the first case otherwise (as a scenario run would refuse each case)."""
+    from fmpy import read_model_description
+
+    names = None
+    for sensor, unit in (("gyro", "arcsec"), ("acc", "mm/s")):
+        if d.get(f"{sensor}_output") != "counts" or sensor in stated:
+            continue
+        names = names or {v.name for v in read_model_description(str(path)).modelVariables}
+        if f"{sensor}.count_weight" not in names:
+            raise CampaignError(f"{src}: {w}: {sensor}_output = 'counts', but the weight of one count is not "
+                                f"known (the FMU has no {sensor}.count_weight parameter): state it, e.g. "
+                                f'count_weight = {{{sensor} = "0.05 {unit}"}}')
 
 
 def _procedure(name: str, d, src) -> Procedure:

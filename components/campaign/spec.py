@@ -63,6 +63,7 @@ class System:
     replicates: int | None = None
     noise_map: dict | None = None
     seed_parameter: str | None = None
+    count_weight: dict | None = None  # {"gyro": rad, "acc": m/s} of one count, as stated
 
 
 @dataclass
@@ -240,7 +241,7 @@ def scenario_for(camp: Campaign, case: Case, check_only: bool = False):
     imu["gyro_output"], imu["acc_output"] = sys_.gyro_output, sys_.acc_output
     imu["parameters"] = {**imu["parameters"], **sys_.parameters}
     for key, v in (("effect_map", sys_.effect_map), ("noise_map", sys_.noise_map),
-                   ("seed_parameter", sys_.seed_parameter)):
+                   ("seed_parameter", sys_.seed_parameter), ("count_weight", sys_.count_weight)):
         if v is not None:
             imu[key] = v
     parsed = scenario_from_dict(sc, str(camp.scenario_file or camp.source), camp.scenario_base_dir)

@@ -36,6 +36,7 @@ def _check_against_truth(args, log, truth: dict) -> None:
     simulated, printed against the truth as ``procedure --simulate`` does: a check that the run
     holds what the scenario says (each error against its σ)."""
     from components.cli import json_option
+    from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
     from components.estimation.log_data import LogData
     from components.estimation.lsq import calibrate
@@ -47,9 +48,12 @@ def _check_against_truth(args, log, truth: dict) -> None:
         raise UserError("simulate --check: the log has no table angles; check it with calbench kf or calibrate")
     effects = list(dict.fromkeys(list(DEFAULT_EFFECTS) + [effect_of(p).name for p in truth.get("effects", {})]))
     data = LogData.from_log(log)
-    res = result_from_fit(calibrate(data, effects), effects, data)
+    # the noise as calibrate takes it (pulse counts: their quantization from the count weight)
+    noise, said, _ = choose_noise(None, data, effects=effects)
+    res = result_from_fit(calibrate(data, effects, noise=noise), effects, data)
     rows = errors_against_truth(res, truth)
-    print(f"check: least squares with {', '.join(effects)}; errors against the truth of {args.scenario}:")
+    print(f"check: least squares with {', '.join(effects)}, noise {said}; errors against the truth of "
+          f"{args.scenario}:")
     print_errors(rows)
     json_option.record(args, errors_against_truth=rows)
 

@@ -62,10 +62,10 @@ def imu_role(gyro_output: str = "increment", acc_output: str = "increment") -> R
     v += [RoleVariable(f"f_int.{c}", "input", "Real", "m/s", False) for c in "xyz"]
     v.append(RoleVariable("temperature_env", "input", "Real", "degC", False))
     agg = {"increment": "sum", "counts": "sum", "rate": "mean", "specific_force": "mean"}
-    v += [RoleVariable(f"gyro.{c}", "output", "Real", GYRO_KINDS[gyro_output], aggregate=agg[gyro_output])
-          for c in "xyz"]
-    v += [RoleVariable(f"acc.{c}", "output", "Real", ACC_KINDS[acc_output], aggregate=agg[acc_output])
-          for c in "xyz"]
+    v += [RoleVariable(f"gyro.{c}", "output", "Real", GYRO_KINDS[gyro_output], aggregate=agg[gyro_output],
+                       accepts_integer=gyro_output == "counts") for c in "xyz"]
+    v += [RoleVariable(f"acc.{c}", "output", "Real", ACC_KINDS[acc_output], aggregate=agg[acc_output],
+                       accepts_integer=acc_output == "counts") for c in "xyz"]
     v.append(RoleVariable("temperature", "output", "Real", "degC", False))
     # our IMU FMU picks its output kind by parameter; a supplier's without them is left alone
     settings = {"gyro.output": OUTPUT_CODES[gyro_output], "acc.output": OUTPUT_CODES[acc_output]}

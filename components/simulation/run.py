@@ -152,6 +152,7 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     for sensor, kind in (("gyro", sc.gyro_output), ("acc", sc.acc_output)):
         if f"{sensor}.output" in imu_names and f"{sensor}.output" not in iparams:
             iparams[f"{sensor}.output"] = OUTPUT_CODES[kind]
+    weights = count_weights(sc, istart, imu_names, iparams)
     if len(integrals) == 2 and "input_integrals" in imu_names and "input_integrals" not in iparams:
         conns += [Connection(f"table.{src}", f"imu.{dst}") for src, dst in integrals]
         iparams["input_integrals"] = 1
@@ -176,8 +177,37 @@ def build_system(sc: Scenario, record: list[str] | None = None):
         connections=conns, record=rec, source=sc.source, base_dir=sc.base_dir)
     info = {"table_path": table_path, "imu_path": imu_path, "geometry": geo, "table_parameters": tparams,
             "imu_parameters": iparams, "counts_per_rev": cpr, "acc_max": acc, "controller_multiple": multiple,
-            "injection": injection}
+            "injection": injection, "count_weights": weights}
     return system, ctrl, info
+
+
+def count_weights(sc: Scenario, istart: dict, imu_names: set, iparams: dict) -> dict:
+    """The weight (SI: rad, m/s) of one count of each sensor whose output is counts, for the
+    log: stated in the unit description (and then set on an FMU that has our
+    ``<sensor>.count_weight`` parameter), else that parameter's value. A supplier's pulse IMU
+    without either is refused before the run: a log with counts of unknown weight calibrates
+    to scale factors off by that weight."""
+    out = {}
+    stated = sc.imu_count_weight or {}
+    for sensor, kind, unit in (("gyro", sc.gyro_output, "arcsec"), ("acc", sc.acc_output, "mm/s")):
+        if kind != "counts":
+            continue
+        par = f"{sensor}.count_weight"
+        if sensor in stated:
+            if par in sc.imu_parameters and sc.imu_parameters[par] != stated[sensor]:
+                raise ScenarioError(f"{sc.source}: [imu]: count_weight.{sensor} = {stated[sensor]:g} and "
+                                    f"parameters {par} = {sc.imu_parameters[par]!r} differ: give one")
+            if par in imu_names:
+                iparams[par] = stated[sensor]
+            out[sensor] = stated[sensor]
+        elif par in iparams or par in istart:
+            out[sensor] = float(iparams.get(par, istart.get(par)))
+        else:
+            raise ScenarioError(
+                f"{sc.source}: [imu]: {sensor}_output = 'counts', but the weight of one count is not known (the "
+                f"FMU {Path(sc.imu_fmu).name} has no {par} parameter): state it, e.g. count_weight = "
+                f'{{{sensor} = "0.05 {unit}"}} from the supplier\'s data sheet')
+    return out
 
 
 def _names(path: Path) -> set:
@@ -217,10 +247,8 @@ def run_scenario(sc: Scenario, record: list[str] | None = None, progress: bool |
         "table": {"axes": [{"name": a, "axis": info["geometry"][a]} for a in sc.table_axes]},
         "imu": {"gyro_output": sc.gyro_output, "acc_output": sc.acc_output},
     }
-    for sensor, key, wpar, wdef in (("gyro", "gyro_count_rad", "gyro.count_weight", 1e-6),
-                                    ("acc", "acc_count_mps", "acc.count_weight", 1e-5)):
-        meta["imu"][key] = float(info["imu_parameters"].get(wpar, wdef)) \
-            if meta["imu"][f"{sensor}_output"] == "counts" else None
+    for sensor, key in (("gyro", "gyro_count_rad"), ("acc", "acc_count_mps")):
+        meta["imu"][key] = info["count_weights"].get(sensor)
     desc = sc.description or f"simulated run of scenario {sc.name}"
     log = log_from_recording(rec, metadata=meta, table="table", imu="imu", axes=sc.table_axes,
                              segment_signal="ctrl.segment", segment_labels=ctrl.labels, description=desc)

@@ -37,6 +37,8 @@ A scenario file (TOML)::
     mapping = {}                 #   seed_parameter: how the vocabulary reaches its parameters)
     gyro_output = "increment"    # the unit's output kind (role option; or role_options = {...})
     acc_output = "increment"
+    # count_weight = {gyro = "0.05 arcsec", acc = "0.1 mm/s"}  # one count, for "counts" outputs
+    #                            #   (default: the FMU's gyro.count_weight / acc.count_weight)
     [imu.effects]                # vocabulary names = the IMU FMU's parameter names
     "gyro.bias.x" = "0.01 deg/h"
     "acc.sf.y" = "30 ppm"
@@ -57,12 +59,13 @@ runs it.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from components.control.schedule import DEG, Schedule, load_schedule
 from components.errors import ScenarioError, ScheduleError
-from components.model.quantities import QuantityError, effect_value, noise_value
+from components.model.quantities import NOISE_TERM_UNITS, UNITS, QuantityError, effect_value, noise_value, quantity
 from orchestrator.tomlfile import read_toml
 
 TRUTH_FORMAT = "calbench-truth/1"
@@ -95,6 +98,7 @@ class Scenario:
     imu_effect_map: dict | None = None
     imu_noise_map: dict | None = None
     imu_seed_parameter: str | None = None
+    imu_count_weight: dict | None = None   # {"gyro": rad, "acc": m/s} of one count, as stated
     schedule_spec: str = ""
     schedule_overrides: dict = field(default_factory=dict)
     geometry_axes: dict = field(default_factory=dict)   # role axis -> rotation axis (filled by build_system)
@@ -204,7 +208,7 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
     im = _table(data, "imu", source)
     w = f"{source}: [imu]"
     _keys(im, {"fmu", "mapping", "gyro_output", "acc_output", "role_options", "effects", "noise", "parameters",
-               "effect_map", "noise_map", "seed_parameter"}, w)
+               "effect_map", "noise_map", "seed_parameter", "count_weight"}, w)
     maps = unit_maps_of(im, w)
     if "role_options" in im:
         ro = im["role_options"]
@@ -259,7 +263,7 @@ def unit_maps_of(d: dict, where: str, error=ScenarioError) -> dict:
     """The effect map, noise map and seed parameter of an IMU unit description (scenario [imu],
     campaign [systems.X]), checked for shape; their FMU parameters and units are checked against
     the FMU when the run is built (components.simulation.unit_maps)."""
-    out = {"imu_effect_map": None, "imu_noise_map": None, "imu_seed_parameter": None}
+    out = {"imu_effect_map": None, "imu_noise_map": None, "imu_seed_parameter": None, "imu_count_weight": None}
     for key in ("effect_map", "noise_map"):
         if key not in d:
             continue
@@ -275,10 +279,36 @@ def unit_maps_of(d: dict, where: str, error=ScenarioError) -> dict:
         if not isinstance(sp, str) or not sp:
             raise error(f"{where}: seed_parameter = {sp!r}: expected the FMU's seed parameter name")
         out["imu_seed_parameter"] = sp
+    kinds_given = {}
     for k, kinds in OUTPUT_KINDS.items():
         v = d.get(k, (d.get("role_options") or {}).get(k) if isinstance(d.get("role_options"), dict) else None)
         if v is not None and v not in kinds:
             raise error(f"{where}: {k} = {v!r}: expected one of {', '.join(kinds)}")
+        kinds_given[k.split("_")[0]] = v
+    if "count_weight" in d:
+        out["imu_count_weight"] = count_weights_of(d["count_weight"], kinds_given, where, error)
+    return out
+
+
+def count_weights_of(cw, kinds: dict, where: str, error=ScenarioError) -> dict:
+    """``count_weight = {gyro = "0.05 arcsec", acc = "0.1 mm/s"}``: the angle and the velocity of
+    one count of an IMU with count outputs, in SI; only for a sensor whose output is counts."""
+    units = {"gyro": (UNITS["rad"], "rad"), "acc": (NOISE_TERM_UNITS["acc.noise.q"][1], "m/s")}
+    if not isinstance(cw, dict) or not cw or set(cw) - set(units):
+        raise error(f"{where}: count_weight = {cw!r}: expected a table {{gyro = \"0.05 arcsec\", acc = "
+                    "\"0.1 mm/s\"}} (the weight of one count of each sensor with count outputs)")
+    out = {}
+    for sensor, v in cw.items():
+        if kinds.get(sensor) != "counts":
+            raise error(f"{where}: count_weight.{sensor} is given, but {sensor}_output = "
+                        f"{kinds.get(sensor) or 'increment'!r}: a weight is for count outputs only")
+        try:
+            w = quantity(v, f"count_weight.{sensor}", where, *units[sensor])
+        except QuantityError as e:
+            raise error(str(e)) from None
+        if not (math.isfinite(w) and w > 0):
+            raise error(f"{where}: count_weight.{sensor} = {v!r}: expected a positive weight")
+        out[sensor] = w
     return out
 
 
