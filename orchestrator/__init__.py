@@ -16,7 +16,8 @@ Modules, each importing only modules listed before it (so there is no import cir
   initialisation), ``record_select`` (``record.signals`` patterns), ``exchange`` (the run's
   typed slots)
 * system files: ``ssp_load``, ``ssp_save``, ``loader`` (``load_system``: TOML or SSP by suffix)
-* running: ``native.plan`` (FMI 2 units resolved for the C loop), ``master`` (Simulation,
-  ``simulate``)
+* running: ``native.plan`` (FMI 2 units resolved for the C loop), ``loop_solver`` (algebraic
+  loops solved at every step by fixed-point iteration), ``run_provenance`` (what produced a
+  recording), ``master`` (Simulation, ``simulate``)
 * checking: ``check`` (``check-fmu``), ``libcosim`` (the independent engine), ``verify``
 """

@@ -2,6 +2,8 @@
 exceptions seen through the :class:`~orchestrator.units.Unit` interface."""
 from __future__ import annotations
 
+import copy
+
 from orchestrator.component import Component
 from orchestrator.errors import UnitError
 from orchestrator.units import Unit, VarInfo
@@ -42,6 +44,17 @@ class ComponentUnit(Unit):
 
     def do_step(self, t: float, h: float) -> None:
         self._guard(f"do_step at t = {t:.9g} s", lambda: self.component.do_step(t, h))
+
+    # a component's state is its instance's attributes (its values and whatever it keeps)
+    can_get_set_state = True
+
+    def get_state(self):
+        return self._guard("copying its state (copy.deepcopy of its attributes)",
+                           lambda: copy.deepcopy(self.component.__dict__))
+
+    def set_state(self, state) -> None:
+        self.component.__dict__.clear()
+        self.component.__dict__.update(copy.deepcopy(state))
 
     def terminate(self) -> None:
         try:

@@ -121,6 +121,15 @@ class FMU2Unit(Unit):
         tail = "\n  ".join(self.log_tail())
         return f"unit {self.name}: {what} failed ({e})" + (f"\n  FMU log:\n  {tail}" if tail else "")
 
+    def get_state(self):
+        return self._guard("fmi2GetFMUstate", self.fmu.getFMUstate)
+
+    def set_state(self, state) -> None:
+        self._guard("fmi2SetFMUstate", lambda: self.fmu.setFMUstate(state))
+
+    def free_state(self, state) -> None:
+        self._guard("fmi2FreeFMUstate", lambda: self.fmu.freeFMUstate(state))
+
     def exit_initialization(self) -> None:
         self.enter_initialization()
         self._guard("exitInitializationMode", self.fmu.exitInitializationMode)
@@ -229,7 +238,9 @@ class FMU3Unit(Unit):
             self.variables = fmu_variables(self.md)
         except UnitError as e:
             raise UnitError(f"unit {name}: {self.path}: {e}") from None
-        self.can_get_set_state = bool(getattr(self.md.coSimulation, "canGetAndSetFMUState", False))
+        # (fmpy reads FMI 3's canGetAndSetFMUState into the FMI 2 spelling)
+        cs = self.md.coSimulation
+        self.can_get_set_state = bool(getattr(cs, "canGetAndSetFMUstate", getattr(cs, "canGetAndSetFMUState", False)))
         # structural parameters that size an array: array sizes stay as declared
         self.dimension_parameters = {d.variable.name for v in self.md.modelVariables
                                      for d in v.dimensions if d.variable is not None}
@@ -247,6 +258,15 @@ class FMU3Unit(Unit):
         self._guard("instantiate", lambda: self.fmu.instantiate(logMessage=self._on_log))
         self._t0 = t0
         self._in_init = False
+
+    def get_state(self):
+        return self._guard("fmi3GetFMUState", self.fmu.getFMUState)
+
+    def set_state(self, state) -> None:
+        self._guard("fmi3SetFMUState", lambda: self.fmu.setFMUState(state))
+
+    def free_state(self, state) -> None:
+        self._guard("fmi3FreeFMUState", lambda: self.fmu.freeFMUState(state))
 
     def enter_initialization(self) -> None:
         if not self._in_init:

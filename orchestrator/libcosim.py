@@ -59,6 +59,9 @@ def check_supported(system: System, sim: Simulation | None = None) -> Simulation
         sim = Simulation(system)
         sim.load()
     problems = []
+    for g in sim.loop_groups:
+        problems.append(f"the algebraic loop of {g.units} is solved by iteration at every step; libcosim's fixed-step "
+                        "algorithm runs it with a one-step delay")
     for spec in system.units:
         u = sim.units[spec.name]
         if not isinstance(u, FMU2Unit):

@@ -11,7 +11,6 @@ run ends it at the time it reached (``stopped_at``), a normal end.
 """
 from __future__ import annotations
 
-import platform
 import sys
 import time as _time
 from dataclasses import dataclass
@@ -26,16 +25,19 @@ from orchestrator.errors import NativeSpanFault, RoleError, SimulationFault, Sys
 from orchestrator.exchange import Exchange
 from orchestrator.fmu_resolver import resolve_fmu
 from orchestrator.fmu_units import FMU2Unit, load_fmu_unit
+from orchestrator.loop_solver import FixedPointIteration, bind_slots, check_iterable, loop_groups
 from orchestrator.native.plan import SpanPlan
 from orchestrator.record_select import record_endpoints
 from orchestrator.recording import Recording
 from orchestrator.roles import RoleCheck, check_unit, get_role
+from orchestrator.run_provenance import run_provenance
 from orchestrator.start_values import start_values
 from orchestrator.system import System
-from orchestrator.units import Unit, sha256_file
+from orchestrator.units import Unit
 from orchestrator.wiring import (
     Endpoint,
     ScalarConnection,
+    algebraic_loops,
     check_algebraic_loops,
     expand_connections,
     fmu_feedthrough,
@@ -77,6 +79,7 @@ class Simulation:
         self.connections: list[ScalarConnection] = []
         self.stopped_at: float | None = None  # set when a unit ended the run before stop
         self.notes: list[str] = []  # what the run did that a user should know (said once)
+        self.loop_groups: list = []  # algebraic loops solved by iteration (algorithm "iterative")
 
     # ------------------------------------------------------------------ setup
     def load(self) -> None:
@@ -105,12 +108,17 @@ class Simulation:
         if any(not c.ok for c in checks):
             raise RoleError(checks)
         self.connections = expand_connections(self.system, self.units, self.bindings)
-        broken_by = ('algorithm = "jacobi"' if self.system.algorithm == "jacobi"
+        alg = self.system.algorithm
+        broken_by = ('algorithm = "jacobi"' if alg == "jacobi" else alg if alg == "iterative"
                      else "the explicit system.order" if self.system.order else None)
-        self.notes += check_algebraic_loops(self.units, self.connections,
-                                            {n: fmu_feedthrough(u) for n, u in self.units.items()},
-                                            broken_by)
+        feedthrough = {n: fmu_feedthrough(u) for n, u in self.units.items()}
+        self.notes += check_algebraic_loops(self.units, self.connections, feedthrough, broken_by)
         self.order = stepping_order(self.system, self.connections)
+        if alg == "iterative":
+            loops = [{node.split(".", 1)[0] for node in loop} for loop in algebraic_loops(self.connections, feedthrough)]
+            self.loop_groups = loop_groups(self.order, self.connections, loops)
+            check_iterable(self.loop_groups, self.units, {s.name: s.step_multiple for s in self.system.units},
+                           self.system.source or self.system.name)
 
     def _endpoint(self, unit: str, name: str, where: str) -> list[Endpoint]:
         return resolve(self.units[unit], self.bindings.get(unit, {}), name, where)
@@ -165,6 +173,8 @@ class Simulation:
             src_unit, src_var = (src.unit, src.var) if src is not None else (unit, e.var)
             rec_names.append((f"{unit}.{e.name}", self.units[src_unit].variables[src_var]))
         values = ex.allocate()
+        bind_slots(self.loop_groups, self.connections, ex, sysm.source or sysm.name)
+        self._solver = FixedPointIteration(sysm.loop_tolerance, sysm.loop_max_iterations)
 
         every = sysm.record_every
         n_grid = n_steps - (1 if h_last else 0)
@@ -195,6 +205,7 @@ class Simulation:
                 u.free()
         rec.provenance["wall_time_s"] = _time.time() - started
         rec.provenance["system"]["stopped_at"] = self.stopped_at
+        self.notes += [FixedPointIteration.note(g) for g in self.loop_groups]
         rec.provenance["notes"] = list(self.notes)
         if output:
             rec.save(output)
@@ -248,21 +259,27 @@ class Simulation:
 
     def _last_step(self, rec: Recording, t: float, h: float) -> None:
         """The shortened last step, on the Python path (the native loop keeps one step length)."""
-        jacobi = self.system.algorithm == "jacobi"
-        ports = [self._py_port(n, 1) for n in self.order]
-        # Jacobi: every unit's inputs as they were before any unit stepped
-        snap = [(self._port_inputs(p), self._port_derivatives(p)) for p in ports] if jacobi else None
-        for i, p in enumerate(ports):
-            inputs, derivatives = snap[i] if jacobi else (self._port_inputs(p), self._port_derivatives(p))
+        ports = {n: self._py_port(n, 1) for n in self.order}
+
+        def port_step(p, t, inputs, derivatives) -> bool:
             p.unit.set_values(inputs)
             if derivatives:
                 p.unit.set_input_derivatives(derivatives)
             p.unit.do_step(t, h)
-            if not jacobi:
+            return False
+
+        if self.system.algorithm == "jacobi":
+            # every unit's inputs as they were before any unit stepped
+            snap = {n: (self._port_inputs(p), self._port_derivatives(p)) for n, p in ports.items()}
+            for n, p in ports.items():
+                port_step(p, t, *snap[n])
+            for p in ports.values():
                 self.exchange.store_outputs(p.unit, t + h)
-        if jacobi:
-            for p in ports:
-                self.exchange.store_outputs(p.unit, t + h)
+        else:
+            for n in self.order:
+                group = next((g for g in self.loop_groups if n in g.units), None)
+                if group is None or n == group.units[0]:
+                    self._step_ports(group, [ports[m] for m in (group.units if group else [n])], t, h, port_step)
         self._record_row(rec, len(rec.time) - 1)
         rec.rows = len(rec.time)
 
@@ -271,7 +288,7 @@ class Simulation:
         """An FMI 2 unit whose exchanged variables are all Real or Integer (Enumeration) runs in
         the native loop; one with Boolean or String ones steps on the Python path."""
         u = self.units[name]
-        if not isinstance(u, FMU2Unit):
+        if not isinstance(u, FMU2Unit) or any(name in g.units for g in self.loop_groups):
             return False
         used = set(self.exchange.outputs_of(u))
         used |= {c.target.var for c in self.connections if c.target.unit == name}
@@ -372,11 +389,13 @@ class Simulation:
                             if span(seg[0], seg[1], step, 1, False) is not None:
                                 ending = step
                         elif seg in acting:
-                            p = ports[seg]
-                            if port_step(p, t, self._port_inputs(p), self._port_derivatives(p)):
+                            group = next((g for g in self.loop_groups if seg in g.units), None)
+                            if group is not None and seg != group.units[0]:
+                                continue  # stepped with the first unit of its loop
+                            group_ports = [ports[n] for n in group.units] if group else [ports[seg]]
+                            if self._step_ports(group, group_ports, t, h, port_step):
                                 ending = step
-                            ex.store_outputs(p.unit, t + p.multiple * h)
-                            if p.unit.stop_requested():
+                            if any(p.unit.stop_requested() for p in group_ports):
                                 stop = True
                                 break
                     if stop:
@@ -399,6 +418,18 @@ class Simulation:
             rec.rows = e.step // every + 1
         if progress:
             progress.close()
+
+    def _step_ports(self, group, ports: list, t: float, h: float, port_step) -> bool:
+        """Step Python-stepped *ports* in order (a loop *group*: repeated until its values
+        converge); True if a unit asked to end the run."""
+        def one(p) -> bool:
+            ended = port_step(p, t, self._port_inputs(p), self._port_derivatives(p))
+            self.exchange.store_outputs(p.unit, t + p.multiple * h)
+            return ended
+
+        if group is not None:
+            return self._solver.step(group, ports, self.exchange.values, t, one)
+        return any([one(p) for p in ports])
 
     def _end_at(self, rec: Recording, step: int) -> None:
         """A unit ended the run at the end of base step *step* - 1: the run stops there and its
@@ -460,35 +491,7 @@ class Simulation:
 
     # ------------------------------------------------------------------ provenance
     def provenance(self) -> dict:
-        import fmpy
-
-        sysm = self.system
-        prov = {
-            "system": {"name": sysm.name, "source": sysm.source, "step": sysm.step,
-                       "start": sysm.start, "stop": sysm.stop, "algorithm": sysm.algorithm,
-                       "order": self.order, "record_every": sysm.record_every},
-            "units": {n: {**u.provenance(),
-                          # what was set: the role's settings (ours: its output kind) and the file's
-                          "parameters": {**self.role_settings.get(n, {}), **self.system.unit(n).parameters},
-                          "role_options": self.system.unit(n).role_options,
-                          "step_multiple": self.system.unit(n).step_multiple}
-                      for n, u in self.units.items()},
-            "versions": {"python": platform.python_version(), "numpy": np.__version__,
-                         "fmpy": fmpy.__version__, "calbench": _calbench_version()},
-            "host": platform.node(),
-        }
-        if sysm.source and Path(sysm.source).exists():
-            prov["system"]["sha256"] = sha256_file(sysm.source)
-        return prov
-
-
-def _calbench_version() -> str:
-    try:
-        from importlib.metadata import version
-
-        return version("calbench")
-    except Exception:
-        return "unknown"
+        return run_provenance(self)
 
 
 def simulate(system: System, output: str | Path | None = None, progress: bool | None = None) -> Recording:

@@ -9,7 +9,9 @@ mirrors these classes), from an SSP archive (:mod:`orchestrator.ssp_load`) or is
     step = 0.005            # communication step [s]
     start = 0.0
     stop = 60.0
-    algorithm = "gauss-seidel"   # or "jacobi"
+    algorithm = "gauss-seidel"   # or "jacobi", or "iterative" (algebraic loops solved each step)
+    loop_tolerance = 1e-10       # "iterative": relative change at which a loop has converged
+    loop_max_iterations = 100
     order = ["ctrl", "table", "imu"]   # optional; default: from the connection graph
 
     [units.table]
@@ -54,7 +56,7 @@ from pathlib import Path
 from orchestrator.errors import SystemError_
 from orchestrator.tomlfile import read_toml
 
-ALGORITHMS = ("gauss-seidel", "jacobi")
+ALGORITHMS = ("gauss-seidel", "jacobi", "iterative")
 AGGREGATIONS = ("sample", "sum", "mean")
 
 
@@ -88,6 +90,8 @@ class System:
     stop: float = 1.0
     algorithm: str = "gauss-seidel"
     order: list[str] | None = None
+    loop_tolerance: float = 1e-10      # algorithm "iterative" (orchestrator.loop_solver)
+    loop_max_iterations: int = 100
     units: list[UnitSpec] = field(default_factory=list)
     connections: list[Connection] = field(default_factory=list)
     record: list[str] = field(default_factory=list)
@@ -125,6 +129,13 @@ class System:
             raise SystemError_(f"{where}: system.stop = {self.stop} must be after start = {self.start}")
         if self.algorithm not in ALGORITHMS:
             raise SystemError_(f"{where}: system.algorithm = {self.algorithm!r}: expected one of {ALGORITHMS}")
+        if not (isinstance(self.loop_tolerance, (int, float)) and 0 < self.loop_tolerance < 1):
+            raise SystemError_(f"{where}: system.loop_tolerance = {self.loop_tolerance!r}: expected a relative "
+                               "tolerance in (0, 1)")
+        if isinstance(self.loop_max_iterations, bool) or not isinstance(self.loop_max_iterations, int) \
+                or self.loop_max_iterations < 1:
+            raise SystemError_(f"{where}: system.loop_max_iterations = {self.loop_max_iterations!r}: expected an "
+                               "integer >= 1")
         names = [u.name for u in self.units]
         if not names:
             raise SystemError_(f"{where}: no units")
@@ -178,7 +189,8 @@ def system_from_dict(data: dict, source: str = "system", base_dir: Path | None =
     if extra:
         raise SystemError_(f"{source}: unknown section(s) {sorted(extra)}; expected {sorted(known_top)}")
     s = _expect(data, "system", dict, source, {})
-    _no_unknown(s, {"name", "step", "start", "stop", "algorithm", "order"}, f"{source}: system")
+    _no_unknown(s, {"name", "step", "start", "stop", "algorithm", "order", "loop_tolerance", "loop_max_iterations"},
+                f"{source}: system")
     num = (int, float)
     sysobj = System(
         name=_expect(s, "name", str, f"{source}: system", "system"),
@@ -187,6 +199,8 @@ def system_from_dict(data: dict, source: str = "system", base_dir: Path | None =
         stop=float(_expect(s, "stop", num, f"{source}: system")),
         algorithm=_expect(s, "algorithm", str, f"{source}: system", "gauss-seidel"),
         order=_expect(s, "order", list, f"{source}: system", None),
+        loop_tolerance=float(_expect(s, "loop_tolerance", num, f"{source}: system", 1e-10)),
+        loop_max_iterations=_expect(s, "loop_max_iterations", int, f"{source}: system", 100),
         source=source,
         base_dir=base_dir or Path.cwd(),
     )

@@ -9,6 +9,7 @@ from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
+from orchestrator.errors import UnitError
 from orchestrator.fmi_types import TypeInfo, info
 
 STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -77,6 +78,18 @@ class Unit:
     def set_values(self, values: dict) -> None: ...
     def get_values(self, names: list[str]) -> list: ...
     def provenance(self) -> dict: return {}
+
+    # the state, to repeat a step (an algebraic loop solved by iteration)
+    can_get_set_state = False
+
+    def get_state(self):
+        raise UnitError(f"unit {self.name}: cannot get its state")
+
+    def set_state(self, state) -> None:
+        raise UnitError(f"unit {self.name}: cannot set its state")
+
+    def free_state(self, state) -> None:
+        pass
 
     def stop_requested(self) -> bool:
         """Has the unit asked to end the run (a Python component's ``stop_requested``)?"""

@@ -327,6 +327,10 @@ def _other_algorithm(system: System, sim, report: VerifyReport):
     if not sim.connections:
         report.algorithm_note = "algorithm comparison: no connections, nothing to compare"
         return None, False
+    if sim.loop_groups:
+        report.algorithm_note = ("algorithm comparison: the algebraic loops are solved at every step (iterative); "
+                                 "no other algorithm runs them without a delay to compare with")
+        return None, False
     o = _refined(system, 1)  # every step recorded, brought onto the grid like the refined runs
     o.order = None
     if system.algorithm == "jacobi":

@@ -175,13 +175,9 @@ def stepping_order(system: System, conns: list[ScalarConnection]) -> list[str]:
     return [n for comp in comps for n in sorted(comp, key=rank.__getitem__)]
 
 
-def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
-                          feedthrough: dict[str, dict[str, list[str]]],
-                          broken_by: str | None = None) -> list[str]:
+def algebraic_loops(conns: list[ScalarConnection], feedthrough: dict[str, dict[str, list[str]]]) -> list[list[str]]:
     """Cycles made only of direct feed-through (output depends on input within a unit) and
-    connections: no step order satisfies them without iteration. Refused, unless the system
-    breaks them with a one-step delay (*broken_by*: an explicit order, or Jacobi); then each is
-    returned as a note to report."""
+    connections, each as its sorted "unit.variable" nodes."""
     edges: dict[str, list[str]] = {}
     for c in conns:
         if c.derivative_order == 0:
@@ -191,16 +187,31 @@ def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
             for i in ins:
                 edges.setdefault(f"{unit}.{i}", []).append(f"{unit}.{out}")
     nodes = sorted(set(edges) | {w for ws in edges.values() for w in ws})
+    return [sorted(comp) for comp in _tarjan(nodes, edges) if len(comp) > 1]
+
+
+def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
+                          feedthrough: dict[str, dict[str, list[str]]],
+                          broken_by: str | None = None) -> list[str]:
+    """Algebraic loops (:func:`algebraic_loops`): no step order satisfies them without delay or
+    iteration. Refused, unless the system breaks them with a one-step delay (*broken_by*: an
+    explicit order, or Jacobi) or solves them (*broken_by* "iterative"); then each is returned as
+    a note to report."""
     notes = []
-    for comp in _tarjan(nodes, edges):
+    for comp in algebraic_loops(conns, feedthrough):
         if len(comp) > 1:
-            loop = " -> ".join(sorted(comp))
+            loop = " -> ".join(comp)
+            if broken_by == "iterative":
+                notes.append(f"algebraic loop {loop} solved by fixed-point iteration at every step")
+                continue
             if broken_by is None:
                 raise AlgebraicLoopError(
                     f"algebraic loop (outputs that depend instantaneously on each other): {loop}. "
-                    "Break it with a unit that has no direct feed-through, or accept a one-step "
+                    "Break it with a unit that has no direct feed-through, accept a one-step "
                     "delay: set system.order (a unit reads the outputs of units after it one "
-                    'step late) or system.algorithm = "jacobi" (every input one step late).')
+                    'step late) or system.algorithm = "jacobi" (every input one step late), or '
+                    'solve it at every step: system.algorithm = "iterative" (units that can get and '
+                    "set their state).")
             notes.append(f"algebraic loop {loop} broken by {broken_by}: one-step delay")
     return notes
 
