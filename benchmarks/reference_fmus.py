@@ -18,7 +18,7 @@ the user; nothing of it is in this repository) runs through calbench and through
   ``not run: <reason>``; a model still running after ``--timeout`` seconds (default 120) is
   ``timed out`` (Roberts' default experiment, 1e-5 to 1e8 s, is one).
 
-Run: ``python benchmarks/reference_fmus.py DIR [--atol A] [--rtol R]`` (DIR is searched for
+Run: ``python benchmarks/reference_fmus.py DIR [--atol A] [--rtol R] [--stop MODEL=SECONDS]`` (DIR is searched for
 ``*.fmu`` recursively, e.g. the Reference-FMUs' ``build/`` or an unpacked release with ``2.0/``
 and ``3.0/``). Exit 0 when every model that ran is ``same``, 1 otherwise, 2 when DIR has none.
 """
@@ -60,7 +60,7 @@ def _first_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {text[0] if text else ''}"
 
 
-def compare_model(path: Path, atol: float = 1e-12, rtol: float = 1e-12) -> ModelLine:
+def compare_model(path: Path, atol: float = 1e-12, rtol: float = 1e-12, stops: dict | None = None) -> ModelLine:
     from fmpy import read_model_description
 
     from orchestrator.check import unsupported_reason
@@ -77,11 +77,16 @@ def compare_model(path: Path, atol: float = 1e-12, rtol: float = 1e-12) -> Model
     start = float(de.startTime) if de is not None and de.startTime is not None else 0.0
     stop = float(de.stopTime) if de is not None and de.stopTime is not None else start + 1.0
     note = ""
+    for key in (md.modelName, path.stem):
+        if stops and key in stops:
+            note = f"stop {stops[key]:g} s by --stop, DefaultExperiment {stop:g} s"
+            stop = stops[key]
+            break
     if de is not None and de.stepSize is not None:
         step = float(de.stepSize)
     else:
         step = (stop - start) / 500
-        note = f"no stepSize in DefaultExperiment: {step:g} s"
+        note = (note + "; " if note else "") + f"no stepSize in DefaultExperiment: {step:g} s"
     outputs = [v for v in md.modelVariables if v.causality == "output"]
     names = [v.name for v in outputs]
     line = ModelLine(fmi, model, "", note=note)
@@ -159,7 +164,7 @@ def _fmpy(path: Path, start: float, stop: float, step: float, names: list[str]):
                         output_interval=step, fmi_type="CoSimulation", output=names, validate=False)
 
 
-def _compare_with_limit(path: Path, atol: float, rtol: float, timeout: float) -> ModelLine:
+def _compare_with_limit(path: Path, atol: float, rtol: float, timeout: float, stops: dict) -> ModelLine:
     """compare_model in a child process, ended after *timeout* s: a model whose default
     experiment asks for more than a fixed-step co-simulation can do in time (Roberts: 1e-5 to
     1e8 s) must not stop the rest of the list."""
@@ -167,7 +172,7 @@ def _compare_with_limit(path: Path, atol: float, rtol: float, timeout: float) ->
 
     ctx = mp.get_context("fork")
     queue = ctx.Queue()
-    child = ctx.Process(target=lambda: queue.put(compare_model(path, atol, rtol)))
+    child = ctx.Process(target=lambda: queue.put(compare_model(path, atol, rtol, stops)))
     child.start()
     child.join(timeout)
     if child.is_alive():
@@ -194,7 +199,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rtol", type=float, default=1e-12)
     ap.add_argument("--timeout", type=float, default=120.0,
                     help="seconds per model (both engines); a model still running then is reported as timed out")
+    ap.add_argument("--stop", action="append", default=[], metavar="MODEL=SECONDS",
+                    help="run MODEL (its modelName or file stem) to this stop time instead of its DefaultExperiment's "
+                         "(e.g. Roberts=1: its 1e8 s take a fixed-step co-simulation 1e14 internal steps)")
     args = ap.parse_args(argv)
+    stops = {}
+    for item in args.stop:
+        name, _, value = item.partition("=")
+        try:
+            stops[name] = float(value)
+        except ValueError:
+            ap.error(f"--stop {item!r}: expected MODEL=SECONDS")
     fmus = sorted(args.directory.rglob("*.fmu"))
     if not fmus:
         print(f"reference_fmus: no *.fmu under {args.directory}", file=sys.stderr)
@@ -202,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER)
     lines = []
     for p in fmus:
-        line = _compare_with_limit(p, args.atol, args.rtol, args.timeout)
+        line = _compare_with_limit(p, args.atol, args.rtol, args.timeout, stops)
         lines.append(line)
         print(line, flush=True)
     ran = [x for x in lines if not x.verdict.startswith("not run")]
