@@ -77,3 +77,18 @@ def test_white_noise_is_the_division_by_sigma_bit_for_bit():
     Y = np.random.default_rng(1).standard_normal((50, 2))
     got, _ = whiten_channel(Y, block_noise(ChannelNoise(white=1e-3), d, var, 50.0, 1.0))
     assert np.array_equal(got, Y * (1.0 / np.sqrt(var))[:, None])
+
+
+def test_a_variance_that_is_not_positive_is_named_by_its_block():
+    """The compiled filter stops where the predicted variance S_k is not positive and the message
+    gives k and S_k (here r_k of block 4 made so negative that S_4 = c P c + r_4 < 0)."""
+    from dataclasses import replace as dc_replace
+
+    from components.errors import EstimationError
+
+    d = np.full(10, 1.0)
+    bn = block_noise(CASES["gauss-markov"], d, np.full(10, 1e-6), 10.0, 1.0)
+    r = bn.r.copy()
+    r[3] = -1.0
+    with pytest.raises(EstimationError, match=r"failed at block 4 of 10: its predicted variance is -1"):
+        whiten_channel(np.ones((10, 2)), dc_replace(bn, r=r))

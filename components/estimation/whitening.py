@@ -12,7 +12,8 @@ block's σ that the estimators have always done (the same bits).
 """
 from __future__ import annotations
 
-import math
+import ctypes
+from pathlib import Path
 
 import numpy as np
 
@@ -27,27 +28,54 @@ def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.n
         w = 1.0 / np.sqrt(bn.r)
         return values * w[:, None], bn.r.copy()
     nb, m = bn.c.shape
-    out = np.empty_like(values)
+    ncol = values.shape[1]
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (bn.phi, bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
+    out = np.empty((nb, ncol))
     S_all = np.empty(nb)
-    P = np.diag(bn.p0)
-    x = np.zeros((m, values.shape[1]))
-    for k in range(nb):
-        c = bn.c[k]
-        Pc = P @ c
-        S = float(c @ Pc) + bn.r[k]
-        if not S > 0:  # also catches nan
-            raise EstimationError(
-                f"whitening under the noise model failed at block {k + 1} of {nb}: its predicted variance is "
-                f"{S:.3g} (the noise model's state covariance lost its positive definiteness; its terms span too "
-                "many decades for the log's length — give a simpler noise model with --noise)")
-        nu = values[k] - c @ x
-        g = (bn.phi[k] * Pc + bn.cross[k]) / S
-        out[k] = nu / math.sqrt(S)
-        S_all[k] = S
-        x = bn.phi[k][:, None] * x + np.outer(g, nu)
-        P = bn.phi[k][:, None] * P * bn.phi[k][None, :] + np.diag(bn.q[k]) - S * np.outer(g, g)
-        P = 0.5 * (P + P.T)
+    work = np.empty(m * m + m * ncol + 3 * m + ncol)
+    failed = _kernel()(nb, m, ncol, *[_ptr(a) for a in arrays], _ptr(out), _ptr(S_all), _ptr(work))
+    if failed:
+        k = failed - 1
+        raise EstimationError(
+            f"whitening under the noise model failed at block {k + 1} of {nb}: its predicted variance is "
+            f"{_predicted_variance(bn, k):.3g} (the noise model's state covariance lost its positive definiteness; "
+            "its terms span too many decades for the log's length — give a simpler noise model with --noise)")
     return out, S_all
+
+
+_KERNEL = None
+
+
+def _kernel():
+    """The filter's recursion in C (whiten_kernel.c, compiled on first use and cached)."""
+    global _KERNEL
+    if _KERNEL is None:
+        from orchestrator.native import compiled
+
+        fn = compiled(Path(__file__).with_name("whiten_kernel.c")).calbench_whiten
+        fn.restype = ctypes.c_long
+        fn.argtypes = [ctypes.c_long] * 3 + [ctypes.POINTER(ctypes.c_double)] * 10
+        _KERNEL = fn
+    return _KERNEL
+
+
+def _ptr(a: np.ndarray):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+
+def _predicted_variance(bn: BlockNoise, k: int) -> float:
+    """S_k of the filter (for the message when it is not positive): the recursion in Python."""
+    P = np.diag(bn.p0)
+    for i in range(k + 1):
+        c = bn.c[i]
+        Pc = P @ c
+        S = float(c @ Pc) + bn.r[i]
+        if i == k:
+            break
+        g = (bn.phi[i] * Pc + bn.cross[i]) / S
+        P = bn.phi[i][:, None] * P * bn.phi[i][None, :] + np.diag(bn.q[i]) - S * np.outer(g, g)
+        P = 0.5 * (P + P.T)
+    return S
 
 
 def channel_rows(rows: dict, channel: int) -> np.ndarray:

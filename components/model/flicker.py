@@ -21,6 +21,7 @@ the written form cancels (at u = 1e-5 it is 3 % off, at 1e-7 wrong in sign and s
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -90,15 +91,24 @@ def flicker_terms(B: float, t_lo: float, t_hi: float) -> list[tuple[float, float
     bias instability *B* over [t_lo, t_hi] (see the module's docstring); all sigma_j equal."""
     if not (math.isfinite(B) and B >= 0.0):
         raise UserError(f"bias instability B = {B!r}: expected a finite value >= 0")
+    taus, total = _unit_sum(float(t_lo), float(t_hi))
+    s = math.sqrt(FLICKER_FLOOR_SQ * B * B / (total / FIT_POINTS))
+    return [(s, T) for T in taus]
+
+
+@functools.lru_cache(maxsize=4096)
+def _unit_sum(t_lo: float, t_hi: float) -> tuple[tuple[float, ...], float]:
+    """The time constants over [t_lo, t_hi] and the sum of their unit Allan variances over the
+    fit points: what the terms' common sigma depends on besides B (the noise likelihood asks for
+    the same range hundreds of times with other magnitudes)."""
     M = flicker_count(t_lo, t_hi)
     a, b = 0.5 * t_lo, 2.0 * t_hi
     lr = math.log(b / a)
-    taus = [a * math.exp(j / (M - 1) * lr) for j in range(M)]
+    taus = tuple(a * math.exp(j / (M - 1) * lr) for j in range(M))
     lt = math.log(t_hi / t_lo)
     total = 0.0
     for i in range(FIT_POINTS):
         tau = t_lo * math.exp(i / (FIT_POINTS - 1) * lt)
         for T in taus:
             total += _g(tau / T)
-    s = math.sqrt(FLICKER_FLOOR_SQ * B * B / (total / FIT_POINTS))
-    return [(s, T) for T in taus]
+    return taus, total

@@ -54,28 +54,34 @@ def _cache() -> Path:
     return (Path(root) if root else Path.home() / ".cache" / "calbench") / "native"
 
 
+def compiled(source: Path, version: str = "v1") -> ctypes.CDLL:
+    """*source* (one C file, C11, no dependencies but libm) compiled into the cache and loaded;
+    the build is keyed by the SHA-256 of the source, so a changed source is always rebuilt."""
+    src = source.read_bytes()
+    key = hashlib.sha256(src + version.encode()).hexdigest()[:16]
+    target = _cache() / f"{source.stem}-{key}.so"
+    if not target.exists():
+        cc = os.environ.get("CC", "cc")
+        if shutil.which(cc) is None:
+            raise RuntimeError(f"{source.name} needs a C compiler: {cc!r} not found")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+            out = Path(tmp) / f"{source.stem}.so"
+            cmd = [cc, "-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",
+                   "-fvisibility=hidden", "-o", str(out), str(source), "-lm"]
+            proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+            if proc.returncode:
+                raise RuntimeError(f"compiling {source} failed:\n{proc.stderr}")
+            os.replace(out, target)
+    return ctypes.CDLL(str(target))
+
+
 def library() -> ctypes.CDLL:
     """The compiled span loop (built now if the cache lacks this source's build)."""
     global _lib
     if _lib is not None:
         return _lib
-    src = SOURCE.read_bytes()
-    key = hashlib.sha256(src + b"v1").hexdigest()[:16]
-    target = _cache() / f"span-{key}.so"
-    if not target.exists():
-        cc = os.environ.get("CC", "cc")
-        if shutil.which(cc) is None:
-            raise RuntimeError(f"the orchestrator's native loop needs a C compiler: {cc!r} not found")
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-            out = Path(tmp) / "span.so"
-            cmd = [cc, "-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror",
-                   "-fvisibility=hidden", "-o", str(out), str(SOURCE), "-lm"]
-            proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-            if proc.returncode:
-                raise RuntimeError(f"compiling {SOURCE} failed:\n{proc.stderr}")
-            os.replace(out, target)
-    lib = ctypes.CDLL(str(target))
+    lib = compiled(SOURCE)
     fn = lib.calbench_run_span
     fn.restype = ctypes.c_int
     fn.argtypes = [ctypes.POINTER(UnitPlan), ctypes.c_long, ctypes.c_long, c_double_p,

@@ -1,0 +1,52 @@
+/* The whitening Kalman filter of components/estimation/whitening.py, one channel: the same
+ * recursion, compiled, because diagnose and the noise likelihood run it hundreds of times per
+ * call over every block of the log.
+ *
+ * Blocks k = 0..nb-1, m noise states, ncol columns (y and the design's columns):
+ *   Pc = P c_k;  S_k = c_k' Pc + r_k;  nu = v_k - c_k' x;  g = (phi_k .* Pc + cross_k) / S_k
+ *   out_k = nu / sqrt(S_k);  x = phi_k .* x + g nu';  P = phi_k phi_k' .* P + diag(q_k) - S_k g g'
+ * Row-major arrays: phi, q, c, cross (nb x m), values and out (nb x ncol); work holds
+ * m*m + m*ncol + 3*m + ncol doubles. Returns 0, or k + 1 when S_k is not positive (also nan). */
+#include <math.h>
+#include <string.h>
+
+__attribute__((visibility("default"))) long calbench_whiten(
+    long nb, long m, long ncol, const double *phi, const double *q, const double *c, const double *cross,
+    const double *r, const double *p0, const double *values, double *out, double *S_all, double *work) {
+    double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *tmp = g + m, *nu = tmp + m;
+    memset(P, 0, sizeof(double) * (size_t)(m * m));
+    memset(x, 0, sizeof(double) * (size_t)(m * ncol));
+    for (long i = 0; i < m; i++) P[i * m + i] = p0[i];
+    for (long k = 0; k < nb; k++) {
+        const double *ck = c + k * m, *fk = phi + k * m, *qk = q + k * m, *xk = cross + k * m;
+        double S = r[k];
+        for (long i = 0; i < m; i++) {
+            double s = 0.0;
+            for (long l = 0; l < m; l++) s += P[i * m + l] * ck[l];
+            Pc[i] = s;
+        }
+        for (long i = 0; i < m; i++) S += ck[i] * Pc[i];
+        if (!(S > 0.0)) return k + 1;
+        const double rs = 1.0 / sqrt(S);
+        for (long j = 0; j < ncol; j++) {
+            double v = values[k * ncol + j];
+            for (long i = 0; i < m; i++) v -= ck[i] * x[i * ncol + j];
+            nu[j] = v;
+            out[k * ncol + j] = v * rs;
+        }
+        S_all[k] = S;
+        for (long i = 0; i < m; i++) g[i] = (fk[i] * Pc[i] + xk[i]) / S;
+        for (long i = 0; i < m; i++)
+            for (long j = 0; j < ncol; j++) x[i * ncol + j] = fk[i] * x[i * ncol + j] + g[i] * nu[j];
+        for (long i = 0; i < m; i++)
+            for (long l = 0; l < m; l++) P[i * m + l] = fk[i] * P[i * m + l] * fk[l] - S * g[i] * g[l];
+        for (long i = 0; i < m; i++) P[i * m + i] += qk[i];
+        for (long i = 0; i < m; i++)
+            for (long l = i + 1; l < m; l++) {
+                double a = 0.5 * (P[i * m + l] + P[l * m + i]);
+                P[i * m + l] = P[l * m + i] = a;
+            }
+    }
+    (void)tmp;
+    return 0;
+}
