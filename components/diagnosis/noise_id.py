@@ -25,7 +25,7 @@ import numpy as np
 from components.estimation.allan import static_runs
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel
-from components.estimation.noise_likelihood import fit_slow_terms
+from components.estimation.noise_likelihood import family_critical, fit_slow_terms
 from components.estimation.whitening import channel_rows
 from components.model.noise import AXES, CHANNELS, TERMS, ChannelNoise, NoiseModel, sensor_of
 
@@ -108,6 +108,13 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
             rows = fit.rows
         else:
             notes.append("no white-noise level on every channel: the slow terms were not estimated")
+    # the slow terms are tested on every channel: 1 % for the whole identification (Bonferroni),
+    # not for each of its tests (12 tests at 1 % each name a term that is not there on 11 % of
+    # logs, and a term named by chance comes at several times any true size, with the σ of every
+    # estimate it touches)
+    n_tests = sum(1 for k in range(6) for t in ("bias_instability", "random_walk")
+                  if t in terms and t not in (known.get(k) or {}))
+    critical = family_critical(n_tests)
     for k in range(6):
         ch = chans[k]
         report: dict = {}
@@ -122,7 +129,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
             white_var = 1.0 / rows["weight"][idx] ** 2
             slow_terms = [t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
             base = replace(ch, bias_instability=0.0, random_walk=0.0, gauss_markov=())
-            ch, report = fit_slow_terms(base, y, Hc, durations, white_var, span, chunk_s, slow_terms)
+            ch, report = fit_slow_terms(base, y, Hc, durations, white_var, span, chunk_s, slow_terms,
+                                        critical=critical)
             for t in slow_terms:
                 sigma[t] = report[t]["sigma"]
                 if report[t]["present"]:

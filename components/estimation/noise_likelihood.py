@@ -28,6 +28,15 @@ from components.model.noise import ChannelNoise, block_noise
 
 LR_CRITICAL = 5.4119  # χ²₁ 98 % point: the 1 % level of ½ χ²₀ + ½ χ²₁
 FLICKER_CORNER_TEST = 10.0  # [s] the floor's lower corner its presence is tested at
+
+
+def family_critical(tests: int, alpha: float = 0.01) -> float:
+    """The likelihood ratio a term must exceed so that *tests* presence tests together name a
+    term that is not there with probability at most *alpha* (Bonferroni on the boundary
+    distribution ½ χ²₀ + ½ χ²₁: P(χ²₁ > c) = 2 α / tests)."""
+    from scipy.stats import chi2
+
+    return float(chi2.isf(2.0 * alpha / max(tests, 1), 1))
 SLOW = ("bias_instability", "random_walk")
 
 
@@ -52,13 +61,14 @@ def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations:
 
 def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                    white_var: np.ndarray, span: float, t_lo: float, terms=SLOW,
-                   restricted: bool = True) -> tuple[ChannelNoise, dict]:
+                   restricted: bool = True, critical: float = LR_CRITICAL) -> tuple[ChannelNoise, dict]:
     """*ch* with the magnitudes of *terms* re-estimated by (restricted) maximum likelihood, and
     the terms the data do not need dropped one at a time (backward elimination: bias instability
     and random walk can stand in for each other, so a term's likelihood ratio is taken against
     the others refitted without it). Returns the channel and, per term: value, σ, likelihood
     ratio, present, and for an absent term a profile upper bound; ``loglik`` at the estimate and
-    ``loglik_without`` with none of *terms*."""
+    ``loglik_without`` with none of *terms*. ``critical``: the likelihood ratio a term must
+    exceed (default: the 1 % level of one test; :func:`family_critical` for several)."""
     lo_min, lo_max = max(float(np.min(durations)), 1e-3), max(span / 8.0, 2 * float(np.min(durations)))
     scale = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
     base = replace(ch, **{t: 0.0 for t in terms})
@@ -110,7 +120,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         f_test = optimise(active, free_corner=False)[1] if "bias_instability" in active else f
         lr = {t: 2 * (drops[t][1] - (f_test if t == "bias_instability" else f)) for t in active}
         weakest = min(active, key=lambda t: lr[t])
-        if lr[weakest] > LR_CRITICAL:
+        if lr[weakest] > critical:
             break
         active.remove(weakest)
         x, f = drops[weakest]
