@@ -100,3 +100,16 @@ def test_slow_terms_by_likelihood_recover_the_one_present(present):
     t = present[0]
     # the flat floor the GM sum was scaled to is approximate (±12 %): the σ and that margin
     assert abs(rep[t]["value"] - truth[t]) < 3 * rep[t]["sigma"] + 0.12 * truth[t], rep
+
+
+def test_the_family_level_of_the_presence_tests():
+    """½ χ²₀ + ½ χ²₁ exceeds c with probability 1 − Φ(√c): the family's critical value puts
+    α / m there (the normal quantile, independent of the χ² routine), and one test's is the
+    documented 5.41."""
+    from scipy.stats import norm
+
+    from components.estimation.noise_likelihood import LR_CRITICAL, family_critical
+
+    assert family_critical(1) == pytest.approx(LR_CRITICAL, abs=1e-4)
+    for m in (2, 6, 12):
+        assert math.sqrt(family_critical(m)) == pytest.approx(norm.isf(0.01 / m), rel=1e-9)
