@@ -54,6 +54,10 @@ def main(argv: list[str] | None = None) -> int:
 
     COULD_NOT_RUN, BAD_INPUT = _error_classes()
     args = build_parser().parse_args(argv)
+    from components import progress
+
+    # long computations show a bar on a terminal (after two seconds), never in a pipe or a file
+    progress.enable(sys.stderr.isatty() and not getattr(args, "quiet", False))
     stdout = sys.stdout
     with warnings.catch_warnings(record=True) as caught, json_option.redirect_text(args):
         # numpy's and scipy's warnings are calbench's to handle: a user sees one line each, said

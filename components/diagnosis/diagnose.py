@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
+from components import progress
 from components.diagnosis.candidate_notes import annotate, separation_advice
 from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.design import design
@@ -359,30 +360,32 @@ def _noise_candidates(design: _Design, base: list[str], noise: NoiseModel | None
     cols = [design.index[p] for p in base]
     current = noise if noise is not None else NoiseModel.white(design.white_sigma, design.dt, "white noise")
     out = []
-    for term in terms:
-        sensor, _, t = term.split(".")
-        field_ = _FIELD[t]
-        chans = list(current.channels)
-        gain, values, n_new = 0.0, [], 0
-        for k in (range(3) if sensor == "gyro" else range(3, 6)):
-            if getattr(chans[k], field_) > 0:  # this axis has it already
-                values.append(getattr(chans[k], field_))
-                continue
-            n_new += 1
-            idx = channel_rows(rows, k)
-            Hc = H[idx][:, cols] if cols else np.zeros((len(idx), 0))
-            active = np.any(Hc != 0, axis=0)
-            durations = (rows["stop"][idx] - rows["start"][idx]) * design.dt
-            value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,
-                                    design.span, design.t_lo)
-            chans[k] = replace(chans[k], **{field_: value})
-            gain += g
-            values.append(value)
-        lr = 2 * gain
-        out.append({"term": term, "values": values, "loglik_gain": gain, "aic_gain": gain - n_new,
-                    "likelihood_ratio": lr, "significant": bool(lr > stats.chi2.isf(alpha, max(n_new, 1))),
-                    "model": NoiseModel(tuple(chans), (current.source + "; " if noise is not None else "")
-                                        + f"+ {term}", current.sigmas)})
+    with progress.steps("noise terms", len(terms)) as bar:
+        for term in terms:
+            sensor, _, t = term.split(".")
+            field_ = _FIELD[t]
+            chans = list(current.channels)
+            gain, values, n_new = 0.0, [], 0
+            for k in (range(3) if sensor == "gyro" else range(3, 6)):
+                if getattr(chans[k], field_) > 0:  # this axis has it already
+                    values.append(getattr(chans[k], field_))
+                    continue
+                n_new += 1
+                idx = channel_rows(rows, k)
+                Hc = H[idx][:, cols] if cols else np.zeros((len(idx), 0))
+                active = np.any(Hc != 0, axis=0)
+                durations = (rows["stop"][idx] - rows["start"][idx]) * design.dt
+                value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,
+                                        design.span, design.t_lo)
+                chans[k] = replace(chans[k], **{field_: value})
+                gain += g
+                values.append(value)
+            lr = 2 * gain
+            out.append({"term": term, "values": values, "loglik_gain": gain, "aic_gain": gain - n_new,
+                        "likelihood_ratio": lr, "significant": bool(lr > stats.chi2.isf(alpha, max(n_new, 1))),
+                        "model": NoiseModel(tuple(chans), (current.source + "; " if noise is not None else "")
+                                            + f"+ {term}", current.sigmas)})
+            bar.update()
     out.sort(key=lambda n: -n["aic_gain"])
     return out
 

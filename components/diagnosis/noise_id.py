@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from components import progress
 from components.estimation.allan import static_runs
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel
@@ -115,29 +116,31 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     n_tests = sum(1 for k in range(6) for t in ("bias_instability", "random_walk")
                   if t in terms and t not in (known.get(k) or {}))
     critical = family_critical(n_tests)
-    for k in range(6):
-        ch = chans[k]
-        report: dict = {}
-        sigma = dict(fast[k].sigma)
-        present = [t for t in fast[k].present if t in ("quantization", "white")]
-        if rows is not None:
-            idx = channel_rows(rows, k)
-            H = rows["H"][idx]
-            active = np.any(H != 0, axis=0)
-            y, Hc = rows["y"][idx], H[:, active]
-            durations = (rows["stop"][idx] - rows["start"][idx]) * dt
-            white_var = 1.0 / rows["weight"][idx] ** 2
-            slow_terms = [t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
-            base = replace(ch, bias_instability=0.0, random_walk=0.0, gauss_markov=())
-            ch, report = fit_slow_terms(base, y, Hc, durations, white_var, span, chunk_s, slow_terms,
-                                        critical=critical)
-            for t in slow_terms:
-                sigma[t] = report[t]["sigma"]
-                if report[t]["present"]:
-                    present.append(t)
-        else:
-            present = list(fast[k].present)
-        out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
+    with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
+        for k in range(6):
+            ch = chans[k]
+            report: dict = {}
+            sigma = dict(fast[k].sigma)
+            present = [t for t in fast[k].present if t in ("quantization", "white")]
+            if rows is not None:
+                idx = channel_rows(rows, k)
+                H = rows["H"][idx]
+                active = np.any(H != 0, axis=0)
+                y, Hc = rows["y"][idx], H[:, active]
+                durations = (rows["stop"][idx] - rows["start"][idx]) * dt
+                white_var = 1.0 / rows["weight"][idx] ** 2
+                slow_terms = [t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
+                base = replace(ch, bias_instability=0.0, random_walk=0.0, gauss_markov=())
+                ch, report = fit_slow_terms(base, y, Hc, durations, white_var, span, chunk_s, slow_terms,
+                                            critical=critical)
+                for t in slow_terms:
+                    sigma[t] = report[t]["sigma"]
+                    if report[t]["present"]:
+                        present.append(t)
+            else:
+                present = list(fast[k].present)
+            out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
+            bar.update()
     sig = {}
     for k, c in enumerate(out_channels):
         for t in c.present:

@@ -11,6 +11,7 @@ from collections import OrderedDict
 
 import numpy as np
 
+from components import progress
 from components.estimation.blocks import Blocks
 from components.estimation.rest_angles import rest_variance
 from components.model.effects import TIME_OFFSETS, effect_of, regressor_of, time_offset_of_lever
@@ -81,17 +82,20 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
     base_g, base_a = (gb.sum(motion.ideal_gyro), ab.sum(motion.ideal_acc)) if table_params else (0, 0)
     blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
                                 + ab.stop.tobytes()).hexdigest() if table_params else ""
-    for p in table_params:
-        k = params.index(p)
-        key = (motion.profile_key, blocks_key, geo, p)
-        if key not in _GEOMETRY_COLUMNS:
-            v = table_parameter_value(geo, p)
-            mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
-            _GEOMETRY_COLUMNS[key] = ((gb.sum(mp.ideal_gyro) - base_g) / TABLE_STEP,
-                                      (ab.sum(mp.ideal_acc) - base_a) / TABLE_STEP)
-            while len(_GEOMETRY_COLUMNS) > 256:
-                _GEOMETRY_COLUMNS.popitem(last=False)
-        Hg[:, :, k], Ha[:, :, k] = _GEOMETRY_COLUMNS[key]
+    todo = [p for p in table_params if (motion.profile_key, blocks_key, geo, p) not in _GEOMETRY_COLUMNS]
+    with progress.steps("table effects' columns", len(todo)) as bar:
+        for p in table_params:
+            k = params.index(p)
+            key = (motion.profile_key, blocks_key, geo, p)
+            if key not in _GEOMETRY_COLUMNS:
+                v = table_parameter_value(geo, p)
+                mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
+                _GEOMETRY_COLUMNS[key] = ((gb.sum(mp.ideal_gyro) - base_g) / TABLE_STEP,
+                                          (ab.sum(mp.ideal_acc) - base_a) / TABLE_STEP)
+                while len(_GEOMETRY_COLUMNS) > 256:
+                    _GEOMETRY_COLUMNS.popitem(last=False)
+                bar.update()
+            Hg[:, :, k], Ha[:, :, k] = _GEOMETRY_COLUMNS[key]
     var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)
     var_a = ab.count[:, None] * sa[None, :] ** 2
     y = np.concatenate([yg.reshape(-1), ya.reshape(-1)])
