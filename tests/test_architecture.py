@@ -12,7 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 TOP = ("fmus", "orchestrator", "components")
 # components' packages, left to right: a package imports only from packages to its left
-LAYERS = ("errors", "model", "logs", "estimation", "diagnosis", "control", "simulation", "procedures",
+LAYERS = ("errors", "progress", "model", "logs", "estimation", "diagnosis", "control", "simulation", "procedures",
           "navigation", "campaign", "cli")
 
 
