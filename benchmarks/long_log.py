@@ -1,0 +1,93 @@
+"""Long logs: calibrate, compare, diagnose on a 41.6-minute 200 Hz log (502,420 samples), each
+command in a child process of its own, timed (CPU: user + system of the child) with its peak
+resident memory.
+
+The log: the demo's navigation-grade scenario (hidden K2 on z) on the twenty-six-position
+schedule with 88 s dwells (the length of the log issue #18 measured), written as Parquet.
+
+Baselines (quoted, not re-measured here; issue #18, same machine class): calbench's diagnose
+before this work, 64 s CPU and 1.58 GB per call on a 41.5-minute 200 Hz log, and a small
+independent numpy solver doing the same ranking, 12 s CPU and 0.94 GB. The figure to beat is the
+numpy solver's.
+
+    python benchmarks/long_log.py [--dir DIR] [--dwell 88]
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+BASELINES = {"diagnose": {"calbench before (issue #18)": (64.0, 1.58), "numpy solver (issue #18)": (12.0, 0.94)}}
+
+
+def make_log(stem: Path, dwell: float) -> Path:
+    from components.cli.demo import SCENARIO
+    from components.simulation.run import run_scenario, write_outputs
+    from components.simulation.scenario import scenario_from_dict
+
+    d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
+    d["schedule"] = {"name": "twentysix_position", "overrides": {"dwell": dwell}}
+    d["scenario"]["step"] = 0.005
+    run = run_scenario(scenario_from_dict(d, source="long_log"), progress=False)
+    write_outputs(run, stem, fmt="parquet")
+    return stem.with_suffix(".parquet")
+
+
+def measure(args: list[str]) -> tuple[float, float, float]:
+    """(CPU s, wall s, peak RSS GB) of ``calbench ARGS`` in a child process (its own rusage)."""
+    t = time.perf_counter()
+    p = subprocess.Popen([sys.executable, "-m", "components.cli", *args], cwd=ROOT,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, status, usage = os.wait4(p.pid, 0)
+    p.returncode = os.waitstatus_to_exitcode(status)
+    wall = time.perf_counter() - t
+    if p.returncode not in (0, 1):
+        raise SystemExit(f"calbench {' '.join(args)} exited {p.returncode}")
+    return usage.ru_utime + usage.ru_stime, wall, usage.ru_maxrss / 1024**2  # ru_maxrss in KiB
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dir", type=Path, help="where the log is written (default: a temporary directory)")
+    ap.add_argument("--dwell", type=float, default=88.0)
+    a = ap.parse_args()
+    tmp = None
+    if a.dir is None:
+        tmp = tempfile.TemporaryDirectory()
+        a.dir = Path(tmp.name)
+    a.dir.mkdir(parents=True, exist_ok=True)
+    t = time.perf_counter()
+    log = make_log(a.dir / "long", a.dwell)
+    import pyarrow.parquet as pq
+
+    n = pq.ParquetFile(log).metadata.num_rows
+    print(f"log: {n} samples at 200 Hz ({n / 200 / 60:.1f} min), simulated and written in "
+          f"{time.perf_counter() - t:.1f} s -> {log.name}")
+    model = a.dir / "base.json"
+    steps = [("calibrate", ["calibrate", str(log), "--out", str(model)]),
+             ("compare", ["compare", str(log), "--model", str(model)]),
+             ("diagnose", ["diagnose", str(log), "--model", str(model)])]
+    print(f"{'command':10s} {'CPU s':>7s} {'wall s':>7s} {'peak GB':>8s}   against the baselines (CPU ratio, memory ratio)")
+    for name, args in steps:
+        cpu, wall, peak = measure(args)
+        ratios = "; ".join(f"{b}: {cpu / c:.2f}x CPU, {peak / m:.2f}x memory"
+                           for b, (c, m) in BASELINES.get(name, {}).items())
+        print(f"{name:10s} {cpu:7.1f} {wall:7.1f} {peak:8.2f}   {ratios}", flush=True)
+    print(f"cpus {os.cpu_count()}, load average (1 min) {os.getloadavg()[0]:.2f}")
+    if tmp is not None:
+        tmp.cleanup()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
