@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from orchestrator.errors import SystemError_, UnitError
+from orchestrator.wiring import strongly_connected
 
 DEFAULT_TOLERANCE = 1e-10
 DEFAULT_MAX_ITERATIONS = 100
@@ -40,14 +41,12 @@ def loop_groups(order: list[str], connections, loop_units: list[set[str]]) -> li
     """One group per set of units connected in a cycle that holds an algebraic loop: the whole
     cycle of units is repeated, so a unit without feed-through inside it (a lag) also sees the
     loop's converged values."""
-    from orchestrator.wiring import _tarjan
-
     edges: dict[str, list[str]] = {n: [] for n in order}
     for c in connections:
         if c.source.unit != c.target.unit and c.target.unit not in edges[c.source.unit]:
             edges[c.source.unit].append(c.target.unit)
     groups = []
-    for comp in _tarjan(order, edges):
+    for comp in strongly_connected(order, edges):
         if len(comp) > 1 and any(set(comp) & lu for lu in loop_units):
             groups.append(LoopGroup([n for n in order if n in comp]))
     return groups

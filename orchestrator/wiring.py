@@ -124,7 +124,7 @@ def _check_units(where: str, src: str, sv, dst: str, dv, derivative_order: int =
                            "connected variables need the same unit")
 
 
-def _tarjan(nodes: list[str], edges: dict[str, list[str]]) -> list[list[str]]:
+def strongly_connected(nodes: list[str], edges: dict[str, list[str]]) -> list[list[str]]:
     """Strongly connected components, in reverse topological order of the condensation."""
     index: dict[str, int] = {}
     low: dict[str, int] = {}
@@ -170,7 +170,7 @@ def stepping_order(system: System, conns: list[ScalarConnection]) -> list[str]:
     for c in conns:
         if c.source.unit != c.target.unit and c.target.unit not in edges[c.source.unit]:
             edges[c.source.unit].append(c.target.unit)
-    comps = _tarjan(names, edges)[::-1]
+    comps = strongly_connected(names, edges)[::-1]
     rank = {n: i for i, n in enumerate(names)}
     return [n for comp in comps for n in sorted(comp, key=rank.__getitem__)]
 
@@ -187,7 +187,7 @@ def algebraic_loops(conns: list[ScalarConnection], feedthrough: dict[str, dict[s
             for i in ins:
                 edges.setdefault(f"{unit}.{i}", []).append(f"{unit}.{out}")
     nodes = sorted(set(edges) | {w for ws in edges.values() for w in ws})
-    return [sorted(comp) for comp in _tarjan(nodes, edges) if len(comp) > 1]
+    return [sorted(comp) for comp in strongly_connected(nodes, edges) if len(comp) > 1]
 
 
 def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
