@@ -42,7 +42,7 @@ from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import channel_rows, whiten
 from components.model.effects import EFFECTS, effect_of, parameters_of
 from components.model.noise import NoiseModel
-from components.model.plausibility import plausible_limit
+from components.model.plausibility import expected_magnitude, grade_factor, plausible_limit
 from components.model.result import CalibrationResult
 
 
@@ -119,6 +119,9 @@ class _Design:
         self.y, self.H, self.raw, self.noise = y, H, raw, noise
         self.dt, self.span, self.t_lo = dt, span, t_lo
         self.white_sigma = white_sigma
+        # how many times noisier than navigation grade (per sensor; plausibility.grade_factor)
+        self.grade = grade_factor({"gyro": float(np.median(white_sigma[:3])) / math.sqrt(dt),
+                                   "acc": float(np.median(white_sigma[3:])) / math.sqrt(dt)})
         self.rows = rows
         self.n = len(y)
         self.motion = motion
@@ -411,15 +414,16 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         values = dict(zip(base + ps, zip(sol.tolist(), sig.tolist())))
         # a fitted magnitude far outside anything physical means the linearised model is being
         # used to absorb something else (table angles beyond the small-angle range, or a
-        # near-degenerate column): such a candidate is reported but cannot be the verdict
-        # (sensor effects are linear in their parameters, so only an absurd value is suspect: the
-        # typical magnitudes are navigation grade, tactical grade is up to 1000 times them, and a
-        # drift or temperature coefficient must be far above them to show in a short run)
-        # (and anything beyond what a real IMU or table of any grade has: plausibility.py)
-        typical = EFFECTS[effect].typical
-        factor = 1000 if EFFECTS[effect].target == "table" else 1e5
-        limits = {p: min(plausible_limit(p), max(factor * typical, 0.01 if EFFECTS[effect].unit == "rad" else 0))
-                  for p in ps}
+        # near-degenerate column): such a candidate is reported but cannot be the verdict.
+        # Sensor effects are linear in their parameters, so only an absurd value is suspect:
+        # beyond what a real IMU of any grade has (plausibility.py), or 1e5 times the magnitude
+        # typical of the log's grade (a drift or temperature coefficient must be far above it
+        # to show in a short run; a tactical log's noise, 100 times a navigation grade's, lets
+        # through 100 times more). Table effects are small angles: 1000 times their typical.
+        if EFFECTS[effect].target == "table":
+            limits = {p: min(plausible_limit(p), max(1000 * EFFECTS[effect].typical, 0.01)) for p in ps}
+        else:
+            limits = {p: min(plausible_limit(p), 1e5 * expected_magnitude(p, design.grade)) for p in ps}
         implausible = [p for p in ps if abs(values[p][0]) > limits[p]]
         cand = Candidate(effect, float(F), math.exp(logp), 1.0,
                          float(chi2_c - chi2_b + k * math.log(design.n)),
