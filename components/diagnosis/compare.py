@@ -33,7 +33,7 @@ from scipy import stats
 
 from components.diagnosis.misfit import CHANNELS, Misfits, misfits
 from components.estimation.blocks import observation_blocks, white_noise_sigma
-from components.estimation.design import sensor_columns
+from components.estimation.design import predict
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
@@ -136,8 +136,7 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     motion = data.motion(geo, model.temperature_ref)
     sensor_params = [p for p in model.values if effect_of(p).target != "table"]
     values = np.array([model.values[p] for p in sensor_params])
-    G, A = sensor_columns(motion, sensor_params)
-    pred = np.hstack([motion.ideal_gyro + G @ values, motion.ideal_acc + A @ values])
+    pred = np.hstack(predict(motion, sensor_params, values))
     if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
         rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
     if noise is None:

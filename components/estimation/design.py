@@ -24,24 +24,18 @@ TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
 _GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
 
 
-def sensor_columns(motion: Motion, params: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-sample regressors: gyro (N, 3, P) and acc (N, 3, P) increments per unit parameter."""
-    n = len(motion.dt)
-    G = np.zeros((n, 3, len(params)))
-    A = np.zeros((n, 3, len(params)))
-    for k, p in enumerate(params):
+def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Model output increments (N, 3) gyro and acc for sensor-effect values on this motion,
+    summed one regressor at a time (all of them at once, as (N, 3, P) arrays, held 0.4 GB for
+    18 parameters on a 42-minute 200 Hz log)."""
+    gyro, acc = motion.ideal_gyro.copy(), motion.ideal_acc.copy()
+    for p, v in zip(params, np.asarray(values, float)):
         g, a = regressor_of(motion, p)
         if g is not None:
-            G[:, :, k] = g
+            gyro += v * g
         if a is not None:
-            A[:, :, k] = a
-    return G, A
-
-
-def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Model output increments (N, 3) gyro and acc for sensor-effect values on this motion."""
-    G, A = sensor_columns(motion, params)
-    return motion.ideal_gyro + G @ values, motion.ideal_acc + A @ values
+            acc += v * a
+    return gyro, acc
 
 
 def noise_floor(sig: np.ndarray, scale: float) -> np.ndarray:
