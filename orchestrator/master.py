@@ -80,6 +80,7 @@ class Simulation:
         self.stopped_at: float | None = None  # set when a unit ended the run before stop
         self.notes: list[str] = []  # what the run did that a user should know (said once)
         self.loop_groups: list = []  # algebraic loops solved by iteration (algorithm "iterative")
+        self._loop_of: dict = {}  # unit name -> its loop group
 
     # ------------------------------------------------------------------ setup
     def load(self) -> None:
@@ -111,14 +112,15 @@ class Simulation:
         alg = self.system.algorithm
         broken_by = ('algorithm = "jacobi"' if alg == "jacobi" else alg if alg == "iterative"
                      else "the explicit system.order" if self.system.order else None)
-        feedthrough = {n: fmu_feedthrough(u) for n, u in self.units.items()}
-        self.notes += check_algebraic_loops(self.units, self.connections, feedthrough, broken_by)
+        loops = algebraic_loops(self.connections, {n: fmu_feedthrough(u) for n, u in self.units.items()})
+        self.notes += check_algebraic_loops(loops, broken_by)
         self.order = stepping_order(self.system, self.connections)
         if alg == "iterative":
-            loops = [{node.split(".", 1)[0] for node in loop} for loop in algebraic_loops(self.connections, feedthrough)]
-            self.loop_groups = loop_groups(self.order, self.connections, loops)
+            self.loop_groups = loop_groups(self.order, self.connections,
+                                           [{node.split(".", 1)[0] for node in loop} for loop in loops])
             check_iterable(self.loop_groups, self.units, {s.name: s.step_multiple for s in self.system.units},
                            self.system.source or self.system.name)
+            self._loop_of = {n: g for g in self.loop_groups for n in g.units}
 
     def _endpoint(self, unit: str, name: str, where: str) -> list[Endpoint]:
         return resolve(self.units[unit], self.bindings.get(unit, {}), name, where)
@@ -277,9 +279,13 @@ class Simulation:
                 self.exchange.store_outputs(p.unit, t + h)
         else:
             for n in self.order:
-                group = next((g for g in self.loop_groups if n in g.units), None)
-                if group is None or n == group.units[0]:
-                    self._step_ports(group, [ports[m] for m in (group.units if group else [n])], t, h, port_step)
+                group = self._loop_of.get(n)
+                if group is None:
+                    p = ports[n]
+                    port_step(p, t, self._port_inputs(p), self._port_derivatives(p))
+                    self.exchange.store_outputs(p.unit, t + h)
+                elif n == group.units[0]:
+                    self._solve_loop(group, [ports[m] for m in group.units], t, h, port_step)
         self._record_row(rec, len(rec.time) - 1)
         rec.rows = len(rec.time)
 
@@ -288,7 +294,7 @@ class Simulation:
         """An FMI 2 unit whose exchanged variables are all Real or Integer (Enumeration) runs in
         the native loop; one with Boolean or String ones steps on the Python path."""
         u = self.units[name]
-        if not isinstance(u, FMU2Unit) or any(name in g.units for g in self.loop_groups):
+        if not isinstance(u, FMU2Unit) or name in self._loop_of:
             return False
         used = set(self.exchange.outputs_of(u))
         used |= {c.target.var for c in self.connections if c.target.unit == name}
@@ -304,6 +310,7 @@ class Simulation:
         spans = SpanPlan(self.units, fmi2, self.connections, ex.slots, ex.conv, multiples)
         plan_index = {n: i for i, n in enumerate(fmi2)}
         ports = {n: self._py_port(n, multiples[n]) for n in self.order if n not in plan_index}
+        loop_ports = {g.units[0]: [ports[n] for n in g.units] for g in self.loop_groups}
         segments = self._segments(plan_index)
         rec_arr = np.ascontiguousarray(rec.data)
         rec.data = rec_arr
@@ -389,15 +396,21 @@ class Simulation:
                             if span(seg[0], seg[1], step, 1, False) is not None:
                                 ending = step
                         elif seg in acting:
-                            group = next((g for g in self.loop_groups if seg in g.units), None)
-                            if group is not None and seg != group.units[0]:
-                                continue  # stepped with the first unit of its loop
-                            group_ports = [ports[n] for n in group.units] if group else [ports[seg]]
-                            if self._step_ports(group, group_ports, t, h, port_step):
-                                ending = step
-                            if any(p.unit.stop_requested() for p in group_ports):
-                                stop = True
-                                break
+                            group = self._loop_of.get(seg)
+                            if group is None:
+                                p = ports[seg]
+                                if port_step(p, t, self._port_inputs(p), self._port_derivatives(p)):
+                                    ending = step
+                                ex.store_outputs(p.unit, t + p.multiple * h)
+                                if p.unit.stop_requested():
+                                    stop = True
+                                    break
+                            elif seg == group.units[0]:  # the loop's other units step with it
+                                if self._solve_loop(group, loop_ports[seg], t, h, port_step):
+                                    ending = step
+                                if any(p.unit.stop_requested() for p in loop_ports[seg]):
+                                    stop = True
+                                    break
                     if stop:
                         # the unit ends the run at t: units after it in the order do not step
                         self.stopped_at = t
@@ -419,17 +432,15 @@ class Simulation:
         if progress:
             progress.close()
 
-    def _step_ports(self, group, ports: list, t: float, h: float, port_step) -> bool:
-        """Step Python-stepped *ports* in order (a loop *group*: repeated until its values
-        converge); True if a unit asked to end the run."""
+    def _solve_loop(self, group, ports: list, t: float, h: float, port_step) -> bool:
+        """Step a loop *group*'s ports in order until its values converge; True if a unit asked
+        to end the run."""
         def one(p) -> bool:
             ended = port_step(p, t, self._port_inputs(p), self._port_derivatives(p))
             self.exchange.store_outputs(p.unit, t + p.multiple * h)
             return ended
 
-        if group is not None:
-            return self._solver.step(group, ports, self.exchange.values, t, one)
-        return any([one(p) for p in ports])
+        return self._solver.step(group, ports, self.exchange.values, t, one)
 
     def _end_at(self, rec: Recording, step: int) -> None:
         """A unit ended the run at the end of base step *step* - 1: the run stops there and its

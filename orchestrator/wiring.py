@@ -190,29 +190,26 @@ def algebraic_loops(conns: list[ScalarConnection], feedthrough: dict[str, dict[s
     return [sorted(comp) for comp in strongly_connected(nodes, edges) if len(comp) > 1]
 
 
-def check_algebraic_loops(units: dict[str, Unit], conns: list[ScalarConnection],
-                          feedthrough: dict[str, dict[str, list[str]]],
-                          broken_by: str | None = None) -> list[str]:
-    """Algebraic loops (:func:`algebraic_loops`): no step order satisfies them without delay or
-    iteration. Refused, unless the system breaks them with a one-step delay (*broken_by*: an
-    explicit order, or Jacobi) or solves them (*broken_by* "iterative"); then each is returned as
-    a note to report."""
+def check_algebraic_loops(loops: list[list[str]], broken_by: str | None = None) -> list[str]:
+    """The :func:`algebraic_loops`: no step order satisfies them without delay or iteration.
+    Refused, unless the system breaks them with a one-step delay (*broken_by*: an explicit order,
+    or Jacobi) or solves them (*broken_by* "iterative"); then each is returned as a note to
+    report."""
     notes = []
-    for comp in algebraic_loops(conns, feedthrough):
-        if len(comp) > 1:
-            loop = " -> ".join(comp)
-            if broken_by == "iterative":
-                notes.append(f"algebraic loop {loop} solved by fixed-point iteration at every step")
-                continue
-            if broken_by is None:
-                raise AlgebraicLoopError(
-                    f"algebraic loop (outputs that depend instantaneously on each other): {loop}. "
-                    "Break it with a unit that has no direct feed-through, accept a one-step "
-                    "delay: set system.order (a unit reads the outputs of units after it one "
-                    'step late) or system.algorithm = "jacobi" (every input one step late), or '
-                    'solve it at every step: system.algorithm = "iterative" (units that can get and '
-                    "set their state).")
-            notes.append(f"algebraic loop {loop} broken by {broken_by}: one-step delay")
+    for comp in loops:
+        loop = " -> ".join(comp)
+        if broken_by == "iterative":
+            notes.append(f"algebraic loop {loop} solved by fixed-point iteration at every step")
+            continue
+        if broken_by is None:
+            raise AlgebraicLoopError(
+                f"algebraic loop (outputs that depend instantaneously on each other): {loop}. "
+                "Break it with a unit that has no direct feed-through, accept a one-step "
+                "delay: set system.order (a unit reads the outputs of units after it one "
+                'step late) or system.algorithm = "jacobi" (every input one step late), or '
+                'solve it at every step: system.algorithm = "iterative" (units that can get and '
+                "set their state).")
+        notes.append(f"algebraic loop {loop} broken by {broken_by}: one-step delay")
     return notes
 
 
