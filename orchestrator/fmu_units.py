@@ -121,14 +121,15 @@ class FMU2Unit(Unit):
         tail = "\n  ".join(self.log_tail())
         return f"unit {self.name}: {what} failed ({e})" + (f"\n  FMU log:\n  {tail}" if tail else "")
 
+    # fmpy's FMI 2 slave answers to the FMI 3 names too: FMU3Unit shares these
     def get_state(self):
-        return self._guard("fmi2GetFMUstate", self.fmu.getFMUstate)
+        return self._guard(f"{self.kind}GetFMUState", self.fmu.getFMUState)
 
     def set_state(self, state) -> None:
-        self._guard("fmi2SetFMUstate", lambda: self.fmu.setFMUstate(state))
+        self._guard(f"{self.kind}SetFMUState", lambda: self.fmu.setFMUState(state))
 
     def free_state(self, state) -> None:
-        self._guard("fmi2FreeFMUstate", lambda: self.fmu.freeFMUstate(state))
+        self._guard(f"{self.kind}FreeFMUState", lambda: self.fmu.freeFMUState(state))
 
     def exit_initialization(self) -> None:
         self.enter_initialization()
@@ -259,15 +260,6 @@ class FMU3Unit(Unit):
         self._t0 = t0
         self._in_init = False
 
-    def get_state(self):
-        return self._guard("fmi3GetFMUState", self.fmu.getFMUState)
-
-    def set_state(self, state) -> None:
-        self._guard("fmi3SetFMUState", lambda: self.fmu.setFMUState(state))
-
-    def free_state(self, state) -> None:
-        self._guard("fmi3FreeFMUState", lambda: self.fmu.freeFMUState(state))
-
     def enter_initialization(self) -> None:
         if not self._in_init:
             self._guard("enterInitializationMode",
@@ -280,6 +272,7 @@ class FMU3Unit(Unit):
 
     _guard = FMU2Unit._guard
     _failure = FMU2Unit._failure
+    get_state, set_state, free_state = FMU2Unit.get_state, FMU2Unit.set_state, FMU2Unit.free_state
 
     def exit_initialization(self) -> None:
         self.enter_initialization()
