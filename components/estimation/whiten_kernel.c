@@ -6,14 +6,15 @@
  *   Pc = P c_k;  S_k = c_k' Pc + r_k;  nu = v_k - c_k' x;  g = (phi_k .* Pc + cross_k) / S_k
  *   out_k = nu / sqrt(S_k);  x = phi_k .* x + g nu';  P = phi_k phi_k' .* P + diag(q_k) - S_k g g'
  * Row-major arrays: phi, q, c, cross (nb x m), values and out (nb x ncol); work holds
- * m*m + m*ncol + 3*m + ncol doubles. Returns 0, or k + 1 when S_k is not positive (also nan). */
+ * m*m + m*ncol + 2*m + ncol doubles. Returns 0, or k + 1 when S_k is not positive (also nan; S_all[k]
+ * then holds it). */
 #include <math.h>
 #include <string.h>
 
 __attribute__((visibility("default"))) long calbench_whiten(
     long nb, long m, long ncol, const double *phi, const double *q, const double *c, const double *cross,
     const double *r, const double *p0, const double *values, double *out, double *S_all, double *work) {
-    double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *tmp = g + m, *nu = tmp + m;
+    double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *nu = g + m;
     memset(P, 0, sizeof(double) * (size_t)(m * m));
     memset(x, 0, sizeof(double) * (size_t)(m * ncol));
     for (long i = 0; i < m; i++) P[i * m + i] = p0[i];
@@ -26,6 +27,7 @@ __attribute__((visibility("default"))) long calbench_whiten(
             Pc[i] = s;
         }
         for (long i = 0; i < m; i++) S += ck[i] * Pc[i];
+        S_all[k] = S;
         if (!(S > 0.0)) return k + 1;
         const double rs = 1.0 / sqrt(S);
         for (long j = 0; j < ncol; j++) {
@@ -34,7 +36,6 @@ __attribute__((visibility("default"))) long calbench_whiten(
             nu[j] = v;
             out[k * ncol + j] = v * rs;
         }
-        S_all[k] = S;
         for (long i = 0; i < m; i++) g[i] = (fk[i] * Pc[i] + xk[i]) / S;
         for (long i = 0; i < m; i++)
             for (long j = 0; j < ncol; j++) x[i * ncol + j] = fk[i] * x[i * ncol + j] + g[i] * nu[j];
@@ -47,6 +48,5 @@ __attribute__((visibility("default"))) long calbench_whiten(
                 P[i * m + l] = P[l * m + i] = a;
             }
     }
-    (void)tmp;
     return 0;
 }

@@ -32,13 +32,13 @@ def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.n
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (bn.phi, bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
     out = np.empty((nb, ncol))
     S_all = np.empty(nb)
-    work = np.empty(m * m + m * ncol + 3 * m + ncol)
+    work = np.empty(m * m + m * ncol + 2 * m + ncol)
     failed = _kernel()(nb, m, ncol, *[_ptr(a) for a in arrays], _ptr(out), _ptr(S_all), _ptr(work))
     if failed:
         k = failed - 1
         raise EstimationError(
             f"whitening under the noise model failed at block {k + 1} of {nb}: its predicted variance is "
-            f"{_predicted_variance(bn, k):.3g} (the noise model's state covariance lost its positive definiteness; "
+            f"{S_all[k]:.3g} (the noise model's state covariance lost its positive definiteness; "
             "its terms span too many decades for the log's length — give a simpler noise model with --noise)")
     return out, S_all
 
@@ -61,21 +61,6 @@ def _kernel():
 
 def _ptr(a: np.ndarray):
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-
-
-def _predicted_variance(bn: BlockNoise, k: int) -> float:
-    """S_k of the filter (for the message when it is not positive): the recursion in Python."""
-    P = np.diag(bn.p0)
-    for i in range(k + 1):
-        c = bn.c[i]
-        Pc = P @ c
-        S = float(c @ Pc) + bn.r[i]
-        if i == k:
-            break
-        g = (bn.phi[i] * Pc + bn.cross[i]) / S
-        P = bn.phi[i][:, None] * P * bn.phi[i][None, :] + np.diag(bn.q[i]) - S * np.outer(g, g)
-        P = 0.5 * (P + P.T)
-    return S
 
 
 def channel_rows(rows: dict, channel: int) -> np.ndarray:
