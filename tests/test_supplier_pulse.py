@@ -214,3 +214,18 @@ def test_a_pulse_imu_campaign_case_is_judged_where_it_can_be(tmp_path):
     assert "takes none of the noise asked for (" in by["CRB"]["message"] and "gyro.noise.arw" in by["CRB"]["message"]
     est = rec["estimates"]
     assert abs(est["acc.bias.y"]["value"] - 300 * UG) < 5 * UG
+
+
+def test_compare_on_counts_without_a_noise_model_keeps_the_quantization(pulse_run):
+    """compare's white level comes from the residual's scatter at rest, which pulse counts
+    collapse (a laser-gyro log printed chi2/dof = 2.4e21): one count, w/√12, is its floor, under
+    which the model fitted to the log has a finite chi2/dof of order 1 (at most that: the block
+    sums' quantization error is a difference of two remainders, not √n of them)."""
+    from components.diagnosis.compare import compare
+    from components.model.result import result_from_fit
+
+    data = LogData.from_log(pulse_run.log)
+    effects = ["gyro.bias", "acc.bias", "acc.sf"]
+    model = result_from_fit(calibrate(data, effects), effects, data)
+    c = compare(data, model, fitted_parameters=len(model.values), noise=None)
+    assert 0 < c.chi2_per_dof < 2.0, c.chi2_per_dof

@@ -145,8 +145,9 @@ class _Design:
         n_chunk = max(1, int(round(chunk_s / dt)))
         gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
         # noise from the high-frequency content of the data (differences remove the model)
-        sg = white_noise_sigma(data.gyro, motion.static & data.usable)
-        sa = white_noise_sigma(data.acc, motion.static & data.usable)
+        q = data.quantization_sigma
+        sg = white_noise_sigma(data.gyro, motion.static & data.usable, q[:3])
+        sa = white_noise_sigma(data.acc, motion.static & data.usable, q[3:])
         if noise is not None and noise.coloured:
             white = noise.white_sigma(dt)
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)

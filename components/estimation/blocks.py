@@ -148,14 +148,17 @@ def make_blocks(static: np.ndarray, samples_per_chunk: int, whole_moves: bool,
     return Blocks(arr[:, 0].astype(int), arr[:, 1].astype(int), arr[:, 2].astype(bool), whole_moves)
 
 
-def white_noise_sigma(increments: np.ndarray, static: np.ndarray) -> np.ndarray:
+def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) -> np.ndarray:
     """Per-sample white-noise σ of each channel from static data: consecutive differences within
     static runs remove any constant (bias, gravity, Earth rate), var(x_k - x_{k-1}) = 2 σ².
-    Returns (channels,). Falls back to NaN where there is no static pair."""
+    Returns (channels,). Falls back to NaN where there is no static pair. ``floor`` (channels,):
+    the least σ a channel has whatever its scatter (a pulse output's quantization,
+    LogData.quantization_sigma: counts whose differences are mostly 0 collapse the scatter)."""
     both = static[1:] & static[:-1]
     d = np.diff(increments, axis=0)[both]
     if len(d) < 2:
         return np.full(increments.shape[1], np.nan)
     # a robust scale (median absolute deviation) so that a few steps at a run edge do not count
     mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    return 1.4826 * mad / np.sqrt(2)
+    sigma = 1.4826 * mad / np.sqrt(2)
+    return sigma if floor is None else np.maximum(sigma, floor)

@@ -52,6 +52,12 @@ class LogData:
         return parse_segments(self.segments)
 
     @property
+    def quantization_sigma(self) -> np.ndarray:
+        """Per channel (gyro x y z, acc x y z), the σ one count leaves in a sample of a pulse
+        output (w/√12, uniform), 0 for other outputs: the least white noise such a sample has."""
+        return np.repeat([(w or 0.0) / np.sqrt(12.0) for w in self.count_weight], 3)
+
+    @property
     def usable(self) -> np.ndarray:
         """(N,) bool: the samples that enter estimates."""
         return np.ones(len(self.time), bool) if self.valid is None else self.valid

@@ -114,22 +114,16 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt_mean, span, chunk_s)
         return yw, Hw
 
+    quant = data.quantization_sigma
     raw_g = np.asarray(sigma_gyro if sigma_gyro is not None
-                       else white_noise_sigma(data.gyro, motion.static & data.usable), float)
+                       else white_noise_sigma(data.gyro, motion.static & data.usable, quant[:3]), float)
     raw_a = np.asarray(sigma_acc if sigma_acc is not None
-                       else white_noise_sigma(data.acc, motion.static & data.usable), float)
+                       else white_noise_sigma(data.acc, motion.static & data.usable, quant[3:]), float)
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
         raise EstimationError("the white-noise level cannot be estimated from this log (it has no two usable "
                               "samples in a row at rest): give the noise (--noise: a grade, a noise file or "
                               "NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
-    # pulse counts: their quantization (one count, uniform) is the least noise a sample has; the
-    # scatter of counts whose differences are mostly 0 says less (the full model: noise="identify")
-    wg, wa = data.count_weight
-    if wg and sigma_gyro is None:
-        raw_g = np.maximum(raw_g, wg / np.sqrt(12.0))
-    if wa and sigma_acc is None:
-        raw_a = np.maximum(raw_a, wa / np.sqrt(12.0))
     sg = noise_floor(raw_g, 7.3e-5 * dt_mean)
     sa = noise_floor(raw_a, 9.8 * dt_mean)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
