@@ -230,19 +230,19 @@ def _system(name: str, d, src, base: Path) -> System:
 
 
 def _count_weights_known(d: dict, stated: dict, path: Path, src, w: str) -> None:
-    """Count outputs need the weight of a count: stated, or the FMU's own parameter (ours);
-    refused before the first case otherwise (as a scenario run would refuse each case)."""
+    """Count outputs need the weight of a count (unit_maps.unknown_count_weight): refused before
+    the first case, as a scenario run would refuse each case."""
     from fmpy import read_model_description
 
-    names = None
-    for sensor, unit in (("gyro", "arcsec"), ("acc", "mm/s")):
-        if d.get(f"{sensor}_output") != "counts" or sensor in stated:
-            continue
-        names = names or {v.name for v in read_model_description(str(path)).modelVariables}
-        if f"{sensor}.count_weight" not in names:
-            raise CampaignError(f"{src}: {w}: {sensor}_output = 'counts', but the weight of one count is not "
-                                f"known (the FMU has no {sensor}.count_weight parameter): state it, e.g. "
-                                f'count_weight = {{{sensor} = "0.05 {unit}"}}')
+    from components.simulation.unit_maps import unknown_count_weight
+
+    kinds = {s: d.get(f"{s}_output") for s in ("gyro", "acc")}
+    if "counts" not in kinds.values():
+        return
+    why = unknown_count_weight(kinds, stated, {v.name for v in read_model_description(str(path)).modelVariables},
+                               path.name)
+    if why:
+        raise CampaignError(f"{src}: {w}: {why}")
 
 
 def _procedure(name: str, d, src) -> Procedure:

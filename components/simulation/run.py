@@ -19,7 +19,7 @@ from components.errors import ScenarioError
 from components.model.result import file_sha256
 from components.simulation.roles import OUTPUT_CODES
 from components.simulation.scenario import TRUTH_FORMAT, Scenario, scenario_from_dict
-from components.simulation.unit_maps import maps_for, plan_injection
+from components.simulation.unit_maps import maps_for, plan_injection, unknown_count_weight
 
 
 def _fmu_path(spec: str, base_dir: Path) -> Path:
@@ -187,9 +187,13 @@ def count_weights(sc: Scenario, istart: dict, imu_names: set, iparams: dict) -> 
     ``<sensor>.count_weight`` parameter), else that parameter's value. A supplier's pulse IMU
     without either is refused before the run: a log with counts of unknown weight calibrates
     to scale factors off by that weight."""
-    out = {}
     stated = sc.imu_count_weight or {}
-    for sensor, kind, unit in (("gyro", sc.gyro_output, "arcsec"), ("acc", sc.acc_output, "mm/s")):
+    kinds = {"gyro": sc.gyro_output, "acc": sc.acc_output}
+    why = unknown_count_weight(kinds, stated, set(iparams) | set(istart), Path(sc.imu_fmu).name)
+    if why:
+        raise ScenarioError(f"{sc.source}: [imu]: {why}")
+    out = {}
+    for sensor, kind in kinds.items():
         if kind != "counts":
             continue
         par = f"{sensor}.count_weight"
@@ -200,13 +204,8 @@ def count_weights(sc: Scenario, istart: dict, imu_names: set, iparams: dict) -> 
             if par in imu_names:
                 iparams[par] = stated[sensor]
             out[sensor] = stated[sensor]
-        elif par in iparams or par in istart:
-            out[sensor] = float(iparams.get(par, istart.get(par)))
         else:
-            raise ScenarioError(
-                f"{sc.source}: [imu]: {sensor}_output = 'counts', but the weight of one count is not known (the "
-                f"FMU {Path(sc.imu_fmu).name} has no {par} parameter): state it, e.g. count_weight = "
-                f'{{{sensor} = "0.05 {unit}"}} from the supplier\'s data sheet')
+            out[sensor] = float(iparams.get(par, istart.get(par)))
     return out
 
 

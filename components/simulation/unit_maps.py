@@ -201,3 +201,19 @@ def plan_injection(effects: dict, noise: dict, em: ParameterMap, nm: ParameterMa
             inj.parameters[mapped[0]] = mapped[1]
             truth[name] = si
     return inj
+
+
+COUNT_UNITS = {"gyro": "arcsec", "acc": "mm/s"}  # a count's weight as a data sheet states it
+
+
+def unknown_count_weight(kinds: dict, stated: dict, fmu_names: set, fmu: str) -> str | None:
+    """Why a unit with count outputs cannot run, or None: a count's weight is stated in the
+    unit description (``count_weight``) or is the FMU's own ``<sensor>.count_weight`` (ours);
+    without either, a log of counts would calibrate to scale factors off by a guessed weight.
+    ``kinds``: sensor -> output kind."""
+    for sensor, unit in COUNT_UNITS.items():
+        if kinds.get(sensor) == "counts" and sensor not in stated and f"{sensor}.count_weight" not in fmu_names:
+            return (f"{sensor}_output = 'counts', but the weight of one count is not known (the FMU {fmu} has no "
+                    f"{sensor}.count_weight parameter): state it from the supplier's data sheet, e.g. "
+                    f'count_weight = {{{sensor} = "0.05 {unit}"}}')
+    return None
