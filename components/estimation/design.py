@@ -76,11 +76,10 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
     base_g, base_a = (gb.sum(motion.ideal_gyro), ab.sum(motion.ideal_acc)) if table_params else (0, 0)
     blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
                                 + ab.stop.tobytes()).hexdigest() if table_params else ""
-    todo = [p for p in table_params if (motion.profile_key, blocks_key, geo, p) not in _GEOMETRY_COLUMNS]
-    with progress.steps("table effects' columns", len(todo)) as bar:
-        for p in table_params:
+    keys = {p: (motion.profile_key, blocks_key, geo, p) for p in table_params}
+    with progress.steps("table effects' columns", sum(k not in _GEOMETRY_COLUMNS for k in keys.values())) as bar:
+        for p, key in keys.items():
             k = params.index(p)
-            key = (motion.profile_key, blocks_key, geo, p)
             if key not in _GEOMETRY_COLUMNS:
                 v = table_parameter_value(geo, p)
                 mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
