@@ -28,6 +28,7 @@ from components.model.noise import ChannelNoise, block_noise
 
 LR_CRITICAL = 5.4119  # χ²₁ 98 % point: the 1 % level of ½ χ²₀ + ½ χ²₁
 FLICKER_CORNER_TEST = 10.0  # [s] the floor's lower corner its presence is tested at
+SLOW = ("bias_instability", "random_walk")
 
 
 def family_critical(tests: int, alpha: float = 0.01) -> float:
@@ -37,7 +38,6 @@ def family_critical(tests: int, alpha: float = 0.01) -> float:
     from scipy.stats import chi2
 
     return float(chi2.isf(2.0 * alpha / max(tests, 1), 1))
-SLOW = ("bias_instability", "random_walk")
 
 
 def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
