@@ -151,7 +151,7 @@ def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: i
     (a calibration result, or a supplier's IMU FMU replayed on the log's motion)."""
     meas = np.hstack([data.gyro, data.acc])
     resid = meas - pred
-    sigma = white_noise_sigma(resid, motion.static & data.usable, data.quantization_sigma)
+    sigma = white_noise_sigma(resid, motion.static & data.usable, data.quantization_floor(noise))
     floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(motion.dt))
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)

@@ -145,7 +145,7 @@ class _Design:
         n_chunk = max(1, int(round(chunk_s / dt)))
         gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
         # noise from the high-frequency content of the data (differences remove the model)
-        q = data.quantization_sigma
+        q = data.quantization_floor(noise)
         sg = white_noise_sigma(data.gyro, motion.static & data.usable, q[:3])
         sa = white_noise_sigma(data.acc, motion.static & data.usable, q[3:])
         if noise is not None and noise.coloured:

@@ -153,7 +153,7 @@ def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) ->
     static runs remove any constant (bias, gravity, Earth rate), var(x_k - x_{k-1}) = 2 σ².
     Returns (channels,). Falls back to NaN where there is no static pair. ``floor`` (channels,):
     the least σ a channel has whatever its scatter (a pulse output's quantization,
-    LogData.quantization_sigma: counts whose differences are mostly 0 collapse the scatter)."""
+    LogData.quantization_floor: counts whose differences are mostly 0 collapse the scatter)."""
     both = static[1:] & static[:-1]
     d = np.diff(increments, axis=0)[both]
     if len(d) < 2:

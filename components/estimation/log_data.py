@@ -51,11 +51,15 @@ class LogData:
 
         return parse_segments(self.segments)
 
-    @property
-    def quantization_sigma(self) -> np.ndarray:
+    def quantization_floor(self, noise=None) -> np.ndarray:
         """Per channel (gyro x y z, acc x y z), the σ one count leaves in a sample of a pulse
-        output (w/√12, uniform), 0 for other outputs: the least white noise such a sample has."""
-        return np.repeat([(w or 0.0) / np.sqrt(12.0) for w in self.count_weight], 3)
+        output (w/√12, uniform), 0 for other outputs: the least white noise such a sample has.
+        0 too where *noise* (components.model.noise.NoiseModel) carries the quantization as a
+        term of its own, which must not be counted twice."""
+        q = np.repeat([(w or 0.0) / np.sqrt(12.0) for w in self.count_weight], 3)
+        if noise is not None:
+            q = np.where([c.quantization > 0 for c in noise.channels], 0.0, q)
+        return q
 
     @property
     def usable(self) -> np.ndarray:

@@ -114,7 +114,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt_mean, span, chunk_s)
         return yw, Hw
 
-    quant = data.quantization_sigma
+    quant = data.quantization_floor(noise)
     raw_g = np.asarray(sigma_gyro if sigma_gyro is not None
                        else white_noise_sigma(data.gyro, motion.static & data.usable, quant[:3]), float)
     raw_a = np.asarray(sigma_acc if sigma_acc is not None
