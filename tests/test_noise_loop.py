@@ -97,3 +97,17 @@ def test_pulse_counts_get_their_quantization_and_an_honest_chi2():
     c = compare(data, model, fitted_parameters=len(model.values), noise=noise)
     lo, hi = stats.chi2.ppf([0.0005, 0.9995], c.dof) / c.dof
     assert lo < c.chi2_per_dof < hi, c.chi2_per_dof
+
+
+def test_a_systematic_misfit_is_an_effect_not_a_noise_term():
+    """White noise, a model of the biases only: the missing scale factors and misalignments
+    leave a large systematic misfit that a huge random walk can take up with a larger likelihood
+    gain than any one effect. Effects that stay significant with that term in the noise model are
+    physical: each verdict in turn is one of the hidden effects and no noise term is named."""
+    data = LogData.from_log(_run(25, noise={"gyro.noise.arw": "0.002 deg/sqrt(h)",
+                                            "acc.noise.vrw": "10 ug/sqrt(Hz)"}))
+    model = result_from_fit(calibrate(data, ["gyro.bias", "acc.bias"]), ["gyro.bias", "acc.bias"], data)
+    d = diagnose(data, model)
+    hidden = {"gyro.sf", "gyro.mis", "acc.sf", "acc.mis"}
+    assert d.verdict_kind == "effect" and d.verdict in hidden, (d.verdict, d.found)
+    assert not any(".noise." in f for f in d.found), d.found

@@ -17,9 +17,10 @@ level α/m (non-central F).
 Stochastic or deterministic: beside the effects, the noise terms the model lacks
 (``gyro.noise.bi``, ``gyro.noise.rrw``, ``acc.noise.bi``, ``acc.noise.rrw``) are candidates too,
 each fitted by maximum likelihood on the base model's rows. When the best of them explains the
-residual better than the best effect (Akaike: Δℓ against the number of parameters), the verdict
-is that the noise model is too simple, not a missing effect: a slow wander from bias instability
-is not called a drift. Forward selection adds the verdict (an effect, or a noise term to the
+residual better than the best effect (Akaike: Δℓ against the number of parameters) and no effect
+stays significant with the term in the noise model, the verdict is that the noise model is too
+simple, not a missing effect: a slow wander from bias instability is not called a drift, and a
+large systematic misfit that a huge random walk could take up is still called an effect. Forward selection adds the verdict (an effect, or a noise term to the
 noise model) and ranks again, so several are named in turn. Two candidates whose new columns are nearly the same
 (largest canonical correlation > 0.98) cannot be told apart on this schedule; the diagnosis says
 so and proposes a schedule change that separates them.
@@ -284,6 +285,15 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
         best_noise = next((n for n in stochastic if n["significant"]), None)
         effect_gain = (0.5 * max(chi2_base - design.fit(base + available[winner.effect])[0], 0.0)
                        - winner.added_rank) if winner else -math.inf
+        if best_noise is not None and best_noise["aic_gain"] > max(effect_gain, 0.0) and winner is not None:
+            # a noise term fitted on a systematic misfit takes it up as a huge wander and can
+            # out-gain the effect; a physical effect stays significant with the term in the
+            # noise model, a wander the term explains does not
+            surviving = _surviving_effects(design, base, available, alpha, best_noise["model"], noise_now)
+            if surviving:
+                best_noise = None
+                if winner.effect not in surviving:
+                    winner = next((c for c in ranking if c.effect == surviving[0]), winner)
         if best_noise is not None and best_noise["aic_gain"] > max(effect_gain, 0.0):
             # the residual is better explained by a noise term than by any effect
             found.append(best_noise["term"])
@@ -313,6 +323,19 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
                     kinds[0] if kinds else None, noise_now, unseeable, forward)
     annotate(out)
     return out
+
+
+def _surviving_effects(design: _Design, base: list[str], available: dict, alpha: float,
+                       with_term: NoiseModel, current: NoiseModel | None) -> list[str]:
+    """The effects still significant (Holm), best first, when the rows are whitened with
+    *with_term*, the noise model with the candidate noise term; the design is left whitened with
+    *current*."""
+    design.rewhiten(with_term)
+    try:
+        ranking, _, _ = _rank(design, base, available, alpha)
+    finally:
+        design.rewhiten(current)
+    return [c.effect for c in ranking if c.passes]
 
 
 def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
