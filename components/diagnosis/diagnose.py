@@ -35,8 +35,8 @@ from scipy import stats
 
 from components import progress
 from components.diagnosis.candidate_notes import annotate, separation_advice
-from components.estimation.blocks import observation_blocks, white_noise_sigma
-from components.estimation.design import design
+from components.estimation.blocks import white_noise_sigma
+from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.log_data import LogData
 from components.estimation.noise_likelihood import fit_one_term
 from components.estimation.rest_angles import rest_sigma
@@ -114,7 +114,7 @@ class _Design:
     log without table angles, of the rests' attitudes, always in the base)."""
 
     def __init__(self, y, H, params: list[str], raw, noise: NoiseModel | None, dt: float, span: float,
-                 t_lo: float, white_sigma: np.ndarray, rows: dict, motion, nuisance: list[str] | None = None):
+                 t_lo: float, white_sigma: np.ndarray, rows: dict, nuisance: list[str] | None = None):
         self.params = params
         self.index = {p: k for k, p in enumerate(params)}
         self.y, self.H, self.raw, self.noise = y, H, raw, noise
@@ -125,43 +125,38 @@ class _Design:
                                    "acc": float(np.median(white_sigma[3:])) / math.sqrt(dt)})
         self.rows = rows
         self.n = len(y)
-        self.motion = motion
         self.nuisance = list(nuisance or [])
 
     @classmethod
     def on_table_log(cls, data: LogData, model: CalibrationResult, params: list[str],
-                     chunk_s: float, rest_angle_sigma, noise: NoiseModel | None = None) -> "_Design":
+                     chunk_s: float, rest_angle_sigma, noise: NoiseModel | None = None,
+                     chunk_samples: int = CHUNK_SAMPLES) -> "_Design":
         """The block rows of a log with table angles at the model's geometry."""
         from components.diagnosis.compare import model_geometry
 
         geo = model_geometry(data, model)
         table_params = [p for p in params if effect_of(p).target == "table"]
         T0 = model.temperature_ref
-
-        def motion_for(g):
-            return data.motion(g, T0)
-
-        motion = motion_for(geo)
         dt = float(np.median(np.diff(data.time)))
         n_chunk = max(1, int(round(chunk_s / dt)))
-        gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
+        layout = BlockLayout.of(data, n_chunk, chunk_samples)
+        static = data.static
         # noise from the high-frequency content of the data (differences remove the model)
         q = data.quantization_floor(noise)
-        sg = white_noise_sigma(data.gyro, motion.static & data.usable, q[:3])
-        sa = white_noise_sigma(data.acc, motion.static & data.usable, q[3:])
+        sg = white_noise_sigma(data.gyro, static & data.usable, q[:3])
+        sa = white_noise_sigma(data.acc, static & data.usable, q[3:])
         if noise is not None and noise.coloured:
             white = noise.white_sigma(dt)
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
         sg = np.where(np.isfinite(sg) & (sg > 0), sg, 0.0) + 1e-13 * 7.3e-5 * dt
         sa = np.where(np.isfinite(sa) & (sa > 0), sa, 0.0) + 1e-13 * 9.8 * dt
         rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
-        y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, rest, geo, table_params, motion_for)
+        y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0)
         span = float(data.time[-1] - data.time[0] + dt)
         yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
         # table columns are derivatives at the model's geometry: the model's table values are
         # already in the motion, so their unknowns here are corrections (start at 0)
-        return cls(yw, Hw, params, (y, H, w, rows), noise, dt, span, chunk_s, np.concatenate([sg, sa]), rows,
-                   motion)
+        return cls(yw, Hw, params, (y, H, w, rows), noise, dt, span, chunk_s, np.concatenate([sg, sa]), rows)
 
     @classmethod
     def on_positions_log(cls, data: LogData, model: CalibrationResult, params: list[str], chunk_s: float,
@@ -184,7 +179,7 @@ class _Design:
         dt = pd.dt_med
         span = float(data.time[-1] - data.time[0] + dt)
         return cls(r.y, np.hstack([r.H, r.A]), params + names, None, noise, dt, span, chunk_s,
-                   np.concatenate([pd.sg, pd.sa]), info, pd.motion(refit.attitudes), nuisance=names)
+                   np.concatenate([pd.sg, pd.sa]), info, nuisance=names)
 
     def rewhiten(self, noise: NoiseModel | None) -> None:
         """Whiten the same rows with another noise model (a noise term added)."""
@@ -243,10 +238,12 @@ def default_candidates(model_effects: list[str]) -> list[str]:
 
 def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] | None = None,
              alpha: float = 0.01, forward: bool = True, max_steps: int = 4, chunk_s: float = 1.0,
-             rest_angle_sigma=None, noise: NoiseModel | None = None) -> Diagnosis:
+             rest_angle_sigma=None, noise: NoiseModel | None = None,
+             chunk_samples: int = CHUNK_SAMPLES) -> Diagnosis:
     """Which effects of the vocabulary are missing from *model* on *data* (see the module
     docstring). ``noise``: the composite noise model the rows are whitened with (default: the
-    model's own; without one, white noise of the level in the data's high-frequency content)."""
+    model's own; without one, white noise of the level in the data's high-frequency content).
+    ``chunk_samples``: the rows are built that many samples at a time (components.estimation.chunks)."""
     if noise is None:
         noise = model.noise_model()
     base_effects = list(model.effects)
@@ -259,7 +256,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     params = [p for p in params if not (effect_of(p).target == "table" and p.split(".")[2] not in
                                         stage_names and not p.startswith("table.base_tilt"))]
     if data.has_table:
-        design = _Design.on_table_log(data, model, params, chunk_s, rest_angle_sigma, noise)
+        design = _Design.on_table_log(data, model, params, chunk_s, rest_angle_sigma, noise, chunk_samples)
     else:
         held = set(model.extra.get("positions", {}).get("held", {}))
         params = [p for p in params if effect_of(p).target != "table" and p not in held]

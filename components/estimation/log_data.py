@@ -36,6 +36,9 @@ class LogData:
     segments: dict | None = None
     # the log's own noise model (calbench-noise/1 form) if its metadata states one
     noise: dict | None = None
+    # the time drift terms count from [s]; None: the start of the first sample's interval. A
+    # stretch of a longer log (LogData.stretch) keeps the whole log's
+    time_origin: float | None = None
     _profiles: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -72,10 +75,39 @@ class LogData:
             self._profiles[quadrature] = interpolate_angles(self.time, self.angles, quadrature, self.dt0)
         return self._profiles[quadrature]
 
+    @property
+    def static(self) -> np.ndarray:
+        """(N,) bool: no gimbal angle changed over the sample's interval (the first sample's
+        interval is taken at rest), as the angle profile has it, without building the profile."""
+        if not self.has_table:
+            return np.ones(len(self.time), bool)
+        a = self.angles
+        return np.concatenate([[True], np.all(a[1:] == a[:-1], axis=1)])
+
+    @property
+    def start_time(self) -> float:
+        """The start of the first sample's interval: the time drift terms count from."""
+        if self.time_origin is not None:
+            return self.time_origin
+        dt0 = self.dt0 if self.dt0 is not None else (self.time[1] - self.time[0] if len(self.time) > 1 else 0.0)
+        return float(self.time[0] - dt0)
+
     def motion(self, geometry: TableGeometry, t0_temperature: float | None = None,
                quadrature: int = 3) -> Motion:
         return motion_from_profile(self.angle_profile(quadrature), geometry, self.temperature,
-                                   t0_temperature)
+                                   t0_temperature, time_origin=self.time_origin)
+
+    def stretch(self, a: int, b: int) -> "LogData":
+        """Samples a-1..b-1 of the log as a log of their own that computes exactly what the whole
+        log computes for samples a..b-1: sample a-1 leads (its interval is taken at rest, so it
+        must be a rest sample, and it gives sample a the start of its interval and the
+        temperature before it); drift terms count from the whole log's start. The estimators'
+        chunks (components.estimation.chunks)."""
+        lead = max(a - 1, 0)
+        view = self.window(lead, b)
+        view.time_origin = self.start_time
+        view.dt0 = self.dt0 if lead == 0 else float(self.time[lead] - self.time[lead - 1])
+        return view
 
     def window(self, a: int, b: int) -> "LogData":
         """Samples a..b-1 (a stage of a schedule), the same site, table and sample interval."""

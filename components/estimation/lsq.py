@@ -16,8 +16,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import EstimationError
-from components.estimation.blocks import observation_blocks, white_noise_sigma
-from components.estimation.design import design, noise_floor
+from components.estimation.blocks import white_noise_sigma
+from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
+from components.estimation.design import noise_floor
 from components.estimation.determinability import Determinability, assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
@@ -25,7 +26,6 @@ from components.estimation.whitening import whiten
 from components.model.effects import TIME_OFFSETS, effect_of, parameters_of
 from components.model.excitation import needs
 from components.model.geometry import TableGeometry
-from components.model.motion import Motion
 from components.model.noise import NoiseModel
 from components.model.plausibility import grade_factor, implausible, weakly_determined
 from components.model.table_parameters import apply_table_parameter, table_parameter_value
@@ -44,7 +44,8 @@ class Fit:
     sigma_gyro: np.ndarray  # per-sample white-noise σ used [rad]
     sigma_acc: np.ndarray   # [m/s]
     geometry: TableGeometry
-    motion: Motion
+    dt: float  # median sample interval [s]
+    temperature_ref: float  # the temperature the temperature coefficients count from [°C]
     iterations: int
     rows: dict = field(default_factory=dict)  # design of the last iteration, for diagnostics
     rest_sigma: np.ndarray | None = None  # σ of the rest angles used (estimated or given) [rad]
@@ -71,7 +72,8 @@ class Fit:
 def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
               iterations: int = 3, sigma_gyro=None, sigma_acc=None,
               temperature_ref: float | None = None, fixed: dict | None = None,
-              rest_angle_sigma=None, noise: NoiseModel | None = None, undetermined: str = "hold") -> Fit:
+              rest_angle_sigma=None, noise: NoiseModel | None = None, undetermined: str = "hold",
+              chunk_samples: int = CHUNK_SAMPLES) -> Fit:
     """Fit the parameters of *effects* jointly to *data*.
 
     ``fixed``: parameter values held (not fitted), e.g. a geometry known from elsewhere.
@@ -83,7 +85,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     (q/√12, q = the smallest logged angle step), 0 for logs whose rest angles are exact.
     ``undetermined``: what to do with requested parameters the log does not determine
     (components.estimation.determinability): "hold" them (at 0, or their fixed value, and name
-    them in ``Fit.determinability``) or "refuse" the fit (EstimationError naming them)."""
+    them in ``Fit.determinability``) or "refuse" the fit (EstimationError naming them).
+    ``chunk_samples``: the rows are built that many samples at a time (components.estimation.chunks)."""
     params = parameters_of(effects)
     if not params:
         raise ValueError("no effect to fit")
@@ -95,11 +98,14 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     dt_mean = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 1.0
     n_chunk = max(1, int(round(chunk_s / dt_mean)))
 
-    def motion_for(g: TableGeometry) -> Motion:
-        return data.motion(g, temperature_ref, quadrature)
+    if temperature_ref is None and data.temperature is not None:
+        temperature_ref = float(data.temperature[0])
+    layout = BlockLayout.of(data, n_chunk, chunk_samples)
+    gb = layout.gyro
+    static = data.static
 
-    motion = motion_for(geo)
-    gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
+    def rows_at(g: TableGeometry, lin=None):
+        return chunked_design(data, layout, params, sg, sa, q, g, table_params, temperature_ref, quadrature, lin)
     if noise is not None:
         white = noise.white_sigma(dt_mean)
         if sigma_gyro is None and np.all(white[:3] > 0):
@@ -116,9 +122,9 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
 
     quant = data.quantization_floor(noise)
     raw_g = np.asarray(sigma_gyro if sigma_gyro is not None
-                       else white_noise_sigma(data.gyro, motion.static & data.usable, quant[:3]), float)
+                       else white_noise_sigma(data.gyro, static & data.usable, quant[:3]), float)
     raw_a = np.asarray(sigma_acc if sigma_acc is not None
-                       else white_noise_sigma(data.acc, motion.static & data.usable, quant[3:]), float)
+                       else white_noise_sigma(data.acc, static & data.usable, quant[3:]), float)
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
         raise EstimationError("the white-noise level cannot be estimated from this log (it has no two usable "
@@ -128,7 +134,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     sa = noise_floor(raw_a, 9.8 * dt_mean)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if rest_angle_sigma is None and np.any(q):
-        q = _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+        q = _estimate_rest_sigma(data, gb, params, sg, sa, q, geo, rows_at(geo))
     value = np.array([(fixed or {}).get(p, 0.0) if effect_of(p).target == "table"
                       else 0.0 for p in params])
     for p in table_params:
@@ -140,7 +146,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     it = 0
     det = None
     for it in range(1, iterations + 1):
-        y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
+        y, H, w, rows = rows_at(geo, lin)
         # residual relative to the current table values (Gauss–Newton on the geometry)
         yw, Hw = weighted(y, H, w, rows)
         if det is None:
@@ -178,12 +184,11 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
             for p, d in zip(table_params, delta):
                 value[params.index(p)] += d
                 geo = apply_table_parameter(geo, p, value[params.index(p)])
-            motion = motion_for(geo)
             moved = moved or np.max(np.abs(delta)) >= 1e-12
         if not moved:
             break
     # final linearisation at the solution: sensor values and the last (tiny) table correction
-    y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for, lin)
+    y, H, w, rows = rows_at(geo, lin)
     yw, Hw = weighted(y, H, w, rows)
     scale = np.linalg.norm(Hw, axis=0)
     scale[scale == 0] = 1.0
@@ -198,7 +203,10 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     info = (Hw / scale).T @ (Hw / scale)
     cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
     rows["residual"] = resid_vec
-    fit = Fit(params, value, cov, chi2, len(y) - len(params), sg, sa, geo, motion, it, rows)
+    # the median interval as the motion has them (the first one from dt0)
+    dt_median = float(np.median(np.diff(np.concatenate([[data.start_time], data.time]))))
+    fit = Fit(params, value, cov, chi2, len(y) - len(params), sg, sa, geo, dt_median,
+              float(temperature_ref or 0.0), it, rows)
     fit.rest_sigma = q
     fit.noise = noise if noise is not None and noise.coloured else None
     fit.determinability = det
@@ -208,12 +216,12 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     return fit
 
 
-def _estimate_rest_sigma(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for):
+def _estimate_rest_sigma(data, gb, params, sg, sa, q, geo, design_rows):
     """How far the table really rests from its encoder readings, from the data: the moving gyro
     blocks' residual variance beyond their white noise, against the geometric factor of the
     rest angles (a method-of-moments variance component). Starts from one count uniform (the
     prior q/√12) and stays within [0, 2 q/√12]; the estimator's σ then matches its spread."""
-    y, H, w, rows = design(data, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+    y, H, w, rows = design_rows
     Hw = H * w[:, None]
     scale = np.linalg.norm(Hw, axis=0)
     scale[scale == 0] = 1.0

@@ -184,8 +184,10 @@ def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc:
 
 def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
                         temperature: np.ndarray | None = None, t0_temperature: float | None = None,
-                        lever: np.ndarray | None = None) -> Motion:
-    """Plate motion at the profile's nodes for one geometry."""
+                        lever: np.ndarray | None = None, time_origin: float | None = None) -> Motion:
+    """Plate motion at the profile's nodes for one geometry. ``time_origin``: the time drift
+    terms count from (default: the start of the profile's first interval; a stretch of a longer
+    log gives the log's)."""
     p = profile
     n, q, n_ax = p.th_q.shape
     om = np.empty((n, q, 3))
@@ -229,7 +231,8 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
         time=p.time, dt=p.dt, static=p.static, nodes=p.nodes, weights=p.weights,
         omega_q=om, alpha_q=al, f_q=f,
         omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e, alpha_end=al_e,
-        dtemp_q=dtemp_q, elapsed_q=tq_all - p.t_prev[0], t0_temperature=T0,
+        dtemp_q=dtemp_q, elapsed_q=tq_all - (p.t_prev[0] if time_origin is None else time_origin),
+        t0_temperature=T0,
         lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
         profile_key=p.key,
     )

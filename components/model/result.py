@@ -148,7 +148,7 @@ def schedule_of(time: np.ndarray, segment: np.ndarray | None) -> list:
 
 def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResult:
     """Package an lsq.Fit as a result."""
-    dt = float(np.median(fit.motion.dt))
+    dt = fit.dt
     noise = {
         "model": "white noise per sample (estimated from static data)",
         "sample_interval_s": dt,
@@ -186,7 +186,7 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
     return CalibrationResult(
         effects=list(effects), values=dict(zip(fit.parameters, map(float, fit.value))),
         sigmas=dict(zip(fit.parameters, map(float, fit.sigma))), correlation=fit.correlation(),
-        noise=noise, fit=fitd, temperature_ref=float(fit.motion.t0_temperature)
+        noise=noise, fit=fitd, temperature_ref=fit.temperature_ref
         if data.temperature is not None else None,
         schedule=schedule_of(data.time, data.segment), data=data_d,
         extra=determinability_block(fit))

@@ -1,0 +1,107 @@
+"""The log a stretch at a time: the estimators' block rows built chunk by chunk, so the per-sample
+work arrays (the interpolated angles, the plate motion at every quadrature node, the effects'
+regressors: ~2 KB per sample) are held for one chunk, never for the whole log.
+
+Every row is one observation block (components.estimation.blocks) and a block's sums need only
+its own samples, the motion over them and, for a move, its rests on both sides. So the log is cut
+only where two consecutive samples rest at the same angles and both the gyro and the
+accelerometer blocks have a boundary: every move, its spline and its rests lie inside one chunk,
+and each chunk (LogData.stretch, one rest sample leading) computes exactly the rows the whole log
+computes for it. The blocks themselves are laid out once on the whole log (they depend on whole
+static runs); the rows of the chunks are put back in the whole log's order (gyro blocks, then
+accelerometer blocks), so what follows — whitening, the fit, the tests — cannot tell the
+difference (tests/test_chunks.py: equal to 1e-9 relative)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from components.estimation.blocks import Blocks, observation_blocks
+from components.estimation.design import design
+from components.estimation.log_data import LogData
+
+# samples per chunk: ~0.5 GB of work arrays at 3 quadrature nodes and 3 axes, whatever the log
+CHUNK_SAMPLES = 1 << 18
+
+
+@dataclass
+class BlockLayout:
+    """The observation blocks of a whole log and where it can be cut into chunks."""
+
+    gyro: Blocks
+    acc: Blocks
+    cuts: np.ndarray  # sample indices the chunks start at (the first is 0), increasing
+
+    @classmethod
+    def of(cls, data: LogData, samples_per_block: int, chunk_samples: int = CHUNK_SAMPLES) -> "BlockLayout":
+        static = data.static
+        gb, ab = observation_blocks(static, data.angles, samples_per_block, data.valid)
+        return cls(gb, ab, _cuts(static, gb, ab, len(static), chunk_samples))
+
+    def chunks(self, data: LogData):
+        """(stretch, gyro blocks, accelerometer blocks, shift) per chunk: the chunk's samples as a
+        log of their own (LogData.stretch; the whole log when there is one chunk), the blocks
+        that lie in it indexed into the stretch, and the stretch's first sample in the log."""
+        if len(self.cuts) == 1:
+            yield data, self.gyro, self.acc, 0
+            return
+        edges = list(self.cuts) + [len(data.time)]
+        for a, b in zip(edges[:-1], edges[1:]):
+            lead = max(a - 1, 0)
+            yield data.stretch(a, b), _within(self.gyro, a, b, lead), _within(self.acc, a, b, lead), lead
+
+
+def _within(blocks: Blocks, a: int, b: int, shift: int) -> Blocks:
+    keep = (blocks.start >= a) & (blocks.stop <= b)
+    return Blocks(blocks.start[keep] - shift, blocks.stop[keep] - shift, blocks.moving[keep], blocks.whole_moves)
+
+
+def _cuts(static: np.ndarray, gb: Blocks, ab: Blocks, n: int, target: int) -> np.ndarray:
+    """Chunk starts about *target* samples apart where the log can be cut (module docstring)."""
+    if n <= target:
+        return np.array([0])
+    ok = np.zeros(n + 1, bool)
+    ok[1:n] = static[:-1] & static[1:]
+    # a cut is a boundary of both block sets, and no block spans it
+    for blocks in (gb, ab):
+        bound = np.zeros(n + 1, bool)
+        bound[blocks.start] = True
+        bound[blocks.stop] = True
+        inside = np.zeros(n + 2, int)
+        np.add.at(inside, blocks.start + 1, 1)
+        np.add.at(inside, blocks.stop, -1)
+        spanned = np.cumsum(inside)[: n + 1] > 0  # some block covers samples on both sides
+        ok &= bound & ~spanned
+    candidates = np.nonzero(ok)[0]
+    cuts = [0]
+    for c in candidates:
+        if c - cuts[-1] >= target:
+            cuts.append(int(c))
+    return np.array(cuts)
+
+
+def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo, table_params,
+                   t0_temperature, quadrature: int = 3, lin=None):
+    """components.estimation.design.design on the whole log, built a chunk at a time: the same
+    y, H, weights and row information (indices into the whole log)."""
+    if t0_temperature is None and data.temperature is not None:
+        t0_temperature = float(data.temperature[0])  # the whole log's, not each chunk's
+    parts = []
+    for part, gb, ab, shift in layout.chunks(data):
+        def motion_for(g, part=part):
+            return part.motion(g, t0_temperature, quadrature)
+
+        y, H, w, rows = design(part, motion_for(geo), params, gb, ab, sg, sa, rest, geo, table_params,
+                               motion_for, lin)
+        rows = dict(rows, start=rows["start"] + shift, stop=rows["stop"] + shift)
+        parts.append((len(gb) * 3, rows))
+    if len(parts) == 1:
+        rows = parts[0][1]
+        return rows["y"], rows["H"], rows["weight"], rows
+    # the whole log's order: every gyro row, then every accelerometer row
+    def cat(key):
+        return np.concatenate([r[key][:g] for g, r in parts] + [r[key][g:] for g, r in parts])
+
+    rows = {k: cat(k) for k in ("sensor", "axis", "start", "stop", "moving", "y", "H", "weight")}
+    return rows["y"], rows["H"], rows["weight"], rows
