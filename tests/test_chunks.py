@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from components.cli.demo import SCENARIO
+from components.diagnosis.compare import compare
 from components.diagnosis.diagnose import diagnose
 from components.estimation.chunks import BlockLayout
 from components.estimation.log_data import LogData
@@ -89,3 +90,17 @@ def test_diagnose_in_chunks_equals_the_whole_log(data):
     for a, b in zip(whole.ranking, chunked.ranking):
         assert a.effect == b.effect
         _same(a.statistic, b.statistic, a.effect)
+
+
+def test_compare_in_chunks_equals_the_whole_log(data):
+    effects = list(DEFAULT_EFFECTS) + ["gyro.drift", "acc.sf_temp"]
+    model = result_from_fit(calibrate(data, effects), effects, data)
+    whole = compare(data, model, fitted_parameters=len(model.values))
+    chunked = compare(data, model, fitted_parameters=len(model.values), chunk_samples=SMALL)
+    assert np.array_equal(whole.static, chunked.static)
+    # the per-sample prediction, the block statistics and where the misfit is
+    assert np.max(np.abs(whole.predicted - chunked.predicted)) <= 1e-9 * np.max(np.abs(whole.predicted))
+    _same(whole.chi2, chunked.chi2, "chi2")
+    assert whole.conditions.keys() == chunked.conditions.keys()
+    for name, values in whole.conditions.items():
+        _same([v or 0.0 for v in values], [v or 0.0 for v in chunked.conditions[name]], name)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from components.diagnosis.compare import assess
+from components.estimation.chunks import PlateAtSamples
 from components.estimation.design import predict
 from components.estimation.log_data import LogData
 from components.model.effects import effect_of
@@ -54,7 +55,7 @@ def test_imu_fmu_replay_equals_the_forward_model(run, tmp_path):
     assert np.max(np.abs(pred[st] - ref[st]) / scale) < 1e-8
     # and the replayed FMU explains the measurement: noise-free data, so what is left is far
     # below a navigation-grade accelerometer's noise (7e-6 m/s per 5 ms sample)
-    comp = assess(data, data.geometry, motion, pred)
+    comp = assess(data, data.geometry, PlateAtSamples.of(motion), pred)
     for ch in ("acc_x", "acc_y", "acc_z"):
         assert comp.channels[ch]["rms"] < 1e-8
 
@@ -62,7 +63,7 @@ def test_imu_fmu_replay_equals_the_forward_model(run, tmp_path):
 def test_imu_fmu_replay_without_the_effects_fails_visibly(run, tmp_path):
     data = LogData.from_log(run.log)
     motion = data.motion(data.geometry)
-    comp = assess(data, data.geometry, motion, replay_imu(data, _system(tmp_path, {}), motion))
+    comp = assess(data, data.geometry, PlateAtSamples.of(motion), replay_imu(data, _system(tmp_path, {}), motion))
     # the missing 80 ug bias on z over 2 s blocks: far above any noise level
     assert comp.channels["acc_z"]["rms"] > 0.5 * 80e-6 * 9.80665 * 0.005
 

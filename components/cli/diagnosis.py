@@ -61,12 +61,13 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     elif args.model.endswith((".toml", ".ssp")):
         # a system: its IMU unit (ours or a supplier's FMU) replayed on the log's motion
         from components.diagnosis.compare import assess
+        from components.estimation.chunks import PlateAtSamples
         from components.simulation.replay import replay_imu
 
         noise, said, _ = choose_noise(args.noise, data)
         print(f"noise: {said}")
         motion = data.motion(data.geometry)
-        c = assess(data, data.geometry, motion, replay_imu(data, args.model, motion), noise=noise)
+        c = assess(data, data.geometry, PlateAtSamples.of(motion), replay_imu(data, args.model, motion), noise=noise)
         print(f"model: the IMU unit of {args.model}, replayed on the log's motion")
     else:
         model = _load_model(args.model)

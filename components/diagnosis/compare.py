@@ -33,7 +33,7 @@ from scipy import stats
 
 from components.diagnosis.misfit import CHANNELS, Misfits, misfits
 from components.estimation.blocks import observation_blocks, white_noise_sigma
-from components.estimation.design import predict
+from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
@@ -94,10 +94,10 @@ class Comparison:
                 "misfits": self.misfits.to_json() if self.misfits is not None else None}
 
 
-def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
+def _blocks_rows(data: LogData, geo, static, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
     dt = float(np.median(np.diff(data.time)))
     n_chunk = max(1, int(round(chunk_s / dt)))
-    gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
+    gb, ab = observation_blocks(static, data.angles, n_chunk, data.valid)
     zs, vs, sens, axis, start, stop, moving = [], [], [], [], [], [], []
     for blocks, sl, name in ((gb, slice(0, 3), "gyro"), (ab, slice(3, 6), "acc")):
         s = blocks.sum(residual[:, sl])
@@ -127,43 +127,47 @@ def _blocks_rows(data: LogData, geo, motion, residual, sigma, rest, chunk_s, noi
 
 
 def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int = 0,
-            chunk_s: float = 1.0, rest_angle_sigma=None, noise: NoiseModel | None = None) -> Comparison:
+            chunk_s: float = 1.0, rest_angle_sigma=None, noise: NoiseModel | None = None,
+            chunk_samples: int = CHUNK_SAMPLES) -> Comparison:
     """Residual of *model* on *data*. ``fitted_parameters``: how many parameters were fitted to
     this same log (subtracted from the degrees of freedom). ``noise``: the composite noise model
     the block residuals are whitened with (default: the model's own, else white noise of the
-    level estimated from the residual's high-frequency content)."""
+    level estimated from the residual's high-frequency content). The prediction is made
+    ``chunk_samples`` samples at a time (components.estimation.chunks)."""
     geo = model_geometry(data, model)
-    motion = data.motion(geo, model.temperature_ref)
     sensor_params = [p for p in model.values if effect_of(p).target != "table"]
     values = np.array([model.values[p] for p in sensor_params])
-    pred = np.hstack(predict(motion, sensor_params, values))
+    dt = float(np.median(np.diff(data.time)))
+    layout = BlockLayout.of(data, max(1, int(round(chunk_s / dt))), chunk_samples)
+    pred, plate = chunked_prediction(data, layout, sensor_params, values, geo, model.temperature_ref)
     if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
         rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
     if noise is None:
         noise = model.noise_model()
-    return assess(data, geo, motion, pred, fitted_parameters=fitted_parameters, chunk_s=chunk_s,
+    return assess(data, geo, plate, pred, fitted_parameters=fitted_parameters, chunk_s=chunk_s,
                   rest_angle_sigma=rest_angle_sigma, noise=noise)
 
 
-def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: int = 0,
+def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitted_parameters: int = 0,
            chunk_s: float = 1.0, rest_angle_sigma=None, noise: NoiseModel | None = None) -> Comparison:
     """The misfit figures of a prediction (N, 6) of the log's IMU increments, whatever made it
-    (a calibration result, or a supplier's IMU FMU replayed on the log's motion)."""
+    (a calibration result, or a supplier's IMU FMU replayed on the log's motion); *plate*: the
+    plate at the samples (PlateAtSamples.of a Motion, or from chunked_prediction)."""
     meas = np.hstack([data.gyro, data.acc])
     resid = meas - pred
-    sigma = white_noise_sigma(resid, motion.static & data.usable, data.quantization_floor(noise))
-    floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(motion.dt))
+    sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
+    floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(plate.dt))
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if noise is not None and noise.coloured:
-        white = noise.white_sigma(float(np.median(motion.dt)))
+        white = noise.white_sigma(float(np.median(plate.dt)))
         sigma = np.where(white > 0, white, sigma)
-    rows = _blocks_rows(data, geo, motion, resid, sigma, rest, chunk_s, noise)
+    rows = _blocks_rows(data, geo, plate.static, resid, sigma, rest, chunk_s, noise)
     chi2 = float(np.sum(rows["z"] ** 2))
     dof = max(len(rows["z"]) - fitted_parameters, 1)
     channels = {}
     predictable = np.ones_like(resid, dtype=bool)
-    predictable[:, :3] = motion.static[:, None]
+    predictable[:, :3] = plate.static[:, None]
     for k, ch in enumerate(CHANNELS):
         sel = rows["channel"] == k
         zk = rows["z"][sel]
@@ -179,18 +183,18 @@ def assess(data: LogData, geo, motion, pred: np.ndarray, *, fitted_parameters: i
             if np.linalg.norm(dev) > 0 else float("nan"),
             "whiteness_p": ljung_box(zk[order]),
         }
-    comp = Comparison(data.time, data.segment, motion.static, resid, pred, sigma, channels, chi2,
+    comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
                       dof, rows)
     comp.coloured = noise is not None and noise.coloured
-    locate(comp, data, motion, rows)
+    locate(comp, data, plate, rows)
     return comp
 
 
-def locate(comp: Comparison, data: LogData, motion, rows: dict) -> None:
+def locate(comp: Comparison, data: LogData, plate: PlateAtSamples, rows: dict) -> None:
     """Where the misfit is: per segment and per condition (RMS, 1 = noise) and the cells that
     misfit beyond noise given how many were looked at (components.diagnosis.misfit)."""
     comp.per_segment = _per_segment(data, rows)
-    masks = _condition_masks(data, motion, rows)
+    masks = _condition_masks(data, plate, rows)
     comp.conditions = _conditions(rows, masks)
     seg = np.asarray(data.segment).astype(str)[rows["start"]] if data.segment is not None else None
     comp.misfits = misfits(rows, seg, masks)
@@ -210,11 +214,11 @@ def _per_segment(data: LogData, rows: dict) -> dict:
     return out
 
 
-def _condition_masks(data: LogData, motion, rows: dict) -> dict:
+def _condition_masks(data: LogData, plate: PlateAtSamples, rows: dict) -> dict:
     """Condition name -> which block rows it holds."""
     mid = (rows["start"] + rows["stop"] - 1) // 2
-    f = motion.f_q[mid, 0, :]
-    w = motion.omega_q[mid, 0, :]
+    f = plate.f[mid]
+    w = plate.omega[mid]
     cond: dict[str, np.ndarray] = {}
     cond["static"] = ~rows["moving"]
     cond["rotating"] = rows["moving"]

@@ -13,6 +13,7 @@ import numpy as np
 
 from components.diagnosis.compare import CHANNELS, Comparison, ljung_box, locate
 from components.estimation.blocks import white_noise_sigma
+from components.estimation.chunks import PlateAtSamples
 from components.estimation.log_data import LogData
 from components.estimation.positions import SUPPORTED, calibrate_positions
 from components.estimation.positions_design import PositionsDesign
@@ -99,6 +100,6 @@ def compare_positions(data: LogData, model: CalibrationResult, *, fitted_paramet
         }
     comp = Comparison(data.time, data.segment, rest, resid, pred, sigma, channels, chi2, dof, rows)
     comp.coloured = noise is not None and noise.coloured
-    locate(comp, data, motion, rows)
+    locate(comp, data, PlateAtSamples.of(motion), rows)
     comp.attitudes = C  # type: ignore[attr-defined]
     return comp

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.estimation.blocks import Blocks, observation_blocks
-from components.estimation.design import design
+from components.estimation.design import design, predict
 from components.estimation.log_data import LogData
 
 # samples per chunk: ~0.5 GB of work arrays at 3 quadrature nodes and 3 axes, whatever the log
@@ -40,16 +40,30 @@ class BlockLayout:
         return cls(gb, ab, _cuts(static, gb, ab, len(static), chunk_samples))
 
     def chunks(self, data: LogData):
-        """(stretch, gyro blocks, accelerometer blocks, shift) per chunk: the chunk's samples as a
-        log of their own (LogData.stretch; the whole log when there is one chunk), the blocks
-        that lie in it indexed into the stretch, and the stretch's first sample in the log."""
+        """The chunks in order (Chunk): each chunk's samples as a log of their own
+        (LogData.stretch; the whole log when there is one chunk) and the blocks that lie in it,
+        indexed into that stretch."""
         if len(self.cuts) == 1:
-            yield data, self.gyro, self.acc, 0
+            yield Chunk(data, self.gyro, self.acc, 0, 0)
             return
         edges = list(self.cuts) + [len(data.time)]
         for a, b in zip(edges[:-1], edges[1:]):
             lead = max(a - 1, 0)
-            yield data.stretch(a, b), _within(self.gyro, a, b, lead), _within(self.acc, a, b, lead), lead
+            yield Chunk(data.stretch(a, b), _within(self.gyro, a, b, lead), _within(self.acc, a, b, lead), lead, a)
+
+
+@dataclass
+class Chunk:
+    data: LogData  # samples lead..stop-1 of the log
+    gyro: Blocks   # the chunk's blocks, indices into `data`
+    acc: Blocks
+    lead: int      # the log's index of data's first sample
+    start: int     # the log's index of the chunk's first own sample (lead + 1, or 0)
+
+    @property
+    def own(self) -> slice:
+        """The chunk's own samples within `data` (without the leading rest sample)."""
+        return slice(self.start - self.lead, None)
 
 
 def _within(blocks: Blocks, a: int, b: int, shift: int) -> Blocks:
@@ -88,14 +102,14 @@ def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo
     if t0_temperature is None and data.temperature is not None:
         t0_temperature = float(data.temperature[0])  # the whole log's, not each chunk's
     parts = []
-    for part, gb, ab, shift in layout.chunks(data):
-        def motion_for(g, part=part):
+    for chunk in layout.chunks(data):
+        def motion_for(g, part=chunk.data):
             return part.motion(g, t0_temperature, quadrature)
 
-        y, H, w, rows = design(part, motion_for(geo), params, gb, ab, sg, sa, rest, geo, table_params,
-                               motion_for, lin)
-        rows = dict(rows, start=rows["start"] + shift, stop=rows["stop"] + shift)
-        parts.append((len(gb) * 3, rows))
+        y, H, w, rows = design(chunk.data, motion_for(geo), params, chunk.gyro, chunk.acc, sg, sa, rest, geo,
+                               table_params, motion_for, lin)
+        rows = dict(rows, start=rows["start"] + chunk.lead, stop=rows["stop"] + chunk.lead)
+        parts.append((len(chunk.gyro) * 3, rows))
     if len(parts) == 1:
         rows = parts[0][1]
         return rows["y"], rows["H"], rows["weight"], rows
@@ -105,3 +119,39 @@ def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo
 
     rows = {k: cat(k) for k in ("sensor", "axis", "start", "stop", "moving", "y", "H", "weight")}
     return rows["y"], rows["H"], rows["weight"], rows
+
+
+@dataclass
+class PlateAtSamples:
+    """What the comparison keeps of the plate motion per sample (the full Motion holds every
+    quadrature node): rest or not, the interval, and the specific force and inertial rate at the
+    start of the interval (the first node), which sort blocks by attitude and rate."""
+
+    static: np.ndarray  # (N,) bool
+    dt: np.ndarray      # (N,)
+    f: np.ndarray       # (N, 3) m/s²
+    omega: np.ndarray   # (N, 3) rad/s
+
+    @classmethod
+    def of(cls, motion) -> "PlateAtSamples":
+        return cls(motion.static, motion.dt, motion.f_q[:, 0, :], motion.omega_q[:, 0, :])
+
+
+def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, t0_temperature,
+                       quadrature: int = 3) -> tuple[np.ndarray, PlateAtSamples]:
+    """The model's increments (N, 6) for sensor-effect *values* on the log's motion at *geo*
+    (components.estimation.design.predict), and the plate at the samples, a chunk at a time."""
+    if t0_temperature is None and data.temperature is not None:
+        t0_temperature = float(data.temperature[0])
+    n = len(data.time)
+    pred = np.empty((n, 6))
+    plate = PlateAtSamples(np.empty(n, bool), np.empty(n), np.empty((n, 3)), np.empty((n, 3)))
+    for chunk in layout.chunks(data):
+        motion = chunk.data.motion(geo, t0_temperature, quadrature)
+        own = chunk.own
+        at = slice(chunk.start, chunk.lead + len(chunk.data.time))
+        gyro, acc = predict(motion, params, values)
+        pred[at, :3], pred[at, 3:] = gyro[own], acc[own]
+        p = PlateAtSamples.of(motion)
+        plate.static[at], plate.dt[at], plate.f[at], plate.omega[at] = p.static[own], p.dt[own], p.f[own], p.omega[own]
+    return pred, plate
