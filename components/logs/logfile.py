@@ -197,32 +197,38 @@ def _read_parquet(path: Path, meta: dict) -> dict[str, np.ndarray]:
     import pyarrow.parquet as pq
 
     try:
-        table = pq.read_table(path, read_dictionary=["segment"])
+        pf = pq.ParquetFile(path, read_dictionary=["segment"])
+        schema = pf.schema_arrow
     except (pa.ArrowInvalid, OSError) as e:
         raise LogFormatError(f"{path}: not a readable Parquet file ({e})") from None
-    header = table.column_names
+    header = schema.names
     check_columns(header, meta, str(path))
     numeric = set(numeric_columns(header, meta))
     cols: dict[str, np.ndarray] = {}
+    # a column at a time: the whole Arrow table beside its numpy copies held 3x the log at once
     for name in header:
-        col = table.column(name)
+        typ = schema.field(name).type
+        if name in numeric and not (pa.types.is_floating(typ) or pa.types.is_integer(typ)):
+            raise LogFormatError(f"{path}: column {name!r} has type {typ}; expected numbers")
+        if name == "segment":
+            t = typ.value_type if pa.types.is_dictionary(typ) else typ
+            if not (pa.types.is_string(t) or pa.types.is_large_string(t)):
+                raise LogFormatError(f"{path}: column 'segment' has type {typ}; expected text")
+        try:
+            col = pf.read(columns=[name]).column(0)
+        except (pa.ArrowInvalid, OSError) as e:
+            raise LogFormatError(f"{path}: column {name!r} cannot be read ({e})") from None
+        if col.null_count and (name in numeric or name == "segment"):
+            i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
+            raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected "
+                                 + ("text" if name == "segment" else "a number"))
         if name in numeric:
-            if not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)):
-                raise LogFormatError(f"{path}: column {name!r} has type {col.type}; expected numbers")
-            if col.null_count:
-                i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
-                raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected a number")
             cols[name] = col.cast(pa.float64()).to_numpy()
         elif name == "segment":
-            t = col.type.value_type if pa.types.is_dictionary(col.type) else col.type
-            if not (pa.types.is_string(t) or pa.types.is_large_string(t)):
-                raise LogFormatError(f"{path}: column 'segment' has type {col.type}; expected text")
-            if col.null_count:
-                i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
-                raise LogFormatError(f"{path}: row {i + 1}, column 'segment': empty value; expected text")
             cols[name] = _labels(col)
         else:
             cols[name] = col.to_numpy()
+        del col
     return cols
 
 
