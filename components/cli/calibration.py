@@ -35,10 +35,31 @@ def _print_result(res) -> None:
         print(f"IMPLAUSIBLE {p}: {why}")
 
 
+# a σ that would grow by more than this were the unseen slow terms at their bounds is named
+SENSITIVE = 1.2
+
+
+def _print_sensitivity(res) -> None:
+    sens = res.extra.get("noise_sensitivity")
+    if not sens:
+        return
+    hit = {p: r for p, r in sens["ratio"].items() if r > SENSITIVE}
+    terms = ", ".join(sens["terms_at_upper_bound"])
+    if not hit:
+        print(f"sigma holds whatever the slow terms this log cannot see ({terms}): at their upper bounds no "
+              f"sigma grows beyond {SENSITIVE}x")
+        return
+    print(f"sigma rests on slow terms this log cannot see ({terms}): at their upper bounds these sigma grow "
+          "(a longer log, or the terms given with --noise, settles it):")
+    for p, r in sorted(hit.items(), key=lambda x: -x[1]):
+        print(f"  {p:22s} x{r:.2f}")
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
     from components.estimation.lsq import calibrate
+    from components.estimation.noise_sensitivity import sensitivity
     from components.model.effects import DEFAULT_EFFECTS, parse_effects
     from components.model.result import result_from_fit
 
@@ -47,14 +68,20 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise UserError(f"--effects: {e}") from None
     log, data = log_option.read(args)
-    noise, said, _ = choose_noise(args.noise, data, effects=effects)
+    noise, said, ident = choose_noise(args.noise, data, effects=effects)
     print(f"noise: {said}")
     if not data.has_table:
         return _calibrate_positions(args, log, data, effects, noise)
     fit = calibrate(data, effects, chunk_s=args.chunk, noise=noise, undetermined=args.undetermined)
     res = result_from_fit(fit, effects, data, log)
+    if ident is not None:
+        span = float(data.time[-1] - data.start_time)
+        sens = sensitivity(fit, ident, span, args.chunk)
+        if sens is not None:
+            res.extra["noise_sensitivity"] = sens
     res.save(args.out)
     _print_result(res)
+    _print_sensitivity(res)
     print(f"-> {args.out}")
     json_option.record(args, **result_json(res), out=args.out)
     return strict_status(args, res)
@@ -109,8 +136,11 @@ def result_json(res) -> dict:
         v, s = res.values[p], res.sigmas.get(p, float("nan"))
         params[p] = {"value": v, "sigma": s, "display_value": v / scale, "display_sigma": s / scale,
                      "display_unit": unit}
-    return {"effects": list(res.effects), "parameters": params, "fit": res.fit,
-            "determinability": res.extra.get("determinability", {})}
+    out = {"effects": list(res.effects), "parameters": params, "fit": res.fit,
+           "determinability": res.extra.get("determinability", {})}
+    if res.extra.get("noise_sensitivity"):
+        out["noise_sensitivity"] = res.extra["noise_sensitivity"]
+    return out
 
 
 def register(sub) -> None:
