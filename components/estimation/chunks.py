@@ -103,11 +103,9 @@ def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo
         t0_temperature = float(data.temperature[0])  # the whole log's, not each chunk's
     parts = []
     for chunk in layout.chunks(data):
-        def motion_for(g, part=chunk.data):
-            return part.motion(g, t0_temperature, quadrature)
-
-        y, H, w, rows = design(chunk.data, motion_for(geo), params, chunk.gyro, chunk.acc, sg, sa, rest, geo,
-                               table_params, motion_for, lin)
+        motion = chunk.data.motion(geo, t0_temperature, quadrature)
+        y, H, w, rows = design(chunk.data, motion, params, chunk.gyro, chunk.acc, sg, sa, rest, geo,
+                               table_params, lin)
         rows = dict(rows, start=rows["start"] + chunk.lead, stop=rows["stop"] + chunk.lead)
         parts.append((len(chunk.gyro) * 3, rows))
     if len(parts) == 1:

@@ -40,10 +40,7 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
                     data.temperature, data.segment, data.dt0)
     ideal._profiles = data._profiles
 
-    def motion_for(g):
-        return data.motion(g)
-
-    y, H, w, rows = design(ideal, motion, params, gb, ab, sg, sa, q, geo, table_params, motion_for)
+    y, H, w, rows = design(ideal, motion, params, gb, ab, sg, sa, q, geo, table_params)
     span = data.time[-1] - data.time[0] + dt
     _, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
     # a parameter the schedule does not determine has no bound: inf, never the min-norm σ of a

@@ -15,7 +15,7 @@ from components import progress
 from components.estimation.blocks import Blocks
 from components.estimation.rest_angles import rest_variance
 from components.model.effects import TIME_OFFSETS, effect_of, regressor_of, time_offset_of_lever
-from components.model.motion import Motion
+from components.model.motion import Motion, ideal_increments
 from components.model.table_parameters import apply_table_parameter, table_parameter_value
 
 TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
@@ -43,8 +43,7 @@ def noise_floor(sig: np.ndarray, scale: float) -> np.ndarray:
     return np.where(np.isfinite(sig) & (sig > 0), sig, 0.0) + 1e-13 * scale
 
 
-def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, motion_for,
-            lin=None):
+def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, lin=None):
     """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info.
     ``lin``: the values (per parameter) the time offset × lever-arm product is linearised at."""
     yg = gb.sum(data.gyro - motion.ideal_gyro)
@@ -73,7 +72,14 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
                 ya = ya + tau0 * lin[k] * d
     # geometry columns by forward differences (the prediction is smooth in these small angles:
     # the truncation error is ~1e-6 of the column, far below what the fit can resolve)
-    base_g, base_a = (gb.sum(motion.ideal_gyro), ab.sum(motion.ideal_acc)) if table_params else (0, 0)
+    # (the ideal increments alone, not a whole Motion per parameter: 7x faster on a long log)
+    profile = data.angle_profile(len(motion.nodes)) if table_params else None
+
+    def ideal_sums(g):
+        ig, ia = ideal_increments(profile, g)
+        return gb.sum(ig), ab.sum(ia)
+
+    base_g, base_a = ideal_sums(geo) if table_params else (0, 0)
     blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
                                 + ab.stop.tobytes()).hexdigest() if table_params else ""
     keys = {p: (motion.profile_key, blocks_key, geo, p) for p in table_params}
@@ -82,9 +88,8 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
             k = params.index(p)
             if key not in _GEOMETRY_COLUMNS:
                 v = table_parameter_value(geo, p)
-                mp = motion_for(apply_table_parameter(geo, p, v + TABLE_STEP))
-                _GEOMETRY_COLUMNS[key] = ((gb.sum(mp.ideal_gyro) - base_g) / TABLE_STEP,
-                                          (ab.sum(mp.ideal_acc) - base_a) / TABLE_STEP)
+                sg_p, sa_p = ideal_sums(apply_table_parameter(geo, p, v + TABLE_STEP))
+                _GEOMETRY_COLUMNS[key] = ((sg_p - base_g) / TABLE_STEP, (sa_p - base_a) / TABLE_STEP)
                 while len(_GEOMETRY_COLUMNS) > 256:
                     _GEOMETRY_COLUMNS.popitem(last=False)
                 bar.update()

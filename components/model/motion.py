@@ -238,6 +238,35 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     )
 
 
+def ideal_increments(profile: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """The ideal gyro and accelerometer increments (N, 3) of motion_from_profile(profile,
+    geometry) (no lever arms), without building the Motion: a rest's increment is its attitude's
+    rate and force times the interval, so only the moving samples are evaluated node by node.
+    What the table effects' finite-difference columns need (one per parameter per fit)."""
+    p = profile
+    n, q, n_ax = p.th_q.shape
+    gyro = np.empty((n, 3))
+    acc = np.empty((n, 3))
+    st = p.static
+    if st.any():
+        att = p.attitudes
+        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
+        _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
+        wsum = float(np.sum(p.weights))
+        dt_s = p.dt[st, None]
+        gyro[st] = dt_s * (om_u * wsum)[p.attitude_of]
+        acc[st] = dt_s * (f_u * wsum)[p.attitude_of]
+    mv = ~st
+    if mv.any():
+        th, rate, ac = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax), p.rate_q[mv].reshape(-1, n_ax),
+                                    p.acc_q[mv].reshape(-1, n_ax))
+        _, om_m, _, f_m = geometry.kinematics(th, rate, ac)
+        dt_m = p.dt[mv, None]
+        gyro[mv] = dt_m * np.tensordot(om_m.reshape(-1, q, 3), p.weights, axes=([1], [0]))
+        acc[mv] = dt_m * np.tensordot(f_m.reshape(-1, q, 3), p.weights, axes=([1], [0]))
+    return gyro, acc
+
+
 def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
                 temperature: np.ndarray | None = None, t0_temperature: float | None = None,
                 quadrature: int = 3, lever: np.ndarray | None = None, dt0: float | None = None) -> Motion:
