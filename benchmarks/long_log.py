@@ -10,7 +10,7 @@ before this work, 64 s CPU and 1.58 GB per call on a 41.5-minute 200 Hz log, and
 independent numpy solver doing the same ranking, 12 s CPU and 0.94 GB. The figure to beat is the
 numpy solver's.
 
-    python benchmarks/long_log.py [--dir DIR] [--dwell 88]
+    python benchmarks/long_log.py [--dir DIR] [--dwell 88] [--rate 200]
 """
 from __future__ import annotations
 
@@ -30,14 +30,14 @@ sys.path.insert(0, str(ROOT))
 BASELINES = {"diagnose": {"calbench before (issue #18)": (64.0, 1.58), "numpy solver (issue #18)": (12.0, 0.94)}}
 
 
-def make_log(stem: Path, dwell: float) -> Path:
+def make_log(stem: Path, dwell: float, step: float = 0.005) -> Path:
     from components.cli.demo import SCENARIO
     from components.simulation.run import run_scenario, write_outputs
     from components.simulation.scenario import scenario_from_dict
 
     d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
     d["schedule"] = {"name": "twentysix_position", "overrides": {"dwell": dwell}}
-    d["scenario"]["step"] = 0.005
+    d["scenario"]["step"] = step
     run = run_scenario(scenario_from_dict(d, source="long_log"), progress=False)
     write_outputs(run, stem, fmt="parquet")
     return stem.with_suffix(".parquet")
@@ -60,6 +60,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", type=Path, help="where the log is written (default: a temporary directory)")
     ap.add_argument("--dwell", type=float, default=88.0)
+    ap.add_argument("--rate", type=float, default=200.0, help="sample rate [Hz] (1000: the issue's 1 kHz; "
+                    "the baselines are for 200 Hz)")
     a = ap.parse_args()
     tmp = None
     if a.dir is None:
@@ -67,22 +69,24 @@ def main() -> int:
         a.dir = Path(tmp.name)
     a.dir.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
-    log = make_log(a.dir / "long", a.dwell)
+    log = make_log(a.dir / "long", a.dwell, 1.0 / a.rate)
     import pyarrow.parquet as pq
 
     n = pq.ParquetFile(log).metadata.num_rows
-    print(f"log: {n} samples at 200 Hz ({n / 200 / 60:.1f} min), simulated and written in "
+    print(f"log: {n} samples at {a.rate:g} Hz ({n / a.rate / 60:.1f} min), simulated and written in "
           f"{time.perf_counter() - t:.1f} s -> {log.name}")
     model = a.dir / "base.json"
     steps = [("calibrate", ["calibrate", str(log), "--out", str(model)]),
              ("compare", ["compare", str(log), "--model", str(model)]),
              ("diagnose", ["diagnose", str(log), "--model", str(model)])]
-    print(f"{'command':10s} {'CPU s':>7s} {'wall s':>7s} {'peak GB':>8s}   against the baselines (CPU ratio, memory ratio)")
+    print(f"{'command':10s} {'CPU s':>7s} {'wall s':>7s} {'peak GB':>8s} {'us/sample':>9s} {'B/sample':>8s}   "
+          "against the baselines (CPU ratio, memory ratio)")
     for name, args in steps:
         cpu, wall, peak = measure(args)
         ratios = "; ".join(f"{b}: {cpu / c:.2f}x CPU, {peak / m:.2f}x memory"
-                           for b, (c, m) in BASELINES.get(name, {}).items())
-        print(f"{name:10s} {cpu:7.1f} {wall:7.1f} {peak:8.2f}   {ratios}", flush=True)
+                           for b, (c, m) in (BASELINES.get(name, {}) if a.rate == 200 else {}).items())
+        print(f"{name:10s} {cpu:7.1f} {wall:7.1f} {peak:8.2f} {cpu / n * 1e6:9.1f} {peak * 1024**3 / n:8.0f}   {ratios}",
+              flush=True)
     print(f"cpus {os.cpu_count()}, load average (1 min) {os.getloadavg()[0]:.2f}")
     if tmp is not None:
         tmp.cleanup()

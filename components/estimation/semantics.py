@@ -46,10 +46,9 @@ def check_semantics(data, log) -> list[str]:
                            f"({log.acc_output}), {r:.4g} × gravity {g:.5g} m/s²: {what}?")
                 break
     if data.has_table:
-        motion = data.motion(data.geometry)
-        moving = ~motion.static & use
+        moving = ~_static(data) & use
         if moving.sum() >= 10:
-            expected = np.linalg.norm(motion.ideal_gyro[moving], axis=1)
+            expected = np.linalg.norm(_ideal_gyro_moving(data, moving), axis=1)
             measured = np.linalg.norm(data.gyro[moving], axis=1)
             # per sample and the median: a mis-declaration scales every sample alike, while one
             # corrupt angle cell (a jump of hundreds of radians) must not pass for a unit mistake
@@ -68,6 +67,22 @@ def check_semantics(data, log) -> list[str]:
                                    f"as declared): {what}?")
                         break
     return out
+
+
+def _ideal_gyro_moving(data, moving: np.ndarray) -> np.ndarray:
+    """The ideal gyro increments of the *moving* samples from the table angles, a chunk of the log
+    at a time (components.estimation.chunks: the interpolated angles of a whole long log would
+    be 300 bytes a sample)."""
+    from components.estimation.chunks import BlockLayout
+    from components.model.motion import ideal_increments
+
+    dt = float(np.median(np.diff(data.time)))
+    parts = []
+    for chunk in BlockLayout.of(data, max(1, int(round(1.0 / dt)))).chunks(data):
+        gyro, _ = ideal_increments(chunk.data.angle_profile(3), data.geometry)
+        own = gyro[chunk.own]
+        parts.append(own[moving[chunk.start:chunk.start + len(own)]])
+    return np.concatenate(parts) if parts else np.zeros((0, 3))
 
 
 def _static(data) -> np.ndarray:
