@@ -104,3 +104,21 @@ def test_compare_in_chunks_equals_the_whole_log(data):
     assert whole.conditions.keys() == chunked.conditions.keys()
     for name, values in whole.conditions.items():
         _same([v or 0.0 for v in values], [v or 0.0 for v in chunked.conditions[name]], name)
+
+
+def test_attitudes_are_numpys_unique_rows():
+    """interpolate_angles' distinct rest attitudes, made unique over the changes only, are exactly
+    np.unique's rows and inverse over every static sample."""
+    from components.model.motion import _attitudes
+
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        n, m = int(rng.integers(1, 80)), int(rng.integers(1, 4))
+        angles = np.repeat(rng.integers(0, 3, size=(n, m)).astype(float), rng.integers(1, 4, size=n), axis=0)
+        static = rng.random(len(angles)) < 0.7
+        att, inv = _attitudes(angles, static)
+        if static.any():
+            ref, ref_inv = np.unique(angles[static], axis=0, return_inverse=True)
+            assert np.array_equal(att, ref) and np.array_equal(inv, ref_inv.ravel())
+        else:
+            assert len(att) == 0 and len(inv) == 0

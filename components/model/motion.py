@@ -157,11 +157,24 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         acc_q[a:b] = spl(tq, 2)
         rate_end[a:b] = spl(time[a:b], 1)
         acc_end[a:b] = spl(time[a:b], 2)
-    att, inv = (np.unique(measured[static], axis=0, return_inverse=True) if static.any()
-                else (np.zeros((0, n_ax)), np.zeros(0, int)))
+    att, inv = _attitudes(measured, static)
     digest = hashlib.sha256(time.tobytes() + measured.tobytes() + bytes([quadrature, n_ax])).hexdigest()
     return AngleProfile(time, t_prev, dt, static, x, w, th_q, rate_q, acc_q, measured,
                         rate_end, acc_end, att, inv.ravel(), digest)
+
+
+def _attitudes(measured: np.ndarray, static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct angle rows of the static samples (sorted, as np.unique gives them) and, per
+    static sample, its row. Consecutive static samples mostly share their angles, so the rows are
+    made unique over the changes only (np.unique over every sample sorted millions of rows: a
+    third of calibrate's time on a 1 kHz log)."""
+    rows = measured[static]
+    if len(rows) == 0:
+        return np.zeros((0, measured.shape[1])), np.zeros(0, int)
+    new = np.ones(len(rows), bool)
+    new[1:] = np.any(rows[1:] != rows[:-1], axis=1)
+    att, inv_new = np.unique(rows[new], axis=0, return_inverse=True)
+    return att, inv_new.ravel()[np.cumsum(new) - 1]
 
 
 def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
