@@ -153,8 +153,10 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     """The misfit figures of a prediction (N, 6) of the log's IMU increments, whatever made it
     (a calibration result, or a supplier's IMU FMU replayed on the log's motion); *plate*: the
     plate at the samples (PlateAtSamples.of a Motion, or from chunked_prediction)."""
-    meas = np.hstack([data.gyro, data.acc])
-    resid = meas - pred
+    # residual written in place: a long log's (N, 6) arrays are 48 bytes a sample each
+    resid = np.empty_like(pred)
+    np.subtract(data.gyro, pred[:, :3], out=resid[:, :3])
+    np.subtract(data.acc, pred[:, 3:], out=resid[:, 3:])
     sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
     floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(plate.dt))
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
@@ -173,7 +175,8 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
         zk = rows["z"][sel]
         order = np.argsort(rows["start"][sel], kind="stable")
         ok = predictable[:, k]
-        dev = meas[:, k] - meas[:, k].mean()
+        meas = data.gyro[:, k] if k < 3 else data.acc[:, k - 3]
+        dev = meas - meas.mean()
         channels[ch] = {
             "rms": float(np.sqrt(np.mean(resid[ok, k] ** 2))) if ok.any() else float("nan"),
             "rms_moving": float(np.sqrt(np.mean(resid[~ok, k] ** 2))) if (~ok).any() else None,

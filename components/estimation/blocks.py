@@ -166,10 +166,13 @@ def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) ->
     the least σ a channel has whatever its scatter (a pulse output's quantization,
     LogData.quantization_floor: counts whose differences are mostly 0 collapse the scatter)."""
     both = static[1:] & static[:-1]
-    d = np.diff(increments, axis=0)[both]
-    if len(d) < 2:
+    if np.count_nonzero(both) < 2:
         return np.full(increments.shape[1], np.nan)
-    # a robust scale (median absolute deviation) so that a few steps at a run edge do not count
-    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    # a robust scale (median absolute deviation) so that a few steps at a run edge do not count;
+    # a channel at a time (a long log's differences of every channel at once are 100 B a sample)
+    mad = np.empty(increments.shape[1])
+    for k in range(increments.shape[1]):
+        d = np.diff(increments[:, k])[both]
+        mad[k] = np.median(np.abs(d - np.median(d)))
     sigma = 1.4826 * mad / np.sqrt(2)
     return sigma if floor is None else np.maximum(sigma, floor)
