@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from components import progress
 from components.estimation.blocks import Blocks, observation_blocks
 from components.estimation.design import design, predict
 from components.estimation.log_data import LogData
@@ -96,19 +97,33 @@ def _cuts(static: np.ndarray, gb: Blocks, ab: Blocks, n: int, target: int) -> np
     return np.array(cuts)
 
 
+def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str) -> list:
+    """[work(chunk) for each chunk] in order, with a bar over the chunks on a terminal. (Two
+    chunks at a time on threads gained 1.09x on a 2-core machine for 8 % more memory: the chunk
+    work is mostly short numpy calls that hold the interpreter.)"""
+    if len(layout.cuts) == 1:
+        return [work(c) for c in layout.chunks(data)]
+    out = []
+    with progress.steps(desc, len(layout.cuts)) as bar:
+        for chunk in layout.chunks(data):
+            out.append(work(chunk))
+            bar.update()
+    return out
+
+
 def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo, table_params,
                    t0_temperature, quadrature: int = 3, lin=None):
     """components.estimation.design.design on the whole log, built a chunk at a time: the same
     y, H, weights and row information (indices into the whole log)."""
     if t0_temperature is None and data.temperature is not None:
         t0_temperature = float(data.temperature[0])  # the whole log's, not each chunk's
-    parts = []
-    for chunk in layout.chunks(data):
+    def rows_of(chunk: Chunk):
         motion = chunk.data.motion(geo, t0_temperature, quadrature)
         y, H, w, rows = design(chunk.data, motion, params, chunk.gyro, chunk.acc, sg, sa, rest, geo,
                                table_params, lin)
-        rows = dict(rows, start=rows["start"] + chunk.lead, stop=rows["stop"] + chunk.lead)
-        parts.append((len(chunk.gyro) * 3, rows))
+        return len(chunk.gyro) * 3, dict(rows, start=rows["start"] + chunk.lead, stop=rows["stop"] + chunk.lead)
+
+    parts = _each_chunk(rows_of, layout, data, "block rows, chunk by chunk")
     if len(parts) == 1:
         rows = parts[0][1]
         return rows["y"], rows["H"], rows["weight"], rows
@@ -145,7 +160,7 @@ def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, 
     n = len(data.time)
     pred = np.empty((n, 6))
     plate = PlateAtSamples(np.empty(n, bool), np.empty(n), np.empty((n, 3)), np.empty((n, 3)))
-    for chunk in layout.chunks(data):
+    def fill(chunk: Chunk):
         motion = chunk.data.motion(geo, t0_temperature, quadrature)
         own = chunk.own
         at = slice(chunk.start, chunk.lead + len(chunk.data.time))
@@ -153,4 +168,6 @@ def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, 
         pred[at, :3], pred[at, 3:] = gyro[own], acc[own]
         p = PlateAtSamples.of(motion)
         plate.static[at], plate.dt[at], plate.f[at], plate.omega[at] = p.static[own], p.dt[own], p.f[own], p.omega[own]
+
+    _each_chunk(fill, layout, data, "prediction, chunk by chunk")
     return pred, plate
