@@ -122,3 +122,16 @@ def test_attitudes_are_numpys_unique_rows():
             assert np.array_equal(att, ref) and np.array_equal(inv, ref_inv.ravel())
         else:
             assert len(att) == 0 and len(inv) == 0
+
+
+def test_a_jittered_clock_and_pulse_counts_in_chunks(data):
+    """Foreign logs: sample times with a logger's jitter (each interval its own, 50 us RMS at
+    200 Hz) and outputs quantised to pulse counts (1e-6 rad, 1e-5 m/s): the chunks still give the
+    whole log's estimates (each stretch keeps its own first interval and the whole log's origin)."""
+    rng = np.random.default_rng(7)
+    t = data.time + rng.normal(0.0, 50e-6, len(data.time))
+    t = np.maximum.accumulate(t + np.arange(len(t)) * 1e-12)
+    counted = replace(data, time=t, gyro=np.round(data.gyro / 1e-6) * 1e-6, acc=np.round(data.acc / 1e-5) * 1e-5,
+                      count_weight=(1e-6, 1e-5), _profiles={})
+    effects = list(DEFAULT_EFFECTS) + ["gyro.drift", "table.wobble"]
+    _same_fit(calibrate(counted, effects), calibrate(counted, effects, chunk_samples=SMALL))
