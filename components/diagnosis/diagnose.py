@@ -14,7 +14,7 @@ under a correct model the test has its nominal size. Each candidate's theoretica
 reported: per parameter, the magnitude the test detects with 95 % power at the first Holm
 level α/m (non-central F).
 
-Stochastic or deterministic: beside the effects, the noise terms the model lacks
+Stochastic or deterministic: beside the effects, the noise terms the model lacks (components.diagnosis.noise_terms)
 (``gyro.noise.bi``, ``gyro.noise.rrw``, ``acc.noise.bi``, ``acc.noise.rrw``) are candidates too,
 each fitted by maximum likelihood on the base model's rows. When the best of them explains the
 residual better than the best effect (Akaike: Δℓ against the number of parameters) and no effect
@@ -28,19 +28,18 @@ so and proposes a schedule change that separates them.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
-from components import progress
 from components.diagnosis.candidate_notes import annotate, separation_advice
+from components.diagnosis.noise_terms import NOISE_CANDIDATES, has_term, noise_candidates
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.log_data import LogData
-from components.estimation.noise_likelihood import fit_one_term
 from components.estimation.rest_angles import rest_sigma
-from components.estimation.whitening import channel_rows, whiten
+from components.estimation.whitening import whiten
 from components.model.effects import EFFECTS, effect_of, parameters_of
 from components.model.noise import NoiseModel
 from components.model.plausibility import expected_magnitude, grade_factor, plausible_limit
@@ -272,10 +271,10 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     chi2_first = None
     kinds: list[str] = []
     noise_now = noise
-    noise_terms = [t for t in noise_asked if not _has_term(noise_now, t)]
+    noise_terms = [t for t in noise_asked if not has_term(noise_now, t)]
     for _ in range(max_steps if forward else 1):
         ranking, chi2_base, dof_base = _rank(design, base, available, alpha)
-        stochastic = _noise_candidates(design, base, noise_now, noise_terms, alpha) if noise_terms else []
+        stochastic = noise_candidates(design, base, noise_now, noise_terms, alpha) if noise_terms else []
         if first_ranking is None:
             first_ranking, chi2_first, first_noise = ranking, chi2_base / dof_base, stochastic
         winner = next((c for c in ranking if c.passes), None)
@@ -358,59 +357,6 @@ def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
         else:
             out[effect] = needs(ps[0]) if ps else "parameters this table does not have"
             del available[effect]
-    return out
-
-
-# noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)
-NOISE_CANDIDATES = ("acc.noise.bi", "acc.noise.rrw", "gyro.noise.bi", "gyro.noise.rrw")
-_FIELD = {"bi": "bias_instability", "rrw": "random_walk"}
-
-
-def _has_term(noise: NoiseModel | None, term: str) -> bool:
-    """Every axis of the sensor has the term already."""
-    if noise is None:
-        return False
-    sensor, _, t = term.split(".")
-    chans = noise.channels[:3] if sensor == "gyro" else noise.channels[3:]
-    return all(getattr(c, _FIELD[t]) > 0 for c in chans)
-
-
-def _noise_candidates(design: _Design, base: list[str], noise: NoiseModel | None, terms, alpha: float) -> list:
-    """Each missing noise term fitted by maximum likelihood on the base model's rows, channel by
-    channel (the axes that lack it): its magnitudes, the log-likelihood gain, Akaike's gain (minus
-    one per axis fitted), significance (likelihood ratio against the 1 % point of χ² with a degree
-    of freedom per axis fitted, conservative on the boundary) and the noise model with it."""
-    y, H, w, rows = design.raw
-    cols = [design.index[p] for p in base]
-    current = noise if noise is not None else NoiseModel.white(design.white_sigma, design.dt, "white noise")
-    out = []
-    with progress.steps("noise terms", len(terms)) as bar:
-        for term in terms:
-            sensor, _, t = term.split(".")
-            field_ = _FIELD[t]
-            chans = list(current.channels)
-            gain, values, n_new = 0.0, [], 0
-            for k in (range(3) if sensor == "gyro" else range(3, 6)):
-                if getattr(chans[k], field_) > 0:  # this axis has it already
-                    values.append(getattr(chans[k], field_))
-                    continue
-                n_new += 1
-                idx = channel_rows(rows, k)
-                Hc = H[idx][:, cols] if cols else np.zeros((len(idx), 0))
-                active = np.any(Hc != 0, axis=0)
-                durations = (rows["stop"][idx] - rows["start"][idx]) * design.dt
-                value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,
-                                        design.span, design.t_lo)
-                chans[k] = replace(chans[k], **{field_: value})
-                gain += g
-                values.append(value)
-            lr = 2 * gain
-            out.append({"term": term, "values": values, "loglik_gain": gain, "aic_gain": gain - n_new,
-                        "likelihood_ratio": lr, "significant": bool(lr > stats.chi2.isf(alpha, max(n_new, 1))),
-                        "model": NoiseModel(tuple(chans), (current.source + "; " if noise is not None else "")
-                                            + f"+ {term}", current.sigmas)})
-            bar.update()
-    out.sort(key=lambda n: -n["aic_gain"])
     return out
 
 
