@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.estimation.blocks import observation_blocks
-from components.estimation.design import design
+from components.estimation.chunks import BlockLayout, chunked_design
 from components.estimation.determinability import assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
@@ -29,18 +28,13 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     table_params = [p for p in params if effect_of(p).target == "table"]
     geo = data.geometry
     dt = float(np.median(np.diff(data.time)))
-    motion = data.motion(geo)
     n_chunk = max(1, int(round(chunk_s / dt)))
-    gb, ab = observation_blocks(motion.static, data.angles, n_chunk, data.valid)
     white = noise.white_sigma(dt)
     sg, sa = np.maximum(white[:3], 1e-30), np.maximum(white[3:], 1e-30)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
-    # the design needs a measurement only for its residual: use the ideal one
-    ideal = LogData(data.time, data.angles, motion.ideal_gyro, motion.ideal_acc, geo,
-                    data.temperature, data.segment, data.dt0)
-    ideal._profiles = data._profiles
-
-    y, H, w, rows = design(ideal, motion, params, gb, ab, sg, sa, q, geo, table_params)
+    # the bound needs the design's columns only (the rows' measured side is not used), built a
+    # chunk of the schedule at a time like the estimators' (components.estimation.chunks)
+    y, H, w, rows = chunked_design(data, BlockLayout.of(data, n_chunk), params, sg, sa, q, geo, table_params, None)
     span = data.time[-1] - data.time[0] + dt
     _, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
     # a parameter the schedule does not determine has no bound: inf, never the min-norm σ of a
