@@ -205,7 +205,8 @@ def main(argv=None) -> int:
         print(f"  {name:6s} n={len(rs):3d}: an effect named {eff / len(rs):.3f}, a noise term {noi / len(rs):.3f}, "
               f"a drift {drift / len(rs):.3f}; chi2/dof mean {chi.mean():.3f}")
         report[f"false_alarm_{name}"] = {"effect": eff / len(rs), "noise": noi / len(rs), "drift": drift / len(rs),
-                                         "n": len(rs), "chi2_mean": float(chi.mean())}
+                                         "n": len(rs), "chi2_mean": float(chi.mean()),
+                                         "verdicts": [r["verdict"] for r in rs]}
     params = parameters_of(BASELINE)
     print(f"\nPer parameter: RMS error / RMS reported σ (target 0.8–1.25) and reported σ / CRB under the true noise "
           f"(target <= 1.2):\n  {'parameter':14s} {'white':>7s} {'true':>7s} {'ident':>7s}   {'σ/CRB true':>10s} "
