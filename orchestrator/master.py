@@ -281,9 +281,7 @@ class Simulation:
             for n in self.order:
                 group = self._loop_of.get(n)
                 if group is None:
-                    p = ports[n]
-                    port_step(p, t, self._port_inputs(p), self._port_derivatives(p))
-                    self.exchange.store_outputs(p.unit, t + h)
+                    self._step_port(ports[n], t, h, port_step)
                 elif n == group.units[0]:
                     self._solve_loop(group, [ports[m] for m in group.units], t, h, port_step)
         self._record_row(rec, len(rec.time) - 1)
@@ -399,9 +397,8 @@ class Simulation:
                             group = self._loop_of.get(seg)
                             if group is None:
                                 p = ports[seg]
-                                if port_step(p, t, self._port_inputs(p), self._port_derivatives(p)):
+                                if self._step_port(p, t, h, port_step):
                                     ending = step
-                                ex.store_outputs(p.unit, t + p.multiple * h)
                                 if p.unit.stop_requested():
                                     stop = True
                                     break
@@ -432,15 +429,18 @@ class Simulation:
         if progress:
             progress.close()
 
+    def _step_port(self, p, t: float, h: float, port_step) -> bool:
+        """One Python-stepped port: its inputs in, a step, its outputs to the exchange; True if
+        its unit asked to end the run."""
+        ended = port_step(p, t, self._port_inputs(p), self._port_derivatives(p))
+        self.exchange.store_outputs(p.unit, t + p.multiple * h)
+        return ended
+
     def _solve_loop(self, group, ports: list, t: float, h: float, port_step) -> bool:
         """Step a loop *group*'s ports in order until its values converge; True if a unit asked
         to end the run."""
-        def one(p) -> bool:
-            ended = port_step(p, t, self._port_inputs(p), self._port_derivatives(p))
-            self.exchange.store_outputs(p.unit, t + p.multiple * h)
-            return ended
-
-        return self._solver.step(group, ports, self.exchange.values, t, one)
+        return self._solver.step(group, ports, self.exchange.values, t,
+                                 lambda p: self._step_port(p, t, h, port_step))
 
     def _end_at(self, rec: Recording, step: int) -> None:
         """A unit ended the run at the end of base step *step* - 1: the run stops there and its
