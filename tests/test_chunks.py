@@ -135,3 +135,14 @@ def test_a_jittered_clock_and_pulse_counts_in_chunks(data):
                       count_weight=(1e-6, 1e-5), _profiles={})
     effects = list(DEFAULT_EFFECTS) + ["gyro.drift", "table.wobble"]
     _same_fit(calibrate(counted, effects), calibrate(counted, effects, chunk_samples=SMALL))
+
+
+def test_ideal_increments_are_the_motions(data):
+    """The table columns' fast path (rests by attitude, moving samples node by node) gives the
+    full Motion's quadrature integrals of rate and specific force."""
+    from components.model.motion import ideal_increments
+
+    motion = data.motion(data.geometry)
+    gyro, acc = ideal_increments(data.angle_profile(3), data.geometry)
+    assert np.max(np.abs(gyro - motion.ideal_gyro)) <= 1e-13 * np.max(np.abs(motion.ideal_gyro))
+    assert np.max(np.abs(acc - motion.ideal_acc)) <= 1e-13 * np.max(np.abs(motion.ideal_acc))

@@ -209,17 +209,12 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     # static intervals: one kinematics evaluation per distinct attitude (a schedule has few)
     st = p.static
     if st.any():
-        att, inv = p.attitudes, p.attitude_of
-        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
-        _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
-        om[st] = om_u[inv][:, None, :]
-        f[st] = f_u[inv][:, None, :]
+        om_u, f_u = _at_rest(p, geometry)
+        om[st] = om_u[p.attitude_of][:, None, :]
+        f[st] = f_u[p.attitude_of][:, None, :]
     mv = ~st
     if mv.any():
-        th, rate, acc = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax),
-                                     p.rate_q[mv].reshape(-1, n_ax), p.acc_q[mv].reshape(-1, n_ax))
-        _, om_m, al_m, f_m = geometry.kinematics(th, rate, acc)
-        om[mv], al[mv], f[mv] = (x.reshape(-1, q, 3) for x in (om_m, al_m, f_m))
+        om[mv], al[mv], f[mv] = _moving_nodes(p, geometry)
     # values at the sample times: static ends share the attitudes above; moving ends computed
     om_e = np.empty((n, 3))
     f_e = np.empty((n, 3))
@@ -257,27 +252,43 @@ def ideal_increments(profile: AngleProfile, geometry: TableGeometry) -> tuple[np
     rate and force times the interval, so only the moving samples are evaluated node by node.
     What the table effects' finite-difference columns need (one per parameter per fit)."""
     p = profile
-    n, q, n_ax = p.th_q.shape
+    n = len(p.dt)
     gyro = np.empty((n, 3))
     acc = np.empty((n, 3))
     st = p.static
     if st.any():
-        att = p.attitudes
-        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
-        _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
+        om_u, f_u = _at_rest(p, geometry)
         wsum = float(np.sum(p.weights))
         dt_s = p.dt[st, None]
         gyro[st] = dt_s * (om_u * wsum)[p.attitude_of]
         acc[st] = dt_s * (f_u * wsum)[p.attitude_of]
     mv = ~st
     if mv.any():
-        th, rate, ac = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax), p.rate_q[mv].reshape(-1, n_ax),
-                                    p.acc_q[mv].reshape(-1, n_ax))
-        _, om_m, _, f_m = geometry.kinematics(th, rate, ac)
+        om_m, _, f_m = _moving_nodes(p, geometry)
         dt_m = p.dt[mv, None]
-        gyro[mv] = dt_m * np.tensordot(om_m.reshape(-1, q, 3), p.weights, axes=([1], [0]))
-        acc[mv] = dt_m * np.tensordot(f_m.reshape(-1, q, 3), p.weights, axes=([1], [0]))
+        gyro[mv] = dt_m * np.tensordot(om_m, p.weights, axes=([1], [0]))
+        acc[mv] = dt_m * np.tensordot(f_m, p.weights, axes=([1], [0]))
     return gyro, acc
+
+
+def _at_rest(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """Inertial rate and specific force (A, 3) at each distinct rest attitude of the profile
+    (one kinematics evaluation per attitude: a schedule has few)."""
+    att = p.attitudes
+    th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
+    _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
+    return om_u, f_u
+
+
+def _moving_nodes(p: AngleProfile, geometry: TableGeometry):
+    """Inertial rate, angular acceleration and specific force (M, Q, 3) at the quadrature nodes
+    of the moving intervals."""
+    mv = ~p.static
+    _, q, n_ax = p.th_q.shape
+    th, rate, acc = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax), p.rate_q[mv].reshape(-1, n_ax),
+                                 p.acc_q[mv].reshape(-1, n_ax))
+    _, om_m, al_m, f_m = geometry.kinematics(th, rate, acc)
+    return tuple(x.reshape(-1, q, 3) for x in (om_m, al_m, f_m))
 
 
 def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,
