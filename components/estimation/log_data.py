@@ -78,7 +78,8 @@ class LogData:
     @property
     def static(self) -> np.ndarray:
         """(N,) bool: no gimbal angle changed over the sample's interval (the first sample's
-        interval is taken at rest), as the angle profile has it, without building the profile."""
+        interval is taken at rest), as the angle profile has it, without building the profile.
+        Without a table every sample (a log of rests and turns is mostly at rest)."""
         if not self.has_table:
             return np.ones(len(self.time), bool)
         a = self.angles

@@ -33,7 +33,7 @@ def check_semantics(data, log) -> list[str]:
     dt = float(log.dt)
     use = data.usable
     g = float(log.gravity) if getattr(log, "gravity", None) else 9.80665
-    static = _static(data) & use
+    static = data.static & use
     if static.sum() >= 10:
         # per sample (the rests differ in attitude: their mean vector would cancel)
         f = float(np.median(np.linalg.norm(data.acc[static], axis=1))) / dt
@@ -46,7 +46,7 @@ def check_semantics(data, log) -> list[str]:
                            f"({log.acc_output}), {r:.4g} × gravity {g:.5g} m/s²: {what}?")
                 break
     if data.has_table:
-        moving = ~_static(data) & use
+        moving = ~data.static & use
         if moving.sum() >= 10:
             expected = np.linalg.norm(_ideal_gyro_moving(data, moving), axis=1)
             measured = np.linalg.norm(data.gyro[moving], axis=1)
@@ -83,14 +83,3 @@ def _ideal_gyro_moving(data, moving: np.ndarray) -> np.ndarray:
         own = gyro[chunk.own]
         parts.append(own[moving[chunk.start:chunk.start + len(own)]])
     return np.concatenate(parts) if parts else np.zeros((0, 3))
-
-
-def _static(data) -> np.ndarray:
-    """Samples where no table angle changed (or, without a table, every sample: a log of rests
-    and turns is mostly at rest, and its mean magnitude is still gravity's order)."""
-    if data.has_table:
-        a = np.asarray(data.angles)
-        still = np.ones(len(a), bool)
-        still[1:] = np.all(np.diff(a, axis=0) == 0, axis=1)
-        return still
-    return np.ones(len(data.time), bool)
