@@ -34,6 +34,7 @@ from scipy import stats
 from components.diagnosis.misfit import CHANNELS, Misfits, misfits
 from components.estimation.blocks import observation_blocks, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
+from components.estimation.design import noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
@@ -158,8 +159,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     np.subtract(data.gyro, pred[:, :3], out=resid[:, :3])
     np.subtract(data.acc, pred[:, 3:], out=resid[:, 3:])
     sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
-    floor_scale = np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(plate.dt))
-    sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * floor_scale
+    sigma = noise_floor(sigma, np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(plate.dt)))
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if noise is not None and noise.coloured:
         white = noise.white_sigma(float(np.median(plate.dt)))

@@ -37,6 +37,7 @@ from components.diagnosis.candidate_notes import annotate, separation_advice
 from components.diagnosis.noise_terms import NOISE_CANDIDATES, has_term, noise_candidates
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
+from components.estimation.design import noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import whiten
@@ -147,8 +148,7 @@ class _Design:
         if noise is not None and noise.coloured:
             white = noise.white_sigma(dt)
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
-        sg = np.where(np.isfinite(sg) & (sg > 0), sg, 0.0) + 1e-13 * 7.3e-5 * dt
-        sa = np.where(np.isfinite(sa) & (sa > 0), sa, 0.0) + 1e-13 * 9.8 * dt
+        sg, sa = noise_floor(sg, 7.3e-5 * dt), noise_floor(sa, 9.8 * dt)
         rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
         y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0)
         span = float(data.time[-1] - data.time[0] + dt)
@@ -281,16 +281,17 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
         best_noise = next((n for n in stochastic if n["significant"]), None)
         effect_gain = (0.5 * max(chi2_base - design.fit(base + available[winner.effect])[0], 0.0)
                        - winner.added_rank) if winner else -math.inf
-        if best_noise is not None and best_noise["aic_gain"] > max(effect_gain, 0.0) and winner is not None:
+        noise_wins = best_noise is not None and best_noise["aic_gain"] > max(effect_gain, 0.0)
+        if noise_wins and winner is not None:
             # a noise term fitted on a systematic misfit takes it up as a huge wander and can
             # out-gain the effect; a physical effect stays significant with the term in the
             # noise model, a wander the term explains does not
             surviving = _surviving_effects(design, base, available, alpha, best_noise["model"], noise_now)
             if surviving:
-                best_noise = None
+                noise_wins = False
                 if winner.effect not in surviving:
                     winner = next((c for c in ranking if c.effect == surviving[0]), winner)
-        if best_noise is not None and best_noise["aic_gain"] > max(effect_gain, 0.0):
+        if noise_wins:
             # the residual is better explained by a noise term than by any effect
             found.append(best_noise["term"])
             kinds.append("noise")
