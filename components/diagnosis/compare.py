@@ -32,7 +32,7 @@ import numpy as np
 from scipy import stats
 
 from components.diagnosis.misfit import CHANNELS, Misfits, misfits
-from components.estimation.blocks import observation_blocks, white_noise_sigma
+from components.estimation.blocks import observation_blocks, samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
 from components.estimation.design import noise_floor
 from components.estimation.log_data import LogData
@@ -95,10 +95,9 @@ class Comparison:
                 "misfits": self.misfits.to_json() if self.misfits is not None else None}
 
 
-def _blocks_rows(data: LogData, geo, static, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
+def _blocks_rows(data: LogData, geo, blocks, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
     dt = float(np.median(np.diff(data.time)))
-    n_chunk = max(1, int(round(chunk_s / dt)))
-    gb, ab = observation_blocks(static, data.angles, n_chunk, data.valid)
+    gb, ab = blocks
     zs, vs, sens, axis, start, stop, moving = [], [], [], [], [], [], []
     for blocks, sl, name in ((gb, slice(0, 3), "gyro"), (ab, slice(3, 6), "acc")):
         s = blocks.sum(residual[:, sl])
@@ -138,22 +137,25 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     geo = model_geometry(data, model)
     sensor_params = [p for p in model.values if effect_of(p).target != "table"]
     values = np.array([model.values[p] for p in sensor_params])
-    dt = float(np.median(np.diff(data.time)))
-    layout = BlockLayout.of(data, max(1, int(round(chunk_s / dt))), chunk_samples)
+    layout = BlockLayout.of(data, samples_per_block(data.time, chunk_s), chunk_samples)
     pred, plate = chunked_prediction(data, layout, sensor_params, values, geo, model.temperature_ref)
     if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
         rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
     if noise is None:
         noise = model.noise_model()
     return assess(data, geo, plate, pred, fitted_parameters=fitted_parameters, chunk_s=chunk_s,
-                  rest_angle_sigma=rest_angle_sigma, noise=noise)
+                  rest_angle_sigma=rest_angle_sigma, noise=noise, blocks=(layout.gyro, layout.acc))
 
 
 def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitted_parameters: int = 0,
-           chunk_s: float = 1.0, rest_angle_sigma=None, noise: NoiseModel | None = None) -> Comparison:
+           chunk_s: float = 1.0, rest_angle_sigma=None, noise: NoiseModel | None = None,
+           blocks=None) -> Comparison:
     """The misfit figures of a prediction (N, 6) of the log's IMU increments, whatever made it
     (a calibration result, or a supplier's IMU FMU replayed on the log's motion); *plate*: the
-    plate at the samples (PlateAtSamples.of a Motion, or from chunked_prediction)."""
+    plate at the samples (PlateAtSamples.of a Motion, or from chunked_prediction); *blocks*:
+    the log's (gyro, accelerometer) observation blocks if already laid out."""
+    if blocks is None:
+        blocks = observation_blocks(plate.static, data.angles, samples_per_block(data.time, chunk_s), data.valid)
     # residual written in place: a long log's (N, 6) arrays are 48 bytes a sample each
     resid = np.empty_like(pred)
     np.subtract(data.gyro, pred[:, :3], out=resid[:, :3])
@@ -164,7 +166,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     if noise is not None and noise.coloured:
         white = noise.white_sigma(float(np.median(plate.dt)))
         sigma = np.where(white > 0, white, sigma)
-    rows = _blocks_rows(data, geo, plate.static, resid, sigma, rest, chunk_s, noise)
+    rows = _blocks_rows(data, geo, blocks, resid, sigma, rest, chunk_s, noise)
     chi2 = float(np.sum(rows["z"] ** 2))
     dof = max(len(rows["z"]) - fitted_parameters, 1)
     channels = {}

@@ -35,7 +35,7 @@ from scipy import stats
 
 from components.diagnosis.candidate_notes import annotate, separation_advice
 from components.diagnosis.noise_terms import NOISE_CANDIDATES, has_term, noise_candidates
-from components.estimation.blocks import white_noise_sigma
+from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import noise_floor
 from components.estimation.log_data import LogData
@@ -138,8 +138,7 @@ class _Design:
         table_params = [p for p in params if effect_of(p).target == "table"]
         T0 = model.temperature_ref
         dt = float(np.median(np.diff(data.time)))
-        n_chunk = max(1, int(round(chunk_s / dt)))
-        layout = BlockLayout.of(data, n_chunk, chunk_samples)
+        layout = BlockLayout.of(data, samples_per_block(data.time, chunk_s), chunk_samples)
         static = data.static
         # noise from the high-frequency content of the data (differences remove the model)
         q = data.quantization_floor(noise)

@@ -159,6 +159,12 @@ def make_blocks(static: np.ndarray, samples_per_chunk: int, whole_moves: bool,
     return Blocks(arr[:, 0].astype(int), arr[:, 1].astype(int), arr[:, 2].astype(bool), whole_moves)
 
 
+def samples_per_block(time: np.ndarray, block_s: float) -> int:
+    """Samples in a static block of *block_s* seconds at the log's median interval (at least 1)."""
+    dt = float(np.median(np.diff(time))) if len(time) > 1 else block_s
+    return max(1, int(round(block_s / dt)))
+
+
 def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) -> np.ndarray:
     """Per-sample white-noise σ of each channel from static data: consecutive differences within
     static runs remove any constant (bias, gravity, Earth rate), var(x_k - x_{k-1}) = 2 σ².

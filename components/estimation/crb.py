@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from components.estimation.blocks import samples_per_block
 from components.estimation.chunks import BlockLayout, chunked_design
 from components.estimation.determinability import assess
 from components.estimation.log_data import LogData
@@ -28,13 +29,12 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     table_params = [p for p in params if effect_of(p).target == "table"]
     geo = data.geometry
     dt = float(np.median(np.diff(data.time)))
-    n_chunk = max(1, int(round(chunk_s / dt)))
     white = noise.white_sigma(dt)
     sg, sa = np.maximum(white[:3], 1e-30), np.maximum(white[3:], 1e-30)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     # the bound needs the design's columns only (the rows' measured side is not used), built a
     # chunk of the schedule at a time like the estimators' (components.estimation.chunks)
-    y, H, w, rows = chunked_design(data, BlockLayout.of(data, n_chunk), params, sg, sa, q, geo, table_params, None)
+    y, H, w, rows = chunked_design(data, BlockLayout.of(data, samples_per_block(data.time, chunk_s)), params, sg, sa, q, geo, table_params, None)
     span = data.time[-1] - data.time[0] + dt
     _, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
     # a parameter the schedule does not determine has no bound: inf, never the min-norm σ of a

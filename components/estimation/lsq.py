@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import EstimationError
-from components.estimation.blocks import white_noise_sigma
+from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import noise_floor
 from components.estimation.determinability import Determinability, assess
@@ -96,11 +96,10 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         if effect_of(name).target == "table":
             geo = apply_table_parameter(geo, name, v)
     dt_mean = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 1.0
-    n_chunk = max(1, int(round(chunk_s / dt_mean)))
 
     if temperature_ref is None and data.temperature is not None:
         temperature_ref = float(data.temperature[0])
-    layout = BlockLayout.of(data, n_chunk, chunk_samples)
+    layout = BlockLayout.of(data, samples_per_block(data.time, chunk_s), chunk_samples)
     gb = layout.gyro
     static = data.static
 

@@ -73,12 +73,12 @@ def _ideal_gyro_moving(data, moving: np.ndarray) -> np.ndarray:
     """The ideal gyro increments of the *moving* samples from the table angles, a chunk of the log
     at a time (components.estimation.chunks: the interpolated angles of a whole long log would
     be 300 bytes a sample)."""
+    from components.estimation.blocks import samples_per_block
     from components.estimation.chunks import BlockLayout
     from components.model.motion import ideal_increments
 
-    dt = float(np.median(np.diff(data.time)))
     parts = []
-    for chunk in BlockLayout.of(data, max(1, int(round(1.0 / dt)))).chunks(data):
+    for chunk in BlockLayout.of(data, samples_per_block(data.time, 1.0)).chunks(data):
         gyro, _ = ideal_increments(chunk.data.angle_profile(3), data.geometry)
         own = gyro[chunk.own]
         parts.append(own[moving[chunk.start:chunk.start + len(own)]])
