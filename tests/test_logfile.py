@@ -377,3 +377,20 @@ def test_parquet_rules(tmp_path, ideal_head):
                    tmp_path / "bad.parquet")
     with pytest.raises(LogFormatError, match=r"bad\.parquet: missing column 'gyro_x'"):
         read_log(stem)
+
+
+def test_parquet_without_a_segment_column(tmp_path, ideal):
+    """segment is optional: a Parquet log without it (what `calbench import` writes from a
+    logger file without labels) reads, bit-identical in its numbers."""
+    import pyarrow.parquet as pq
+
+    write_log(tmp_path / "nolabel", ideal, fmt="parquet")
+    table = pq.read_table(tmp_path / "nolabel.parquet")
+    pq.write_table(table.drop_columns(["segment"]), tmp_path / "nolabel.parquet")
+    meta = json.loads((tmp_path / "nolabel.json").read_text())
+    meta.pop("segments", None)
+    meta.pop("exclude", None)
+    (tmp_path / "nolabel.json").write_text(json.dumps(meta))
+    back = read_log(tmp_path / "nolabel.parquet")
+    assert back.segment is None
+    assert np.array_equal(bits(back.gyro), bits(ideal.gyro))

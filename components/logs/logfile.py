@@ -197,7 +197,9 @@ def _read_parquet(path: Path, meta: dict) -> dict[str, np.ndarray]:
     import pyarrow.parquet as pq
 
     try:
-        pf = pq.ParquetFile(path, read_dictionary=["segment"])
+        names = pq.read_schema(path).names
+        # (read_dictionary naming a column the file lacks is a KeyError, not "no such column")
+        pf = pq.ParquetFile(path, read_dictionary=["segment"] if "segment" in names else None)
         schema = pf.schema_arrow
     except (pa.ArrowInvalid, OSError) as e:
         raise LogFormatError(f"{path}: not a readable Parquet file ({e})") from None
