@@ -21,6 +21,16 @@ bootstrap's 99 % quantile of the fit statistic. A term must also matter: it is p
 where it makes at least 5 % of the model's Allan variance at some observed τ (a quantization of a
 thousandth of an arc-second beside navigation-grade white noise is not a finding, however well
 determined).
+
+A pulse output's quantization is i.i.d. only where the input has moved the count remainder by
+a count or more between two samples of the variance. At rest the input is nearly constant, so
+over short τ the remainder follows the fractional count rate of the position (it can nearly
+repeat after m samples when m times that rate is close to a whole number of counts): the Allan
+variance there is a property of the positions, not of a random process, and its degrees of
+freedom are far fewer than the samples'. With the quantization known (a count weight), the fit
+therefore uses only the τ where something other than quantization makes at least half of the
+measured variance; without that, the too-low short-τ points are taken up by a spurious
+sub-second Gauss–Markov term and the white level reads as absent.
 """
 from __future__ import annotations
 
@@ -38,6 +48,7 @@ from components.model.noise import ChannelNoise
 BASIC = ("quantization", "white", "bias_instability", "random_walk")
 PRESENT_SIGMAS = 3.0
 PRESENT_SHARE = 0.05
+QUANTIZATION_DOMINANCE = 2.0  # measured AVAR over the known quantization's below which a τ is not fitted
 
 
 def basis(term: str, tau: np.ndarray) -> np.ndarray:
@@ -63,6 +74,24 @@ class ChannelFit:
 
     def model_avar(self, tau) -> np.ndarray:
         return self.noise.avar(tau)
+
+
+def _at(av: AllanVariance, keep: np.ndarray) -> AllanVariance:
+    return AllanVariance(av.tau[keep], av.avar[keep], av.terms[keep], av.edf[keep])
+
+
+def beyond_quantization(av: AllanVariance, quantization: float) -> np.ndarray:
+    """The τ from the first whose measured Allan variance is at least
+    :data:`QUANTIZATION_DOMINANCE` times that of a known *quantization* alone (all τ when fewer
+    than two remain: then nothing but quantization can be read from the static runs)."""
+    above = np.flatnonzero(av.avar >= QUANTIZATION_DOMINANCE * basis("quantization", av.tau) * quantization**2)
+    keep = np.arange(len(av.tau)) >= (above[0] if len(above) else len(av.tau))
+    return keep if np.count_nonzero(keep) >= 2 else np.ones(len(av.tau), bool)
+
+
+def _fitted_range(av: AllanVariance, known: dict) -> np.ndarray:
+    return beyond_quantization(av, known["quantization"]) if known.get("quantization") \
+        else np.ones(len(av.tau), bool)
 
 
 def _fit_squares(av: AllanVariance, terms: list[str], fixed: dict, gm_tau: float | None,
@@ -131,7 +160,7 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     free = [t for t in terms if t not in known]
     fixed = {t: v**2 for t, v in known.items()}
     av = pooled_allan(rate, runs, dt)
-    squares, stat = _fit_squares(av, free, fixed, None)
+    squares, stat = _fit_squares(_at(av, _fitted_range(av, known)), free, fixed, None)
     # degrees of freedom with the noise type that dominates at each τ under the first fit
     ch0 = _channel({**squares, **fixed}, None, flicker_range)
 
@@ -139,7 +168,13 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
         parts = np.array([basis(t, tau) * getattr(ch0, t) ** 2 for t in BASIC])
         return np.array([ALPHA[BASIC[i]] for i in np.argmax(parts, axis=0)])
 
-    av = pooled_allan(rate, runs, dt, alpha_of)
+    measured = pooled_allan(rate, runs, dt, alpha_of)
+    fitted = _fitted_range(measured, known)
+    av = _at(measured, fitted)
+    notes = []
+    if not fitted.all():
+        notes.append(f"τ < {av.tau[0]:.3g} s not fitted: the known quantization makes more than half of the "
+                     "variance there, and a pulse remainder at rest is not independent from sample to sample")
     squares, stat = _fit_squares(av, free, fixed, None)
     rng = np.random.default_rng(seed)
     n = max(b for _, b in runs)
@@ -148,7 +183,7 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
         vals, stats_ = [], []
         for _ in range(bootstrap):
             sim = simulate_rate(ch, n, dt, rng)
-            bav = pooled_allan(sim, runs, dt, alpha_of)
+            bav = _at(pooled_allan(sim, runs, dt, alpha_of), fitted)
             sq, st = _fit_squares(bav, free, fixed, gm_tau)
             vals.append({k: math.sqrt(max(v, 0.0)) for k, v in sq.items()})
             stats_.append(st)
@@ -158,7 +193,6 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     ch = _channel({**squares, **fixed}, None, flicker_range)
     vals, stats_ = boot(ch, None)
     p = float(np.mean(stats_ >= stat)) if bootstrap else float("nan")
-    notes = []
     if bootstrap and p < 0.01 and len(av.tau) >= 5:
         # a bump the basic terms cannot follow: one Gauss–Markov term, its time constant on a grid
         best = None
@@ -186,4 +220,4 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     upper = {k: value.get(k, 0.0) + PRESENT_SIGMAS * sigma[k] for k in sigma if k not in present}
     kept = {k: (v**2 if k in present else 0.0) for k, v in value.items()}
     final = _channel({**kept, **fixed}, gm_tau if "gauss_markov" in present else None, flicker_range)
-    return ChannelFit(final, sigma, present, upper, av, stat, p, gm_tau if "gauss_markov" in present else None, notes)
+    return ChannelFit(final, sigma, present, upper, measured, stat, p, gm_tau if "gauss_markov" in present else None, notes)
