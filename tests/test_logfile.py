@@ -394,3 +394,29 @@ def test_parquet_without_a_segment_column(tmp_path, ideal):
     back = read_log(tmp_path / "nolabel.parquet")
     assert back.segment is None
     assert np.array_equal(bits(back.gyro), bits(ideal.gyro))
+
+
+def test_a_lean_read_holds_what_the_estimators_use_bit_identical(tmp_path, ideal):
+    """read_log(lean=True), as calibrate, compare, diagnose and noise read: the commands and
+    extra columns are not read; every column the estimators use is bit-identical to the file's,
+    and the gimbal angles are one array (not stacked a second time)."""
+    ideal.extra["extra_note"] = np.arange(ideal.n, dtype=float)
+    ideal.command.update({a: ideal.gimbal[a] + 1e-6 for a in ideal.axis_names})
+    try:
+        write_log(tmp_path / "lean", ideal, fmt="both")
+    finally:
+        del ideal.extra["extra_note"]
+        ideal.command.clear()
+    for f in ("lean.csv", "lean.parquet"):
+        full = read_log(tmp_path / f)
+        assert set(full.command) == set(ideal.axis_names) and "extra_note" in full.extra
+        back = read_log(tmp_path / f, lean=True)
+        assert back.command == {} and back.extra == {}
+        assert np.array_equal(bits(back.time), bits(ideal.time))
+        assert np.array_equal(bits(back.angles), bits(ideal.angles))
+        assert np.array_equal(bits(back.gyro), bits(ideal.gyro))
+        assert np.array_equal(bits(back.acc), bits(ideal.acc))
+        assert np.array_equal(bits(back.temperature), bits(ideal.temperature))
+        assert back.segment.tolist() == ideal.segment.tolist()
+        if f.endswith(".parquet"):
+            assert np.shares_memory(back.angles, back.gimbal[ideal.axis_names[0]])

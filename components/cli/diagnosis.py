@@ -43,7 +43,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from components.errors import UserError
     from components.model.result import fitted_on
 
-    log, data = log_option.read(args)
+    log, data = log_option.read(args, commands=args.servo is not None or args.model.endswith((".toml", ".ssp")))
     if not data.has_table:
         from components.diagnosis.compare_positions import compare_positions
 

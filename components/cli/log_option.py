@@ -34,15 +34,17 @@ def parse_exclude(items: list[str] | None) -> list:
     return out
 
 
-def read(args, *, say: bool = True):
+def read(args, *, say: bool = True, commands: bool = False):
     """(the MeasurementLog, its LogData with the exclusions applied) of ``args.log``; prints what
-    is left out and, for a log with table angles, where the rest angles' uncertainty comes from."""
+    is left out and, for a log with table angles, where the rest angles' uncertainty comes from.
+    ``commands``: also read the commanded angles and extra columns (a replay through an FMU
+    needs them; the estimators do not)."""
     from components.errors import UserError
     from components.estimation.log_data import LogData
     from components.estimation.rest_angles import resolution_note
     from components.logs.logfile import read_log
 
-    log = read_log(args.log)
+    log = read_log(args.log, lean=not commands)
     try:
         data = LogData.from_log(log, parse_exclude(getattr(args, "exclude", None)))
     except ValueError as e:

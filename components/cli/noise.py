@@ -21,7 +21,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     from components.model.noise import CHANNELS, TERMS, sensor_of
     from components.model.result import CalibrationResult
 
-    log = read_log(args.log)
+    log = read_log(args.log, lean=True)
     if not log.has_table:
         raise UserError(f"noise: {args.log} has no table angles: noise identification works on the residual of a "
                         "fit over the whole log, which needs them; identify the IMU's noise on a table log (or give "

@@ -146,6 +146,7 @@ class LogData:
 # overflow on it, or silently be dominated by it)
 MAX_RATE = 1.0e3      # rad/s (57 000 deg/s; the fastest MEMS gyros stop at ~70 rad/s)
 MAX_FORCE = 1.0e5     # m/s² (10 000 g)
+RANGE_PIECE = 1 << 20
 
 
 def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
@@ -153,11 +154,22 @@ def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
 
     dt = log.intervals()[:, None]
     use = np.ones(log.n, bool) if valid is None else valid
+
+    def first_beyond(inc, limit):
+        # in pieces: the whole log's quotient and mask would be 27 bytes a sample at once
+        for a in range(0, log.n, RANGE_PIECE):
+            b = min(a + RANGE_PIECE, log.n)
+            with np.errstate(over="ignore", invalid="ignore"):
+                bad = use[a:b, None] & ~(np.abs(inc[a:b] / dt[a:b]) <= limit)
+            if bad.any():
+                i, k = np.argwhere(bad)[0]
+                return a + i, k
+        return None
+
     for name, inc, limit, unit in (("gyro", gyro, MAX_RATE, "rad/s"), ("acc", acc, MAX_FORCE, "m/s²")):
-        with np.errstate(over="ignore", invalid="ignore"):
-            bad = use[:, None] & ~(np.abs(inc / dt) <= limit)
-        if bad.any():
-            i, k = np.argwhere(bad)[0]
+        hit = first_beyond(inc, limit)
+        if hit is not None:
+            i, k = hit
             with np.errstate(over="ignore"):
                 value = inc[i, k] / dt[i, 0]
             raise EstimationError(

@@ -116,7 +116,7 @@ def _read_header(path: Path) -> list[str]:
     return next(csv.reader([first]))
 
 
-def _read_csv(path: Path, meta: dict) -> dict[str, np.ndarray]:
+def _read_csv(path: Path, meta: dict, lean: bool = False) -> dict[str, np.ndarray]:
     import pyarrow as pa
     import pyarrow.csv as pcsv
 
@@ -132,7 +132,8 @@ def _read_csv(path: Path, meta: dict) -> dict[str, np.ndarray]:
             read_options=pcsv.ReadOptions(block_size=1 << 22),
             parse_options=pcsv.ParseOptions(ignore_empty_lines=False),
             convert_options=pcsv.ConvertOptions(column_types=types, null_values=[""], strings_can_be_null=False,
-                                                quoted_strings_can_be_null=False))
+                                                quoted_strings_can_be_null=False,
+                                                include_columns=_wanted(header, meta, lean)))
     except (pa.ArrowInvalid, pa.ArrowTypeError) as e:
         _diagnose_csv(path, header, numeric, e)
         raise  # not reached
@@ -142,7 +143,7 @@ def _read_csv(path: Path, meta: dict) -> dict[str, np.ndarray]:
         if name in types and name != "segment":
             if col.null_count:
                 i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
-                if all(table.column(c)[i].as_py() is None for c in numeric):
+                if all(table.column(c)[i].as_py() is None for c in numeric if c in table.column_names):
                     raise LogFormatError(f"{path}: {_csv_row(i)}: blank line; expected {len(header)} fields "
                                          "(blank lines are not allowed between samples)")
                 raise LogFormatError(f"{path}: {_csv_row(i)}, column {name!r}: empty value; expected a number")
@@ -192,7 +193,24 @@ def _diagnose_csv(path: Path, header: list[str], numeric: list[str], err: Except
     raise LogFormatError(f"{path}: cannot be read as CSV ({err})")
 
 
-def _read_parquet(path: Path, meta: dict) -> dict[str, np.ndarray]:
+def _wanted(header: list[str], meta: dict, lean: bool) -> list[str]:
+    """The columns to read: all, or (``lean``) those the estimators use."""
+    if not lean:
+        return list(header)
+    keep = {"time", "temperature", "segment", "mask"} | {f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ} \
+        | {f"gimbal_{a}" for a in meta["axis_names"]}
+    return [h for h in header if h in keep]
+
+
+def _groups(meta: dict) -> dict[str, list[str]]:
+    return {"gyro": [f"gyro_{c}" for c in XYZ], "acc": [f"acc_{c}" for c in XYZ],
+            "gimbal": [f"gimbal_{a}" for a in meta["axis_names"]]}
+
+
+def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dict]:
+    """(column name -> values, group -> (N, k) array) of a Parquet log; the gyro, accelerometer
+    and gimbal columns are written straight into their group's array (``cols`` holds views of
+    it), so that a long log is held once, not as columns beside their stack."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -206,9 +224,12 @@ def _read_parquet(path: Path, meta: dict) -> dict[str, np.ndarray]:
     header = schema.names
     check_columns(header, meta, str(path))
     numeric = set(numeric_columns(header, meta))
+    n = pf.metadata.num_rows
+    stacked = {g: np.empty((n, len(c))) for g, c in _groups(meta).items()}
+    place = {c: (g, j) for g, cs in _groups(meta).items() for j, c in enumerate(cs)}
     cols: dict[str, np.ndarray] = {}
     # a column at a time: the whole Arrow table beside its numpy copies held 3x the log at once
-    for name in header:
+    for name in _wanted(header, meta, lean):
         typ = schema.field(name).type
         if name in numeric and not (pa.types.is_floating(typ) or pa.types.is_integer(typ)):
             raise LogFormatError(f"{path}: column {name!r} has type {typ}; expected numbers")
@@ -224,25 +245,34 @@ def _read_parquet(path: Path, meta: dict) -> dict[str, np.ndarray]:
             i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
             raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected "
                                  + ("text" if name == "segment" else "a number"))
-        if name in numeric:
+        if name in place:
+            g, j = place[name]
+            stacked[g][:, j] = col.cast(pa.float64()).to_numpy()
+            cols[name] = stacked[g][:, j]
+        elif name in numeric:
             cols[name] = col.cast(pa.float64()).to_numpy()
         elif name == "segment":
             cols[name] = _labels(col)
         else:
             cols[name] = col.to_numpy()
         del col
-    return cols
+    # Arrow's allocator keeps what it freed for reuse; the log is read, give it back
+    pa.default_memory_pool().release_unused()
+    return cols, stacked
 
 
-def read_log(path: str | Path) -> MeasurementLog:
-    """Read a ``calbench-log/1`` pair; *path* is either file of the pair or the common stem."""
+def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
+    """Read a ``calbench-log/1`` pair; *path* is either file of the pair or the common stem.
+    ``lean``: only the columns the estimators use (time, gimbal angles, gyro, accelerometer,
+    temperature, segment, mask), not the commands and extra columns (on an hours-long log at
+    1 kHz they are gigabytes no estimate reads)."""
     data, meta_path = _pair(path)
     meta = _read_meta(meta_path)
     if data.suffix.lower() == ".parquet":
-        cols = _read_parquet(data, meta)
+        cols, stacked = _read_parquet(data, meta, lean)
         row = lambda i: f"row {i + 1}"  # noqa: E731
     else:
-        cols = _read_csv(data, meta)
+        cols, stacked = _read_csv(data, meta, lean), {}
         row = _csv_row
     check_samples(cols, meta, str(data), row)
     axes = meta["axis_names"]
@@ -253,9 +283,10 @@ def read_log(path: str | Path) -> MeasurementLog:
     log = MeasurementLog(
         time=cols["time"],
         gimbal={a: cols[f"gimbal_{a}"] for a in axes},
+        angle_matrix=stacked.get("gimbal"),
         command={a: cols[f"command_{a}"] for a in axes if f"command_{a}" in cols},
-        gyro=np.column_stack([cols[f"gyro_{c}"] for c in XYZ]),
-        acc=np.column_stack([cols[f"acc_{c}"] for c in XYZ]),
+        gyro=stacked["gyro"] if "gyro" in stacked else np.column_stack([cols[f"gyro_{c}"] for c in XYZ]),
+        acc=stacked["acc"] if "acc" in stacked else np.column_stack([cols[f"acc_{c}"] for c in XYZ]),
         temperature=cols.get("temperature"),
         segment=cols.get("segment"),
         extra={k: v for k, v in cols.items() if k not in known},

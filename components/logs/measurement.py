@@ -53,6 +53,9 @@ class MeasurementLog:
     exclude: list = field(default_factory=list)  # time ranges [t0, t1] and labels to leave out
     noise: dict | None = None              # the noise model if known (calbench-noise/1 form)
     mask: np.ndarray | None = None         # (N,) bool, False: leave the sample out
+    # (N, n_axes) the gimbal angles as one array when the reader filled them so (``gimbal``'s
+    # arrays are then its columns): ``angles`` returns it instead of stacking a copy
+    angle_matrix: np.ndarray | None = field(default=None, repr=False)
 
     # ----------------------------------------------------------------- derived
     @property
@@ -83,6 +86,9 @@ class MeasurementLog:
         """(N, n_axes) gimbal angles [rad] in base-to-plate order ((N, 0) without a table)."""
         if not self.axis_names:
             return np.zeros((self.n, 0))
+        m = self.angle_matrix
+        if m is not None and all(np.shares_memory(self.gimbal[a], m) for a in self.axis_names):
+            return m
         return np.column_stack([self.gimbal[a] for a in self.axis_names])
 
     @property
