@@ -22,8 +22,13 @@ of the null seeds (sensor effects are linear in the FMU's output: seed + multipl
 the signature from one noise-free run with the effect); named first in >= 95 % of seeds (target),
 and after adding it χ²/dof within its 99 % band and no further verdict.
 
+Pulse outputs (``--counts "0.2 arcsec,0.1 mm/s"``): both sensors give counts of those weights
+(the true noise model then has their quantization, and identification holds it known); with
+``--effects none`` only, as a signature of quantised outputs is not linear in the effect.
+
     python benchmarks/coloured_noise.py [--schedule diagnosis|twentysix_position] [--grade navigation|tactical]
         [--seeds 100] [--ident-seeds 20] [--effects acc.k2,gyro.drift|all|none] [--effect-seeds 20] [--workers 2]
+        [--counts GYRO,ACC]
 """
 from __future__ import annotations
 
@@ -47,6 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from components.cli.demo import SCENARIO  # noqa: E402
 from components.diagnosis.compare import compare  # noqa: E402
 from components.diagnosis.diagnose import diagnose  # noqa: E402
+from components.diagnosis.noise_choice import quantization_known  # noqa: E402
 from components.diagnosis.noise_id import identify_noise  # noqa: E402
 from components.estimation.crb import cramer_rao  # noqa: E402
 from components.estimation.log_data import LogData  # noqa: E402
@@ -81,17 +87,20 @@ def noise_spec(grade: str) -> dict:
             "acc.noise.bi_tau": 10.0, "acc.noise.bi_tau_max": 3600.0, "acc.noise.rrw": f"{1 * k} ug/sqrt(h)"}
 
 
-def scenario(schedule: str, grade: str):
+def scenario(schedule: str, grade: str, counts: tuple | None = None):
     d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
+    if counts:
+        d["imu"]["gyro_output"] = d["imu"]["acc_output"] = "counts"
+        d["imu"]["count_weight"] = {"gyro": counts[0], "acc": counts[1]}
     d["imu"]["effects"].pop("acc.k2.z")
     d["imu"]["noise"] = noise_spec(grade)
     d["schedule"] = {"name": schedule, "overrides": {"dwell": 8.0} if schedule == "diagnosis" else {}}
     return scenario_from_dict(d, source="coloured_noise")
 
 
-def true_noise(grade: str):
+def true_noise(grade: str, weights=(None, None)):
     si = {k: noise_value(k, v, "benchmark") for k, v in noise_spec(grade).items()}
-    return from_fmu_parameters(si, source=f"injected ({grade} grade)")
+    return from_fmu_parameters(si, *weights, source=f"injected ({grade} grade)")
 
 
 # ---------------------------------------------------------------------------- per-log analyses
@@ -103,7 +112,7 @@ def analyse_null(job) -> dict:
     analyses = [("white", None, model, fit), ("true", noise, None, None)]
     ident = None
     if identify:
-        ident = identify_noise(data, model, bootstrap=10)
+        ident = identify_noise(data, model, known=quantization_known(data), bootstrap=10)
         analyses.append(("ident", ident.model, None, None))
     for name, nm, m, f in analyses:
         if m is None:
@@ -158,10 +167,14 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--batch", type=int, default=50, help="IMU instances per table run")
     ap.add_argument("--json", help="write every figure as JSON")
+    ap.add_argument("--counts", help="pulse outputs: GYRO,ACC count weights with units, e.g. '0.2 arcsec,0.1 mm/s'")
     a = ap.parse_args(argv)
     t_all = time.time()
-    sc = scenario(a.schedule, a.grade)
-    noise = true_noise(a.grade)
+    counts = tuple(x.strip() for x in a.counts.split(",")) if a.counts else None
+    if counts and (len(counts) != 2 or a.effects != "none"):
+        ap.error("--counts takes two weights (gyro,acc) and needs --effects none")
+    sc = scenario(a.schedule, a.grade, counts)
+    noise = None
     print(f"schedule {a.schedule}, {a.grade} grade, {a.seeds} null seeds ({a.ident_seeds} identified), "
           f"workers {a.workers}", flush=True)
     effects = list(PARAM) if a.effects == "all" else [] if a.effects == "none" else a.effects.split(",")
@@ -181,6 +194,7 @@ def main(argv=None) -> int:
         runs.update(run_variants(sc, todo[i:i + a.batch], CYCLE))
     truth = runs["seed0"][1]["effects"]
     datas = [LogData.from_log(runs[f"seed{k}"][0]) for k in range(a.seeds)]
+    noise = true_noise(a.grade, datas[0].count_weight)
     quiet_data = LogData.from_log(runs["quiet"][0])
     print(f"simulation: {len(todo)} IMU instances, {datas[0].time[-1]:.0f} s each, {time.time() - t:.0f} s",
           flush=True)
@@ -191,7 +205,8 @@ def main(argv=None) -> int:
     jobs = [(d, truth, noise, k < a.ident_seeds) for k, d in enumerate(datas)]
     null = list(pool.map(analyse_null, jobs))
     print(f"null analyses: {time.time() - t:.0f} s", flush=True)
-    report: dict = {"schedule": a.schedule, "grade": a.grade, "seeds": a.seeds, "duration_s": float(datas[0].time[-1])}
+    report: dict = {"schedule": a.schedule, "grade": a.grade, "seeds": a.seeds, "duration_s": float(datas[0].time[-1]),
+                    "counts": counts}
     se = math.sqrt(ALPHA * (1 - ALPHA) / a.seeds)
     print(f"\nFalse alarms on null logs (verdict named; target α = {ALPHA} ± 2 SE = [0, {ALPHA + 2 * se:.3f}]):")
     for name in ("white", "true", "ident"):

@@ -47,3 +47,18 @@ def test_a_log_that_starts_moving_leaves_out_its_first_move():
     gyro, acc = observation_blocks(static, angles, 200)
     assert gyro.start[0] == acc.start[0] == first_rest
     assert not acc.moving[0] and not gyro.moving[0]
+
+
+def test_jerk_near_is_the_largest_third_difference_within_its_window():
+    """_jerk_near from its definition, written as loops here: per block boundary k (the time of
+    sample k-1), the largest over samples j = k-4 ... k+2 (clipped to the log) of Σ_axes
+    |a[j+1] − 3 a[j] + 3 a[j-1] − a[j-2]| (0 where the difference does not exist)."""
+    from components.estimation.blocks import _jerk_near
+
+    rng = np.random.default_rng(3)
+    for n, axes in ((1, 1), (3, 2), (4, 3), (9, 1), (60, 3)):
+        a = np.cumsum(np.cumsum(rng.standard_normal((n, axes)), axis=0), axis=0)
+        d3 = [sum(abs(a[j + 1, i] - 3 * a[j, i] + 3 * a[j - 1, i] - a[j - 2, i]) for i in range(axes))
+              if 2 <= j <= n - 2 else 0.0 for j in range(n)]
+        expected = [max(d3[min(max(j, 0), n - 1)] for j in range(k - 4, k + 3)) for k in range(n + 1)]
+        np.testing.assert_allclose(_jerk_near(a), expected, rtol=1e-12, atol=1e-12)

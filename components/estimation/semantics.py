@@ -36,7 +36,7 @@ def check_semantics(data, log) -> list[str]:
     static = data.static & use
     if static.sum() >= 10:
         # per sample (the rests differ in attitude: their mean vector would cancel)
-        f = float(np.median(np.linalg.norm(data.acc[static], axis=1))) / dt
+        f = float(np.median(_norms(data.acc, static), overwrite_input=True)) / dt
         r = f / g
         for target, what in ((dt, "increments declared as specific force (rates): the values are g·dt"),
                              (1 / dt, "specific force (rates) declared as increments: the values are g/dt"),
@@ -49,7 +49,7 @@ def check_semantics(data, log) -> list[str]:
         moving = ~data.static & use
         if moving.sum() >= 10:
             expected = np.linalg.norm(_ideal_gyro_moving(data, moving), axis=1)
-            measured = np.linalg.norm(data.gyro[moving], axis=1)
+            measured = _norms(data.gyro, moving)
             # per sample and the median: a mis-declaration scales every sample alike, while one
             # corrupt angle cell (a jump of hundreds of radians) must not pass for a unit mistake
             turning = expected > 0.1 * np.median(expected) if expected.size else expected
@@ -66,6 +66,18 @@ def check_semantics(data, log) -> list[str]:
                                    f"the table angles give (the angles span {span:.4g} rad = {math.degrees(span):.4g}° "
                                    f"as declared): {what}?")
                         break
+    return out
+
+
+def _norms(x: np.ndarray, which: np.ndarray, piece: int = 1 << 20) -> np.ndarray:
+    """|x| of the rows *which*, a piece of the log at a time (the selected rows of a long log at
+    once would be 24 bytes a sample beside the norms)."""
+    out = np.empty(int(np.count_nonzero(which)))
+    i = 0
+    for a in range(0, len(x), piece):
+        v = np.linalg.norm(x[a:a + piece][which[a:a + piece]], axis=1)
+        out[i:i + len(v)] = v
+        i += len(v)
     return out
 
 
