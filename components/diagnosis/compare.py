@@ -38,6 +38,7 @@ from components.estimation.design import noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
+from components.logs.spill import empty_like_log, pieces, release
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
@@ -156,10 +157,12 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     the log's (gyro, accelerometer) observation blocks if already laid out."""
     if blocks is None:
         blocks = observation_blocks(plate.static, data.angles, samples_per_block(data.time, chunk_s), data.valid)
-    # residual written in place: a long log's (N, 6) arrays are 48 bytes a sample each
-    resid = np.empty_like(pred)
-    np.subtract(data.gyro, pred[:, :3], out=resid[:, :3])
-    np.subtract(data.acc, pred[:, 3:], out=resid[:, 3:])
+    # residual written in place, a piece at a time: a long log's (N, 6) arrays are 48 bytes a
+    # sample each (and spilled to disk with a spilled log, components.logs.spill)
+    resid = empty_like_log(pred.shape, pred)
+    for s in pieces(len(resid), resid, pred, data.gyro, data.acc):
+        np.subtract(data.gyro[s], pred[s, :3], out=resid[s, :3])
+        np.subtract(data.acc[s], pred[s, 3:], out=resid[s, 3:])
     sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
     sigma = noise_floor(sigma, np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(plate.dt)))
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
@@ -170,22 +173,18 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     chi2 = float(np.sum(rows["z"] ** 2))
     dof = max(len(rows["z"]) - fitted_parameters, 1)
     channels = {}
-    predictable = np.ones_like(resid, dtype=bool)
-    predictable[:, :3] = plate.static[:, None]
+    sums = _sample_sums(data, resid, plate.static)
     for k, ch in enumerate(CHANNELS):
         sel = rows["channel"] == k
         zk = rows["z"][sel]
         order = np.argsort(rows["start"][sel], kind="stable")
-        ok = predictable[:, k]
-        meas = data.gyro[:, k] if k < 3 else data.acc[:, k - 3]
-        dev = meas - meas.mean()
+        sq_ok, n_ok, sq_moving, n_moving, sq_all, sq_dev = sums[k]
         channels[ch] = {
-            "rms": float(np.sqrt(np.mean(resid[ok, k] ** 2))) if ok.any() else float("nan"),
-            "rms_moving": float(np.sqrt(np.mean(resid[~ok, k] ** 2))) if (~ok).any() else None,
+            "rms": float(np.sqrt(sq_ok / n_ok)) if n_ok else float("nan"),
+            "rms_moving": float(np.sqrt(sq_moving / n_moving)) if n_moving else None,
             "noise_floor": float(sigma[k]),
             "chi2_per_dof": float(np.sum(zk**2) / max(len(zk) - fitted_parameters * len(zk) / max(len(rows["z"]), 1), 1)),
-            "fit_percent": float(100 * (1 - np.linalg.norm(resid[:, k]) / np.linalg.norm(dev)))
-            if np.linalg.norm(dev) > 0 else float("nan"),
+            "fit_percent": float(100 * (1 - np.sqrt(sq_all) / np.sqrt(sq_dev))) if sq_dev > 0 else float("nan"),
             "whiteness_p": ljung_box(zk[order]),
         }
     comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
@@ -193,6 +192,31 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     comp.coloured = noise is not None and noise.coloured
     locate(comp, data, plate, rows)
     return comp
+
+
+def _sample_sums(data: LogData, resid: np.ndarray, static: np.ndarray) -> list[tuple]:
+    """Per channel, over the samples: Σ r² and count where the model predicts sample by sample
+    (every accelerometer sample, the gyros at rest), the same for the rest, Σ r² over all, and
+    Σ (y − ȳ)² of the measurement; a piece of the log at a time (two passes: ȳ first)."""
+    n = len(resid)
+    mean = np.zeros(6)
+    for s in pieces(n, data.gyro, data.acc):
+        mean[:3] += data.gyro[s].sum(axis=0)
+        mean[3:] += data.acc[s].sum(axis=0)
+    mean /= max(n, 1)
+    tot = np.zeros((6, 6))  # channel x (sq_ok, n_ok, sq_moving, n_moving, sq_all, sq_dev)
+    for s in pieces(n, resid, data.gyro, data.acc):
+        r2 = resid[s] ** 2
+        ok = np.ones(r2.shape, bool)
+        ok[:, :3] = static[s, None]
+        tot[:, 0] += np.where(ok, r2, 0.0).sum(axis=0)
+        tot[:, 1] += ok.sum(axis=0)
+        tot[:, 2] += np.where(ok, 0.0, r2).sum(axis=0)
+        tot[:, 3] += (~ok).sum(axis=0)
+        tot[:, 4] += r2.sum(axis=0)
+        dev = np.hstack([data.gyro[s], data.acc[s]]) - mean
+        tot[:, 5] += (dev**2).sum(axis=0)
+    return [tuple(row) for row in tot]
 
 
 def locate(comp: Comparison, data: LogData, plate: PlateAtSamples, rows: dict) -> None:
@@ -243,6 +267,7 @@ def _condition_masks(data: LogData, plate: PlateAtSamples, rows: dict) -> dict:
     if data.temperature is not None:
         T = np.asarray(data.temperature)[mid]
         lo, hi = np.quantile(data.temperature, [1 / 3, 2 / 3])
+        release(data.temperature)
         cond["temperature low"] = T <= lo
         cond["temperature mid"] = (T > lo) & (T <= hi)
         cond["temperature high"] = T > hi

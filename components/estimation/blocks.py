@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from components.logs.spill import PIECE, is_spilled, pieces, release
 from components.model.motion import moving_runs
 
 
@@ -35,19 +36,39 @@ class Blocks:
         what precedes it in the array, so a chunk of the log gives the whole log's sums
         (components.estimation.chunks), and no sum loses digits to a running total (a table
         column is a difference of two such sums over a 1e-6 rad step)."""
-        per_sample = np.asarray(per_sample, float)
-        if len(self.start) == 0:
-            return np.zeros((0,) + per_sample.shape[1:])
-        padded = np.concatenate([per_sample, np.zeros((1,) + per_sample.shape[1:])])
-        edges = np.empty(2 * len(self.start), int)
-        edges[0::2], edges[1::2] = self.start, self.stop
-        out = np.add.reduceat(padded, edges, axis=0)[0::2]
-        out[self.stop <= self.start] = 0.0
+        if is_spilled(per_sample) and len(self.start) and np.all(np.diff(self.start) >= 0) \
+                and np.all(np.diff(self.stop) >= 0):
+            return self._sum_in_pieces(per_sample)
+        return _block_sums(np.asarray(per_sample, float), self.start, self.stop)
+
+    def _sum_in_pieces(self, per_sample) -> np.ndarray:
+        # a spilled log (components.logs.spill): the blocks a piece of samples at a time, each
+        # summed from its own samples as above, so the sums are the same bits
+        out = np.empty((len(self.start),) + per_sample.shape[1:])
+        first = 0
+        while first < len(self.start):
+            last = max(int(np.searchsorted(self.stop, self.start[first] + PIECE, side="right")), first + 1)
+            lo, hi = int(self.start[first]), int(max(self.stop[last - 1], self.start[first]))
+            out[first:last] = _block_sums(np.asarray(per_sample[lo:hi], float), self.start[first:last] - lo,
+                                          self.stop[first:last] - lo)
+            release(per_sample)
+            first = last
         return out
 
     @property
     def count(self) -> np.ndarray:
         return self.stop - self.start
+
+
+def _block_sums(per_sample: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    if len(start) == 0:
+        return np.zeros((0,) + per_sample.shape[1:])
+    padded = np.concatenate([per_sample, np.zeros((1,) + per_sample.shape[1:])])
+    edges = np.empty(2 * len(start), int)
+    edges[0::2], edges[1::2] = start, stop
+    out = np.add.reduceat(padded, edges, axis=0)[0::2]
+    out[stop <= start] = 0.0
+    return out
 
 
 def _chunks(a: int, b: int, n: int) -> list[tuple[int, int]]:
@@ -190,8 +211,16 @@ def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) ->
     # a robust scale (median absolute deviation) so that a few steps at a run edge do not count;
     # a channel at a time (a long log's differences of every channel at once are 100 B a sample)
     mad = np.empty(increments.shape[1])
+    pairs = len(both)
     for k in range(increments.shape[1]):
-        d = np.diff(increments[:, k])[both]
+        # the differences within static runs, a piece at a time (a spilled log's column is read
+        # once per channel, a piece at a time)
+        d = np.empty(int(np.count_nonzero(both)))
+        i = 0
+        for s in pieces(pairs, increments):
+            v = np.diff(increments[s.start:s.stop + 1, k])[both[s]]
+            d[i:i + len(v)] = v
+            i += len(v)
         d -= np.median(d)
         np.abs(d, out=d)
         mad[k] = np.median(d, overwrite_input=True)

@@ -21,6 +21,7 @@ from components import progress
 from components.estimation.blocks import Blocks, observation_blocks
 from components.estimation.design import design, predict
 from components.estimation.log_data import LogData
+from components.logs.spill import empty_like_log, release
 
 # samples per chunk: ~0.1 GB of work arrays at 3 quadrature nodes and 3 axes, whatever the log (2^16 was
 # faster than 2^18 too, on a 2.5 M-sample log: 7.9 against 8.4 s, the arrays staying in cache)
@@ -107,6 +108,7 @@ def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str) -> list:
     with progress.steps(desc, len(layout.cuts)) as bar:
         for chunk in layout.chunks(data):
             out.append(work(chunk))
+            data.release()  # a spilled log's pages of this chunk (components.logs.spill)
             bar.update()
     return out
 
@@ -158,8 +160,11 @@ def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, 
     if t0_temperature is None and data.temperature is not None:
         t0_temperature = float(data.temperature[0])
     n = len(data.time)
-    pred = np.empty((n, 6))
-    plate = PlateAtSamples(np.empty(n, bool), np.empty(n), np.empty((n, 3)), np.empty((n, 3)))
+    # a spilled log gets a spilled prediction (components.logs.spill)
+    pred = empty_like_log((n, 6), data.gyro)
+    plate = PlateAtSamples(np.empty(n, bool), empty_like_log(n, data.gyro), empty_like_log((n, 3), data.gyro),
+                           empty_like_log((n, 3), data.gyro))
+
     def fill(chunk: Chunk):
         motion = chunk.data.motion(geo, t0_temperature, quadrature)
         own = chunk.own
@@ -168,6 +173,7 @@ def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, 
         pred[at, :3], pred[at, 3:] = gyro[own], acc[own]
         p = PlateAtSamples.of(motion)
         plate.static[at], plate.dt[at], plate.f[at], plate.omega[at] = p.static[own], p.dt[own], p.f[own], p.omega[own]
+        release(pred, plate.dt, plate.f, plate.omega)
 
     _each_chunk(fill, layout, data, "prediction, chunk by chunk")
     return pred, plate

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from components.logs.spill import release
 from components.model.geometry import Stage, TableGeometry
 from components.model.motion import Motion, interpolate_angles, motion_from_profile
 
@@ -98,6 +99,11 @@ class LogData:
         return motion_from_profile(self.angle_profile(quadrature), geometry, self.temperature,
                                    t0_temperature, time_origin=self.time_origin)
 
+    def release(self) -> None:
+        """Give back the pages of spilled sensor columns a pass has touched (components.logs.spill;
+        nothing for a log in memory)."""
+        release(self.gyro, self.acc, self.temperature)
+
     def stretch(self, a: int, b: int) -> "LogData":
         """Samples a-1..b-1 of the log as a log of their own that computes exactly what the whole
         log computes for samples a..b-1: sample a-1 leads (its interval is taken at rest, so it
@@ -161,6 +167,7 @@ def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
             b = min(a + RANGE_PIECE, log.n)
             with np.errstate(over="ignore", invalid="ignore"):
                 bad = use[a:b, None] & ~(np.abs(inc[a:b] / dt[a:b]) <= limit)
+            release(inc)
             if bad.any():
                 i, k = np.argwhere(bad)[0]
                 return a + i, k

@@ -18,6 +18,8 @@ import math
 
 import numpy as np
 
+from components.logs.spill import release
+
 # a measured ratio within this factor of a mistake's ratio is taken as that mistake; the right
 # declaration gives 1 within a few per cent (a scale factor error, the table's own servo error)
 MATCH = 1.3
@@ -76,6 +78,7 @@ def _norms(x: np.ndarray, which: np.ndarray, piece: int = 1 << 20) -> np.ndarray
     i = 0
     for a in range(0, len(x), piece):
         v = np.linalg.norm(x[a:a + piece][which[a:a + piece]], axis=1)
+        release(x)
         out[i:i + len(v)] = v
         i += len(v)
     return out

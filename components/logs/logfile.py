@@ -49,6 +49,7 @@ from components.logs.rules import (  # noqa: F401  (FORMAT: re-exported)
     numeric_columns,
     parse_metadata,
 )
+from components.logs.spill import release, spill_threshold, spilled_array
 
 
 # ---------------------------------------------------------------------------- reading
@@ -225,10 +226,15 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
     check_columns(header, meta, str(path))
     numeric = set(numeric_columns(header, meta))
     n = pf.metadata.num_rows
-    stacked = {g: np.empty((n, len(c))) for g, c in _groups(meta).items()}
+    # a long log read for the estimators: its sensor columns on disk (components.logs.spill)
+    spill = lean and n > spill_threshold()
+    heavy = {"gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z", "temperature"} if spill else set()
+    stacked = {g: spilled_array((n, len(c))) if c and set(c) <= heavy else np.empty((n, len(c)))
+               for g, c in _groups(meta).items()}
     place = {c: (g, j) for g, cs in _groups(meta).items() for j, c in enumerate(cs)}
     cols: dict[str, np.ndarray] = {}
-    # a column at a time: the whole Arrow table beside its numpy copies held 3x the log at once
+    # a column at a time (the whole Arrow table beside its numpy copies held 3x the log at once),
+    # and a spilled column a row group at a time
     for name in _wanted(header, meta, lean):
         typ = schema.field(name).type
         if name in numeric and not (pa.types.is_floating(typ) or pa.types.is_integer(typ)):
@@ -237,35 +243,54 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
             t = typ.value_type if pa.types.is_dictionary(typ) else typ
             if not (pa.types.is_string(t) or pa.types.is_large_string(t)):
                 raise LogFormatError(f"{path}: column 'segment' has type {typ}; expected text")
-        try:
-            col = pf.read(columns=[name]).column(0)
-        except (pa.ArrowInvalid, OSError) as e:
-            raise LogFormatError(f"{path}: column {name!r} cannot be read ({e})") from None
-        if col.null_count and (name in numeric or name == "segment"):
-            i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
-            raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected "
-                                 + ("text" if name == "segment" else "a number"))
-        if name in place:
-            g, j = place[name]
-            stacked[g][:, j] = col.cast(pa.float64()).to_numpy()
-            cols[name] = stacked[g][:, j]
-        elif name in numeric:
-            cols[name] = col.cast(pa.float64()).to_numpy()
-        elif name == "segment":
-            cols[name] = _labels(col)
-        else:
-            cols[name] = col.to_numpy()
-        del col
+        if name in heavy and name not in place:
+            cols[name] = spilled_array((n,))
+        row = 0
+        for col in _pieces(pf, name, path, name in heavy):
+            if col.null_count and (name in numeric or name == "segment"):
+                i = row + int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
+                raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected "
+                                     + ("text" if name == "segment" else "a number"))
+            if name in place:
+                g, j = place[name]
+                stacked[g][row:row + len(col), j] = col.cast(pa.float64()).to_numpy()
+                cols[name] = stacked[g][:, j]
+                release(stacked[g])
+            elif name in heavy:
+                cols[name][row:row + len(col)] = col.cast(pa.float64()).to_numpy()
+                release(cols[name])
+            elif name in numeric:
+                cols[name] = col.cast(pa.float64()).to_numpy()
+            elif name == "segment":
+                cols[name] = _labels(col)
+            else:
+                cols[name] = col.to_numpy()
+            row += len(col)
+            del col
     # Arrow's allocator keeps what it freed for reuse; the log is read, give it back
     pa.default_memory_pool().release_unused()
     return cols, stacked
+
+
+def _pieces(pf, name: str, path: Path, by_row_group: bool):
+    """The column *name* of the Parquet file: whole, or a row group at a time."""
+    import pyarrow as pa
+
+    groups = range(pf.num_row_groups) if by_row_group else [None]
+    for i in groups:
+        try:
+            table = pf.read(columns=[name]) if i is None else pf.read_row_group(i, columns=[name])
+        except (pa.ArrowInvalid, OSError) as e:
+            raise LogFormatError(f"{path}: column {name!r} cannot be read ({e})") from None
+        yield table.column(0)
 
 
 def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
     """Read a ``calbench-log/1`` pair; *path* is either file of the pair or the common stem.
     ``lean``: only the columns the estimators use (time, gimbal angles, gyro, accelerometer,
     temperature, segment, mask), not the commands and extra columns (on an hours-long log at
-    1 kHz they are gigabytes no estimate reads)."""
+    1 kHz they are gigabytes no estimate reads); a long Parquet log's sensor columns are then
+    memory-mapped from a temporary file (components.logs.spill)."""
     data, meta_path = _pair(path)
     meta = _read_meta(meta_path)
     if data.suffix.lower() == ".parquet":

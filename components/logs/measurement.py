@@ -20,6 +20,7 @@ import numpy as np
 
 from components.errors import LogFormatError
 from components.logs.rules import FORMAT, FORMAT_V2, XYZ, check_columns, check_samples, parse_metadata
+from components.logs.spill import scaled
 
 
 @dataclass
@@ -242,5 +243,5 @@ def _to_increment(x: np.ndarray, kind: str, dt, weight: float | None) -> np.ndar
     if kind == "increment":
         return x
     if kind == "counts":
-        return x * weight
-    return x * dt  # rate or specific_force
+        return scaled(x, weight)
+    return scaled(x, dt)  # rate or specific_force

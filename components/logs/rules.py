@@ -15,6 +15,7 @@ import re
 import numpy as np
 
 from components.errors import LogFormatError
+from components.logs.spill import release
 
 FORMAT = "calbench-log/1"
 FORMAT_V2 = "calbench-log/2"
@@ -293,6 +294,7 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labe
         if name == "segment" or name not in numeric_columns(list(cols), meta):
             continue
         bad = ~np.isfinite(a)
+        release(a)  # a spilled column's pages, back to the page cache (components.logs.spill)
         if bad.any():
             i = int(np.argmax(bad))
             raise LogFormatError(f"{where}: {row(i)}, column {name!r}: value {float(a[i])!r} is not finite; "

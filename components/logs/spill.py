@@ -1,0 +1,79 @@
+"""A long log's sensor columns on disk instead of in memory.
+
+An 8-hour log at 1 kHz is 28.8 M samples: its gyro, accelerometer and temperature columns alone
+are 1.6 GB as float64, and the estimators read them a chunk at a time
+(components.estimation.chunks). Above :data:`SPILL_SAMPLES` the reader therefore decodes those
+columns, a Parquet row group at a time, into memory-mapped arrays in an unlinked temporary file
+(the disk space goes when the arrays do), and the passes over them give the pages they touched
+back to the page cache (:func:`release`). The numbers are the same float64 values bit for bit;
+what changes is that the process's resident memory holds one chunk of them, not the log.
+
+The light whole-log columns the block layout needs (time, gimbal angles, segment labels) stay in
+memory.
+"""
+from __future__ import annotations
+
+import mmap
+import os
+import tempfile
+
+import numpy as np
+
+# logs with more samples than this have their sensor columns spilled when read for the
+# estimators (70 minutes at 1 kHz; CALBENCH_SPILL_SAMPLES overrides, e.g. 0 for always)
+SPILL_SAMPLES = 1 << 22
+PIECE = 1 << 18  # samples per piece of a pass over a spilled column (a (PIECE, 6) array: 12.6 MB)
+
+
+def spill_threshold() -> int:
+    v = os.environ.get("CALBENCH_SPILL_SAMPLES")
+    return int(v) if v not in (None, "") else SPILL_SAMPLES
+
+
+def spilled_array(shape, dtype=np.float64) -> np.memmap:
+    """A writable array of *shape* backed by an unlinked temporary file."""
+    fd, path = tempfile.mkstemp(prefix="calbench-spill-", suffix=".npy")
+    os.close(fd)
+    try:
+        arr = np.lib.format.open_memmap(path, mode="w+", dtype=dtype, shape=tuple(np.atleast_1d(shape)))
+    finally:
+        os.unlink(path)
+    return arr
+
+
+def is_spilled(a) -> bool:
+    return isinstance(a, np.memmap) and getattr(a, "_mmap", None) is not None
+
+
+def release(*arrays) -> None:
+    """Give the pages of spilled *arrays* (or of the mappings their views are of) back: they stay
+    on disk and in the page cache, out of this process's resident memory. Anything else: nothing."""
+    for a in arrays:
+        m = getattr(a, "_mmap", None) if isinstance(a, np.memmap) else None
+        if m is not None and not m.closed:
+            m.madvise(mmap.MADV_DONTNEED)
+
+
+def scaled(x: np.ndarray, factor) -> np.ndarray:
+    """x * factor (factor broadcast over rows: a scalar or (N, 1)); a spilled *x* gives a spilled
+    result, computed a piece at a time."""
+    if not is_spilled(x):
+        return x * factor
+    out = spilled_array(x.shape, np.result_type(x, np.float64))
+    f = np.asarray(factor)
+    for s in pieces(len(x), x, out):
+        np.multiply(x[s], f[s] if f.ndim and len(f) == len(x) else f, out=out[s])
+    return out
+
+
+def pieces(n: int, *arrays):
+    """Slices of [0, n) of :data:`PIECE` samples; after each, the pages of the spilled *arrays*
+    it touched are given back."""
+    for a in range(0, n, PIECE):
+        yield slice(a, min(a + PIECE, n))
+        release(*arrays)
+
+
+def empty_like_log(shape, like, dtype=np.float64) -> np.ndarray:
+    """An empty array of *shape*: spilled when *like* (a column of the log) is."""
+    return spilled_array(shape, dtype) if is_spilled(like) else np.empty(shape, dtype)
