@@ -5,10 +5,11 @@ resident memory.
 The log: the demo's navigation-grade scenario (hidden K2 on z) on the twenty-six-position
 schedule with 88 s dwells (the length of the log issue #18 measured), written as Parquet.
 
-Baselines (quoted, not re-measured here; issue #18, same machine class): calbench's diagnose
-before this work, 64 s CPU and 1.58 GB per call on a 41.5-minute 200 Hz log, and a small
-independent numpy solver doing the same ranking, 12 s CPU and 0.94 GB. The figure to beat is the
-numpy solver's.
+Baselines: measured here, on the same file in the same run, benchmarks/numpy_ranking.py — a
+plain vectorised numpy ranking of the static part of diagnose's test (rest blocks only; see its
+docstring), timed the same way; and quoted (issue #18, same machine class, 200 Hz only):
+calbench's diagnose before this work, 64 s CPU and 1.58 GB per call on a 41.5-minute 200 Hz log,
+and the issue's own numpy solver, 12 s CPU and 0.94 GB.
 
 An 8-hour thermal run (``--hours 8 --rate 1000``, the issue's 28.8 M samples): the
 twenty-six-position schedule repeated back to back (each repetition returns the table to its
@@ -111,10 +112,11 @@ def make_thermal_log(stem: Path, hours: float, step: float, dwell: float) -> Pat
 
 
 def measure(args: list[str]) -> tuple[float, float, float]:
-    """(CPU s, wall s, peak RSS GB) of ``calbench ARGS`` in a child process (its own rusage)."""
+    """(CPU s, wall s, peak RSS GB) of ``calbench ARGS`` (or, when ARGS starts with a .py file,
+    that script) in a child process (its own rusage)."""
     t = time.perf_counter()
-    p = subprocess.Popen([sys.executable, "-m", "components.cli", *args], cwd=ROOT,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    argv = [sys.executable, *args] if args[0].endswith(".py") else [sys.executable, "-m", "components.cli", *args]
+    p = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     _, status, usage = os.wait4(p.pid, 0)
     p.returncode = os.waitstatus_to_exitcode(status)
     wall = time.perf_counter() - t
@@ -157,15 +159,26 @@ def main() -> int:
     model = a.dir / "base.json"
     steps = [("calibrate", ["calibrate", str(log), "--out", str(model)]),
              ("compare", ["compare", str(log), "--model", str(model)]),
-             ("diagnose", ["diagnose", str(log), "--model", str(model)])]
+             ("diagnose", ["diagnose", str(log), "--model", str(model)]),
+             ("numpy", [str(ROOT / "benchmarks" / "numpy_ranking.py"), str(log)])]
     print(f"{'command':10s} {'CPU s':>7s} {'wall s':>7s} {'peak GB':>8s} {'us/sample':>9s} {'B/sample':>8s}   "
           "against the baselines (CPU ratio, memory ratio)")
+    got = {}
     for name, args in steps:
-        cpu, wall, peak = measure(args)
+        cpu, wall, peak = got[name] = measure(args)
         ratios = "; ".join(f"{b}: {cpu / c:.2f}x CPU, {peak / m:.2f}x memory"
                            for b, (c, m) in (BASELINES.get(name, {}) if a.rate == 200 else {}).items())
+        if name == "diagnose":
+            ratios = "; ".join(x for x in (ratios, "numpy ranking: the line after next") if x)
         print(f"{name:10s} {cpu:7.1f} {wall:7.1f} {peak:8.2f} {cpu / n * 1e6:9.1f} {peak * 1024**3 / n:8.0f}   {ratios}",
               flush=True)
+    (dc, _, dm), (nc, _, nm) = got["diagnose"], got["numpy"]
+    print(f"diagnose against the numpy ranking measured side by side: {dc / nc:.2f}x CPU, {dm / nm:.2f}x memory "
+          "(the numpy ranking sees the rests only)")
+    three = [got[k] for k in ("calibrate", "compare", "diagnose")]
+    print(f"calibrate + compare + diagnose: {sum(c for c, _, _ in three):.0f} s CPU, "
+          f"{sum(w for _, w, _ in three):.0f} s wall, peak {max(m for _, _, m in three):.2f} GB "
+          "(issue #18 for an 8-hour 1 kHz log: <= 600 s on 2 cores, <= 4 GB)")
     print(f"cpus {os.cpu_count()}, load average (1 min) {os.getloadavg()[0]:.2f}")
     if tmp is not None:
         tmp.cleanup()

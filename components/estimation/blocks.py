@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from components.logs.spill import PIECE, is_spilled, pieces, release
+from components.logs import spill
+from components.logs.spill import is_spilled, pieces, release
 from components.model.motion import moving_runs
 
 
@@ -47,7 +48,7 @@ class Blocks:
         out = np.empty((len(self.start),) + per_sample.shape[1:])
         first = 0
         while first < len(self.start):
-            last = max(int(np.searchsorted(self.stop, self.start[first] + PIECE, side="right")), first + 1)
+            last = max(int(np.searchsorted(self.stop, self.start[first] + spill.PIECE, side="right")), first + 1)
             lo, hi = int(self.start[first]), int(max(self.stop[last - 1], self.start[first]))
             out[first:last] = _block_sums(np.asarray(per_sample[lo:hi], float), self.start[first:last] - lo,
                                           self.stop[first:last] - lo)

@@ -1,0 +1,91 @@
+"""A long log's sensor columns on disk (components.logs.spill): read with the spill forced and
+in small pieces, a log gives bit for bit the arrays, the estimates and σ, the comparison and the
+diagnosis it gives in memory (issue #18: results equal to the in-memory ones)."""
+from __future__ import annotations
+
+import copy
+import tomllib
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from components.cli.demo import SCENARIO
+from components.diagnosis.compare import compare
+from components.diagnosis.diagnose import diagnose
+from components.estimation.log_data import LogData
+from components.estimation.lsq import calibrate
+from components.logs import spill
+from components.logs.logfile import read_log, write_log
+from components.model.effects import DEFAULT_EFFECTS
+from components.model.result import result_from_fit
+from components.simulation.run import run_scenario
+from components.simulation.scenario import scenario_from_dict
+
+CHUNK = 5000
+
+
+def _write(tmp_path, name, counts=False):
+    d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
+    d["scenario"]["seed"] = 33
+    if counts:
+        d["imu"]["gyro_output"] = d["imu"]["acc_output"] = "counts"
+    log = run_scenario(scenario_from_dict(d, source="test_spill"), progress=False).log
+    write_log(tmp_path / name, log, fmt="parquet")
+    # several row groups, so the spilled columns are decoded a row group at a time
+    path = tmp_path / f"{name}.parquet"
+    pq.write_table(pq.read_table(path), path, row_group_size=7000)
+    return path
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    path = _write(tmp_path_factory.mktemp("spill"), "run")
+    memory = LogData.from_log(read_log(path, lean=True))
+    mp = pytest.MonkeyPatch()
+    mp.setenv("CALBENCH_SPILL_SAMPLES", "0")
+    mp.setattr(spill, "PIECE", 3000)  # passes in pieces smaller than a chunk
+    spilled = LogData.from_log(read_log(path, lean=True))
+    yield memory, spilled
+    mp.undo()
+
+
+def _bits(a):
+    return np.asarray(a, float).view(np.int64)
+
+
+def test_the_spilled_columns_are_the_same_bits(pair):
+    memory, spilled = pair
+    assert spill.is_spilled(spilled.gyro) and spill.is_spilled(spilled.acc) and spill.is_spilled(spilled.temperature)
+    assert not spill.is_spilled(memory.gyro)
+    for k in ("time", "angles", "gyro", "acc", "temperature"):
+        assert np.array_equal(_bits(getattr(memory, k)), _bits(getattr(spilled, k))), k
+
+
+def test_estimates_comparison_and_diagnosis_equal_in_memory(pair):
+    memory, spilled = pair
+    effects = list(DEFAULT_EFFECTS)
+    fits = [calibrate(d, effects, chunk_samples=CHUNK) for d in pair]
+    assert fits[0].parameters == fits[1].parameters
+    assert np.array_equal(fits[0].value, fits[1].value)
+    assert np.array_equal(fits[0].covariance, fits[1].covariance)
+    model = result_from_fit(fits[0], effects, memory)
+    comps = [compare(d, model, fitted_parameters=len(model.values), chunk_samples=CHUNK) for d in pair]
+    assert comps[0].chi2 == comps[1].chi2 and comps[0].dof == comps[1].dof
+    assert comps[0].channels == comps[1].channels
+    assert np.array_equal(comps[0].residual, comps[1].residual)
+    assert comps[0].per_segment == comps[1].per_segment and comps[0].conditions == comps[1].conditions
+    diags = [diagnose(d, model, forward=False, chunk_samples=CHUNK) for d in pair]
+    assert diags[0].verdict == diags[1].verdict == "acc.k2"
+    assert [(c.effect, c.statistic) for c in diags[0].ranking] == [(c.effect, c.statistic) for c in diags[1].ranking]
+
+
+def test_a_spilled_pulse_output_is_converted_a_piece_at_a_time(tmp_path, monkeypatch):
+    path = _write(tmp_path, "counts", counts=True)
+    memory = LogData.from_log(read_log(path, lean=True))
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
+    monkeypatch.setattr(spill, "PIECE", 3000)
+    spilled = LogData.from_log(read_log(path, lean=True))
+    assert spill.is_spilled(spilled.gyro)
+    assert np.array_equal(_bits(memory.gyro), _bits(spilled.gyro))
+    assert np.array_equal(_bits(memory.acc), _bits(spilled.acc))
