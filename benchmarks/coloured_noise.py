@@ -22,9 +22,11 @@ of the null seeds (sensor effects are linear in the FMU's output: seed + multipl
 the signature from one noise-free run with the effect); named first in >= 95 % of seeds (target),
 and after adding it χ²/dof within its 99 % band and no further verdict.
 
-Pulse outputs (``--counts "0.2 arcsec,0.1 mm/s"``): both sensors give counts of those weights
-(the true noise model then has their quantization, and identification holds it known); with
-``--effects none`` only, as a signature of quantised outputs is not linear in the effect.
+Pulse outputs (``--counts "0.2 arcsec,0.1 mm/s"``): each simulated log's increments are turned
+into the counts a pulse output of those weights gives — the floor of the running integral over
+the weight, the remainder carried, a random start — (the true noise model then has their
+quantization, and identification holds it known); with ``--effects none`` only, as a signature
+of quantised outputs is not linear in the effect.
 
     python benchmarks/coloured_noise.py [--schedule diagnosis|twentysix_position] [--grade navigation|tactical]
         [--seeds 100] [--ident-seeds 20] [--effects acc.k2,gyro.drift|all|none] [--effect-seeds 20] [--workers 2]
@@ -63,7 +65,7 @@ from components.model.noise import CHANNELS, TERMS, from_fmu_parameters  # noqa:
 from components.model.quantities import noise_value  # noqa: E402
 from components.model.result import result_from_fit  # noqa: E402
 from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
-from components.simulation.scenario import scenario_from_dict  # noqa: E402
+from components.simulation.scenario import count_weights_of, scenario_from_dict  # noqa: E402
 
 BASELINE = list(DEFAULT_EFFECTS)
 ALPHA = 0.01
@@ -87,15 +89,26 @@ def noise_spec(grade: str) -> dict:
             "acc.noise.bi_tau": 10.0, "acc.noise.bi_tau_max": 3600.0, "acc.noise.rrw": f"{1 * k} ug/sqrt(h)"}
 
 
-def scenario(schedule: str, grade: str, counts: tuple | None = None):
+def scenario(schedule: str, grade: str):
     d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
-    if counts:
-        d["imu"]["gyro_output"] = d["imu"]["acc_output"] = "counts"
-        d["imu"]["count_weight"] = {"gyro": counts[0], "acc": counts[1]}
     d["imu"]["effects"].pop("acc.k2.z")
     d["imu"]["noise"] = noise_spec(grade)
     d["schedule"] = {"name": schedule, "overrides": {"dwell": 8.0} if schedule == "diagnosis" else {}}
     return scenario_from_dict(d, source="coloured_noise")
+
+
+def as_pulse_counts(log, weights: dict, seed: int):
+    """*log* with its increments as the counts of pulse outputs of *weights* (SI, per sensor)."""
+    rng = np.random.default_rng(seed)
+    for sensor in ("gyro", "acc"):
+        w = weights[sensor]
+        inc = getattr(log, sensor)
+        start = rng.random(3) * w
+        total = np.floor((np.cumsum(inc, axis=0) + start) / w)
+        setattr(log, sensor, np.diff(total, axis=0, prepend=np.floor(start / w)[None, :]))
+        setattr(log, f"{sensor}_output", "counts")
+    log.gyro_count_rad, log.acc_count_mps = weights["gyro"], weights["acc"]
+    return log
 
 
 def true_noise(grade: str, weights=(None, None)):
@@ -173,7 +186,9 @@ def main(argv=None) -> int:
     counts = tuple(x.strip() for x in a.counts.split(",")) if a.counts else None
     if counts and (len(counts) != 2 or a.effects != "none"):
         ap.error("--counts takes two weights (gyro,acc) and needs --effects none")
-    sc = scenario(a.schedule, a.grade, counts)
+    weights = count_weights_of(dict(zip(("gyro", "acc"), counts)), {"gyro": "counts", "acc": "counts"},
+                               "--counts", ValueError) if counts else None
+    sc = scenario(a.schedule, a.grade)
     noise = None
     print(f"schedule {a.schedule}, {a.grade} grade, {a.seeds} null seeds ({a.ident_seeds} identified), "
           f"workers {a.workers}", flush=True)
@@ -193,6 +208,9 @@ def main(argv=None) -> int:
     for i in range(0, len(todo), a.batch):
         runs.update(run_variants(sc, todo[i:i + a.batch], CYCLE))
     truth = runs["seed0"][1]["effects"]
+    if weights:
+        for k in range(a.seeds):
+            as_pulse_counts(runs[f"seed{k}"][0], weights, 7000 + k)
     datas = [LogData.from_log(runs[f"seed{k}"][0]) for k in range(a.seeds)]
     noise = true_noise(a.grade, datas[0].count_weight)
     quiet_data = LogData.from_log(runs["quiet"][0])

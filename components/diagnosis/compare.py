@@ -225,7 +225,7 @@ def locate(comp: Comparison, data: LogData, plate: PlateAtSamples, rows: dict) -
     comp.per_segment = _per_segment(data, rows)
     masks = _condition_masks(data, plate, rows)
     comp.conditions = _conditions(rows, masks)
-    seg = np.asarray(data.segment).astype(str)[rows["start"]] if data.segment is not None else None
+    seg = np.asarray(data.segment)[rows["start"]].astype(str) if data.segment is not None else None
     comp.misfits = misfits(rows, seg, masks)
 
 
@@ -233,8 +233,7 @@ def _per_segment(data: LogData, rows: dict) -> dict:
     """Per segment label and channel: RMS of the normalised block residuals (1 = noise)."""
     if data.segment is None:
         return {}
-    seg = np.asarray(data.segment).astype(str)
-    label = seg[rows["start"]]
+    label = np.asarray(data.segment)[rows["start"]].astype(str)  # the blocks' labels, not every sample's
     out: dict = {}
     for s in dict.fromkeys(label):
         sel = label == s

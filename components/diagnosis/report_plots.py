@@ -69,7 +69,10 @@ def residual_vs_time(comparison, model_name: str) -> str:
     rows = comparison.rows
     t = comparison.time
     fig, axes = plt.subplots(6, 1, figsize=(9, 8), sharex=True)
-    seg = np.asarray(comparison.segment).astype(str) if comparison.segment is not None else None
+    bounds = None
+    if comparison.segment is not None:
+        seg = np.asarray(comparison.segment, dtype=object)  # the labels, not a text array a sample
+        bounds = np.concatenate([[0], np.nonzero(seg[1:] != seg[:-1])[0] + 1, [len(seg)]])
     for k, ax in enumerate(axes):
         sel = rows["channel"] == k
         tm = t[np.minimum((rows["start"][sel] + rows["stop"][sel]) // 2, len(t) - 1)]
@@ -77,9 +80,7 @@ def residual_vs_time(comparison, model_name: str) -> str:
         ax.axhline(3, color="grey", lw=0.5)
         ax.axhline(-3, color="grey", lw=0.5)
         ax.set_ylabel(CHANNELS[k], fontsize=8)
-        if seg is not None:
-            change = np.nonzero(seg[1:] != seg[:-1])[0] + 1
-            bounds = np.concatenate([[0], change, [len(seg)]])
+        if bounds is not None:
             for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
                 if i % 2:
                     ax.axvspan(t[a], t[b - 1], color="0.92", lw=0)

@@ -41,7 +41,7 @@ def write_block_residuals(path: str, comparison) -> None:
     normalised residual z, and whether its segment × channel cell misfits beyond noise."""
     rows = comparison.rows
     t = np.asarray(comparison.time, dtype=float)
-    seg = (np.asarray(comparison.segment).astype(str)[rows["start"]] if comparison.segment is not None
+    seg = (np.asarray(comparison.segment)[rows["start"]].astype(str) if comparison.segment is not None
            else np.full(len(rows["z"]), ""))
     mis = comparison.misfits
     flagged = {(c.name, c.channel) for c in mis.flagged("segment")} if mis is not None else set()
