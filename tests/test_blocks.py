@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from components.estimation.blocks import observation_blocks
 from components.navigation.system import static_mask
@@ -49,11 +50,17 @@ def test_a_log_that_starts_moving_leaves_out_its_first_move():
     assert not acc.moving[0] and not gyro.moving[0]
 
 
-def test_jerk_near_is_the_largest_third_difference_within_its_window():
+@pytest.mark.parametrize("piece", [None, 4])
+def test_jerk_near_is_the_largest_third_difference_within_its_window(piece, monkeypatch):
     """_jerk_near from its definition, written as loops here: per block boundary k (the time of
     sample k-1), the largest over samples j = k-4 ... k+2 (clipped to the log) of Σ_axes
-    |a[j+1] − 3 a[j] + 3 a[j-1] − a[j-2]| (0 where the difference does not exist)."""
+    |a[j+1] − 3 a[j] + 3 a[j-1] − a[j-2]| (0 where the difference does not exist). Also with a
+    long log's pieces made tiny (4 samples), to check the pieces' margins."""
     from components.estimation.blocks import _jerk_near
+    from components.logs import spill
+
+    if piece:
+        monkeypatch.setattr(spill, "PIECE", piece)
 
     rng = np.random.default_rng(3)
     for n, axes in ((1, 1), (3, 2), (4, 3), (9, 1), (60, 3)):

@@ -123,6 +123,20 @@ def restrict(blocks: Blocks, valid: np.ndarray) -> Blocks:
 
 
 def _jerk_near(angles: np.ndarray) -> np.ndarray:
+    """See :func:`_jerk_near_of`; a long log a piece at a time (its work arrays are 40 bytes a
+    sample), each piece with a margin of 8 samples either side, so the same bits come out."""
+    n = len(angles)
+    if n <= 2 * spill.PIECE:
+        return _jerk_near_of(angles)
+    out = np.empty(n + 1)
+    for ka in range(0, n + 1, spill.PIECE):
+        kb = min(ka + spill.PIECE, n + 1)
+        lo, hi = max(ka - 8, 0), min(kb + 8, n)
+        out[ka:kb] = _jerk_near_of(angles[lo:hi])[ka - lo:kb - lo]
+    return out
+
+
+def _jerk_near_of(angles: np.ndarray) -> np.ndarray:
     """(N+1,) per block boundary k (the time of angle k-1): the largest third difference of the
     angles within three samples, i.e. how close the table's angular acceleration jumps. A block
     boundary inside a move needs the rate and angular acceleration there (the lever-arm and
