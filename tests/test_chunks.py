@@ -146,3 +146,18 @@ def test_ideal_increments_are_the_motions(data):
     gyro, acc = ideal_increments(data.angle_profile(3), data.geometry)
     assert np.max(np.abs(gyro - motion.ideal_gyro)) <= 1e-13 * np.max(np.abs(motion.ideal_gyro))
     assert np.max(np.abs(acc - motion.ideal_acc)) <= 1e-13 * np.max(np.abs(motion.ideal_acc))
+
+
+def test_chunks_on_two_processes_give_the_same_bits(data, monkeypatch):
+    """The chunk work on forked worker processes (CALBENCH_WORKERS): every estimate, σ and
+    statistic is the same bits as on one process, in the same order."""
+    effects = list(DEFAULT_EFFECTS) + ["acc.k2"]
+    fits, diags = [], []
+    for workers in ("1", "2"):
+        monkeypatch.setenv("CALBENCH_WORKERS", workers)
+        fits.append(calibrate(data, effects, chunk_samples=SMALL))
+        model = result_from_fit(fits[-1], effects, data)
+        diags.append(diagnose(data, model, forward=False, chunk_samples=SMALL))
+    assert np.array_equal(fits[0].value, fits[1].value)
+    assert np.array_equal(fits[0].covariance, fits[1].covariance)
+    assert [(c.effect, c.statistic) for c in diags[0].ranking] == [(c.effect, c.statistic) for c in diags[1].ranking]

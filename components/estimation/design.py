@@ -22,6 +22,7 @@ TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
 # Geometry columns depend only on the angle profile, the blocks and the geometry: logs that
 # share the motion (Monte-Carlo seeds, effects hidden in the IMU only) reuse them.
 _GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
+GEOMETRY_CACHE = 256  # entries kept
 
 
 def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +91,7 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
                 v = table_parameter_value(geo, p)
                 sg_p, sa_p = ideal_sums(apply_table_parameter(geo, p, v + TABLE_STEP))
                 _GEOMETRY_COLUMNS[key] = ((sg_p - base_g) / TABLE_STEP, (sa_p - base_a) / TABLE_STEP)
-                while len(_GEOMETRY_COLUMNS) > 256:
+                while len(_GEOMETRY_COLUMNS) > GEOMETRY_CACHE:
                     _GEOMETRY_COLUMNS.popitem(last=False)
                 bar.update()
             Hg[:, :, k], Ha[:, :, k] = _GEOMETRY_COLUMNS[key]

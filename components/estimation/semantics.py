@@ -25,6 +25,9 @@ from components.logs.spill import release
 MATCH = 1.3
 
 
+ENOUGH_MOVING = 200_000  # moving samples the gyro's unit check looks at, at most (a few more: whole chunks)
+
+
 def _near(ratio: float, target: float) -> bool:
     return ratio > 0 and target > 0 and abs(math.log(ratio / target)) < math.log(MATCH)
 
@@ -50,8 +53,9 @@ def check_semantics(data, log) -> list[str]:
     if data.has_table:
         moving = ~data.static & use
         if moving.sum() >= 10:
-            expected = np.linalg.norm(_ideal_gyro_moving(data, moving), axis=1)
-            measured = _norms(data.gyro, moving)
+            ideal, upto = _ideal_gyro_moving(data, moving)
+            expected = np.linalg.norm(ideal, axis=1)
+            measured = _norms(data.gyro[:upto], moving[:upto])
             # per sample and the median: a mis-declaration scales every sample alike, while one
             # corrupt angle cell (a jump of hundreds of radians) must not pass for a unit mistake
             turning = expected > 0.1 * np.median(expected) if expected.size else expected
@@ -84,17 +88,22 @@ def _norms(x: np.ndarray, which: np.ndarray, piece: int = 1 << 20) -> np.ndarray
     return out
 
 
-def _ideal_gyro_moving(data, moving: np.ndarray) -> np.ndarray:
+def _ideal_gyro_moving(data, moving: np.ndarray) -> tuple[np.ndarray, int]:
     """The ideal gyro increments of the *moving* samples from the table angles, a chunk of the log
     at a time (components.estimation.chunks: the interpolated angles of a whole long log would
-    be 300 bytes a sample)."""
+    be 300 bytes a sample), and the sample they go up to: the chunks stop once
+    :data:`ENOUGH_MOVING` moving samples are in (a unit mistake scales every sample alike; on an
+    8-hour log the whole pass was 15 s of every command)."""
     from components.estimation.blocks import samples_per_block
     from components.estimation.chunks import BlockLayout
     from components.model.motion import ideal_increments
 
-    parts = []
+    parts, upto, got = [], 0, 0
     for chunk in BlockLayout.of(data, samples_per_block(data.time, 1.0)).chunks(data):
         gyro, _ = ideal_increments(chunk.data.angle_profile(3), data.geometry)
         own = gyro[chunk.own]
         parts.append(own[moving[chunk.start:chunk.start + len(own)]])
-    return np.concatenate(parts) if parts else np.zeros((0, 3))
+        upto, got = chunk.start + len(own), got + len(parts[-1])
+        if got >= ENOUGH_MOVING:
+            break
+    return (np.concatenate(parts) if parts else np.zeros((0, 3))), upto
