@@ -119,8 +119,9 @@ def _in_worker(i: int):
     work, chunks = _FORKED
     known = set(design_module._GEOMETRY_COLUMNS)
     progress.enable(False)  # the parent's bar counts the chunks
-    out = work(chunks[i])
-    chunks[i].data.release()
+    chunk, chunks[i] = chunks[i], None  # not kept: a chunk caches its angle profile (300 bytes a sample)
+    out = work(chunk)
+    chunk.data.release()
     # the geometry columns this worker computed, for the parent's cache (a later call with the
     # same geometry then finds them, as it would without workers)
     new = {k: v for k, v in design_module._GEOMETRY_COLUMNS.items() if k not in known}
