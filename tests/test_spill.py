@@ -45,6 +45,7 @@ def pair(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.setenv("CALBENCH_SPILL_SAMPLES", "0")
     mp.setattr(spill, "PIECE", 3000)  # passes in pieces smaller than a chunk
+    mp.setenv("CALBENCH_WORKERS", "2")  # the spilled prediction filled by forked workers
     spilled = LogData.from_log(read_log(path, lean=True))
     yield memory, spilled
     mp.undo()

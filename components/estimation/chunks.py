@@ -24,7 +24,7 @@ from components import progress
 from components.estimation.blocks import Blocks, observation_blocks
 from components.estimation.design import design, predict
 from components.estimation.log_data import LogData
-from components.logs.spill import empty_like_log, release
+from components.logs.spill import empty_like_log, is_spilled, release
 
 # samples per chunk: ~0.1 GB of work arrays at 3 quadrature nodes and 3 axes, whatever the log (2^16 was
 # faster than 2^18 too, on a 2.5 M-sample log: 7.9 against 8.4 s, the arrays staying in cache)
@@ -209,10 +209,11 @@ def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, 
     if t0_temperature is None and data.temperature is not None:
         t0_temperature = float(data.temperature[0])
     n = len(data.time)
-    # a spilled log gets a spilled prediction (components.logs.spill)
+    # a spilled log gets a spilled prediction (components.logs.spill), which forked workers can
+    # fill: the file is mapped shared, so what they write is what the parent reads
     pred = empty_like_log((n, 6), data.gyro)
-    plate = PlateAtSamples(np.empty(n, bool), empty_like_log(n, data.gyro), empty_like_log((n, 3), data.gyro),
-                           empty_like_log((n, 3), data.gyro))
+    plate = PlateAtSamples(empty_like_log(n, data.gyro, bool), empty_like_log(n, data.gyro),
+                           empty_like_log((n, 3), data.gyro), empty_like_log((n, 3), data.gyro))
 
     def fill(chunk: Chunk):
         motion = chunk.data.motion(geo, t0_temperature, quadrature)
@@ -222,7 +223,7 @@ def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, 
         pred[at, :3], pred[at, 3:] = gyro[own], acc[own]
         p = PlateAtSamples.of(motion)
         plate.static[at], plate.dt[at], plate.f[at], plate.omega[at] = p.static[own], p.dt[own], p.f[own], p.omega[own]
-        release(pred, plate.dt, plate.f, plate.omega)
+        release(pred, plate.static, plate.dt, plate.f, plate.omega)
 
-    _each_chunk(fill, layout, data, "prediction, chunk by chunk")
+    _each_chunk(fill, layout, data, "prediction, chunk by chunk", parallel=is_spilled(pred))
     return pred, plate
