@@ -4,6 +4,7 @@
 - :mod:`.blocks`       observation blocks: 1 s static chunks and rest-to-rest moves
 - :mod:`.rest_angles`  the encoder's count: how far the table really rests from its reading
 - :mod:`.design`       the observation model (stacked block rows, weights), shared by all below
+- :mod:`.chunks`       the block rows a chunk of the log at a time, on forked worker processes
 - :mod:`.whitening`    generalised least squares in linear time: the block rows whitened by a
                        Kalman filter of the noise model
 - :mod:`.allan`        pooled overlapping Allan variance of residuals, with degrees of freedom
