@@ -20,7 +20,7 @@ from scipy import stats
 from components.cli.demo import SCENARIO
 from components.diagnosis.compare import compare
 from components.diagnosis.diagnose import diagnose
-from components.diagnosis.noise_choice import choose_noise
+from components.diagnosis.noise_choice import WHITE, choose_noise
 from components.estimation.log_data import LogData
 from components.estimation.lsq import calibrate
 from components.model.effects import DEFAULT_EFFECTS
@@ -63,6 +63,7 @@ def null_logs():
 
 def test_white_analysis_names_a_noise_term_not_a_drift(null_logs):
     for data in null_logs:
+        assert choose_noise(["white"], data)[1] == WHITE  # increments, not counts: nothing to warn of
         model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
         d = diagnose(data, model)
         assert d.verdict_kind == "noise", (d.verdict, d.verdict_kind)
@@ -118,6 +119,8 @@ def test_counts_coarser_than_the_white_noise_keep_the_white_level_and_honest_sig
     data = LogData.from_log(run.log)
     noise, said, ident = choose_noise(None, data, effects=BASELINE, bootstrap=10)
     assert ident is not None and all(c.white > 0 for c in noise.channels), ident.table()
+    # asked for white noise, the user is told what it gets wrong on these counts
+    assert "coarser than the noise" in choose_noise(["white"], data)[1]
     fit = calibrate(data, BASELINE, noise=noise)
     true = from_fmu_parameters({k: noise_value(k, v, "test") for k, v in NOISE.items()},
                                gyro_count=data.count_weight[0], acc_count=data.count_weight[1])
