@@ -103,6 +103,8 @@ def _cuts(static: np.ndarray, gb: Blocks, ab: Blocks, n: int, target: int) -> np
 
 def chunk_workers() -> int:
     """Processes the chunk work of a long log runs on: ``CALBENCH_WORKERS``, else every CPU."""
+    if "fork" not in mp.get_all_start_methods():
+        return 1  # the workers inherit the log by fork (not on Windows)
     v = os.environ.get("CALBENCH_WORKERS")
     return max(1, int(v)) if v not in (None, "") else (os.cpu_count() or 1)
 
