@@ -144,3 +144,22 @@ def test_a_systematic_misfit_is_an_effect_not_a_noise_term():
     hidden = {"gyro.sf", "gyro.mis", "acc.sf", "acc.mis"}
     assert d.verdict_kind == "effect" and d.verdict in hidden, (d.verdict, d.found)
     assert not any(".noise." in f for f in d.found), d.found
+
+
+def test_a_long_logs_fast_terms_come_from_its_first_rests(monkeypatch):
+    """The Allan stage uses at most ALLAN_SAMPLES static samples (the first rests; an 8-hour 1 kHz
+    log's bootstrap would simulate 30 M samples per replicate): said in the notes, and the white
+    levels from those rests still within 3 σ of the injected ones."""
+    from components.diagnosis import noise_id
+    from components.model.quantities import noise_value as nv
+
+    monkeypatch.setattr(noise_id, "ALLAN_SAMPLES", 20_000)
+    white = {"gyro.noise.arw": "0.002 deg/sqrt(h)", "acc.noise.vrw": "10 ug/sqrt(Hz)"}
+    data = LogData.from_log(_run(27, noise=white))
+    model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
+    ident = noise_id.identify_noise(data, model, bootstrap=10)
+    assert any("from the first" in n for n in ident.notes), ident.notes
+    truth = [nv("gyro.noise.arw", white["gyro.noise.arw"], "test")] * 3 \
+        + [nv("acc.noise.vrw", white["acc.noise.vrw"], "test")] * 3
+    for c, t in zip(ident.channels, truth):
+        assert abs(c.noise.white - t) < 3 * c.sigma["white"], (c.name, c.noise.white, t, c.sigma["white"])
