@@ -8,8 +8,6 @@ import json
 
 import numpy as np
 
-TERM_NAMES = {"q": "quantization", "arw": "white", "vrw": "white", "bi": "bias_instability", "rrw": "random_walk"}
-
 
 def _cmd_noise(args: argparse.Namespace) -> int:
     from components.diagnosis.noise_choice import quantization_known, white_fit
@@ -18,7 +16,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     from components.estimation.log_data import LogData
     from components.logs.logfile import read_log
     from components.model.effects import parse_effects
-    from components.model.noise import CHANNELS, TERMS, sensor_of
+    from components.model.noise import CHANNELS, TERM_OF_NAME, TERMS, sensor_of
     from components.model.result import CalibrationResult
 
     log = read_log(args.log, lean=True)
@@ -35,9 +33,9 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     if args.terms:
         terms = []
         for t in args.terms.split(","):
-            if t.strip() not in TERM_NAMES:
-                raise UserError(f"--terms {t.strip()!r}: expected some of {', '.join(TERM_NAMES)}")
-            terms.append(TERM_NAMES[t.strip()])
+            if t.strip() not in TERM_OF_NAME:
+                raise UserError(f"--terms {t.strip()!r}: expected some of {', '.join(TERM_OF_NAME)}")
+            terms.append(TERM_OF_NAME[t.strip()])
         terms = tuple(dict.fromkeys(terms))
     if args.model:
         model = CalibrationResult.load(args.model)

@@ -29,7 +29,7 @@ from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel
 from components.estimation.noise_likelihood import family_critical, fit_slow_terms
 from components.estimation.whitening import channel_rows
 from components.logs.spill import release
-from components.model.noise import AXES, CHANNELS, TERMS, ChannelNoise, NoiseModel, sensor_of
+from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of
 
 ALLAN_SAMPLES = 1 << 22  # static samples the Allan stage uses, at most (70 minutes at 1 kHz)
 
@@ -168,9 +168,6 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     return NoiseIdentification(model_out, out_channels, len(runs), notes)
 
 
-NOISE_TERMS = {"bi": "bias_instability", "rrw": "random_walk"}
-
-
 def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[str], *, chunk_s: float = 1.0):
     """*noise* (None: white noise at the data's level) with the noise *terms* (``acc.noise.bi``,
     ``gyro.noise.rrw``, ...) added, each magnitude estimated per axis by restricted maximum
@@ -188,7 +185,7 @@ def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[
     report = {}
     for term in terms:
         sensor, _, t = term.split(".")
-        field_ = NOISE_TERMS[t]
+        field_ = TERM_OF_NAME[t]
         for k in (range(3) if sensor == "gyro" else range(3, 6)):
             idx = channel_rows(rows, k)
             H = rows["H"][idx]

@@ -13,11 +13,10 @@ from scipy import stats
 from components import progress
 from components.estimation.noise_likelihood import fit_one_term
 from components.estimation.whitening import channel_rows
-from components.model.noise import NoiseModel
+from components.model.noise import TERM_OF_NAME, NoiseModel
 
 # noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)
 NOISE_CANDIDATES = ("acc.noise.bi", "acc.noise.rrw", "gyro.noise.bi", "gyro.noise.rrw")
-_FIELD = {"bi": "bias_instability", "rrw": "random_walk"}
 
 
 def has_term(noise: NoiseModel | None, term: str) -> bool:
@@ -26,7 +25,7 @@ def has_term(noise: NoiseModel | None, term: str) -> bool:
         return False
     sensor, _, t = term.split(".")
     chans = noise.channels[:3] if sensor == "gyro" else noise.channels[3:]
-    return all(getattr(c, _FIELD[t]) > 0 for c in chans)
+    return all(getattr(c, TERM_OF_NAME[t]) > 0 for c in chans)
 
 
 def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, alpha: float) -> list:
@@ -41,7 +40,7 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
     with progress.steps("noise terms", len(terms)) as bar:
         for term in terms:
             sensor, _, t = term.split(".")
-            field_ = _FIELD[t]
+            field_ = TERM_OF_NAME[t]
             chans = list(current.channels)
             gain, values, n_new = 0.0, [], 0
             for k in (range(3) if sensor == "gyro" else range(3, 6)):
