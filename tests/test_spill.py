@@ -90,3 +90,21 @@ def test_a_spilled_pulse_output_is_converted_a_piece_at_a_time(tmp_path, monkeyp
     assert spill.is_spilled(spilled.gyro)
     assert np.array_equal(_bits(memory.gyro), _bits(spilled.gyro))
     assert np.array_equal(_bits(memory.acc), _bits(spilled.acc))
+
+
+@pytest.mark.parametrize("spilled", [False, True])
+def test_a_corrupt_sample_is_named_in_memory_and_spilled(conformance, tmp_path, monkeypatch, spilled):
+    """The range check, a piece at a time: one gyro value at 10^4 rad/s (beyond any gyro's
+    1000 rad/s) put at a known sample is found there, whichever piece it falls in."""
+    from components.errors import EstimationError
+
+    write_log(tmp_path / "ideal", read_log(conformance / "ideal"), fmt="parquet")
+    if spilled:
+        monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
+        monkeypatch.setattr(spill, "PIECE", 300)
+    log = read_log(tmp_path / "ideal.parquet", lean=True)
+    assert spill.is_spilled(log.gyro) == spilled
+    k = 1234
+    log.gyro[k, 1] = 1e4 * log.dt
+    with pytest.raises(EstimationError, match=rf"sample {k + 1} .*column gyro_y"):
+        LogData.from_log(log)

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from components.logs.spill import release
+from components.logs.spill import pieces, release
 from components.model.geometry import Stage, TableGeometry
 from components.model.motion import Motion, interpolate_angles, motion_from_profile
 
@@ -152,7 +152,6 @@ class LogData:
 # overflow on it, or silently be dominated by it)
 MAX_RATE = 1.0e3      # rad/s (57 000 deg/s; the fastest MEMS gyros stop at ~70 rad/s)
 MAX_FORCE = 1.0e5     # m/s² (10 000 g)
-RANGE_PIECE = 1 << 20
 
 
 def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
@@ -163,14 +162,12 @@ def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
 
     def first_beyond(inc, limit):
         # in pieces: the whole log's quotient and mask would be 27 bytes a sample at once
-        for a in range(0, log.n, RANGE_PIECE):
-            b = min(a + RANGE_PIECE, log.n)
+        for s in pieces(log.n, inc):
             with np.errstate(over="ignore", invalid="ignore"):
-                bad = use[a:b, None] & ~(np.abs(inc[a:b] / dt[a:b]) <= limit)
-            release(inc)
+                bad = use[s, None] & ~(np.abs(inc[s] / dt[s]) <= limit)
             if bad.any():
                 i, k = np.argwhere(bad)[0]
-                return a + i, k
+                return s.start + i, k
         return None
 
     for name, inc, limit, unit in (("gyro", gyro, MAX_RATE, "rad/s"), ("acc", acc, MAX_FORCE, "m/s²")):

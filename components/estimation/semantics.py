@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from components.logs.spill import release
+from components.logs.spill import pieces
 
 # a measured ratio within this factor of a mistake's ratio is taken as that mistake; the right
 # declaration gives 1 within a few per cent (a scale factor error, the table's own servo error)
@@ -75,14 +75,13 @@ def check_semantics(data, log) -> list[str]:
     return out
 
 
-def _norms(x: np.ndarray, which: np.ndarray, piece: int = 1 << 20) -> np.ndarray:
+def _norms(x: np.ndarray, which: np.ndarray) -> np.ndarray:
     """|x| of the rows *which*, a piece of the log at a time (the selected rows of a long log at
     once would be 24 bytes a sample beside the norms)."""
     out = np.empty(int(np.count_nonzero(which)))
     i = 0
-    for a in range(0, len(x), piece):
-        v = np.linalg.norm(x[a:a + piece][which[a:a + piece]], axis=1)
-        release(x)
+    for s in pieces(len(x), x):
+        v = np.linalg.norm(x[s][which[s]], axis=1)
         out[i:i + len(v)] = v
         i += len(v)
     return out
