@@ -99,9 +99,9 @@ def test_a_corrupt_sample_is_named_in_memory_and_spilled(conformance, tmp_path, 
     from components.errors import EstimationError
 
     write_log(tmp_path / "ideal", read_log(conformance / "ideal"), fmt="parquet")
-    if spilled:
-        monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
-        monkeypatch.setattr(spill, "PIECE", 300)
+    # (stated both ways: the module's fixture forces the spill for its own tests)
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0" if spilled else str(1 << 40))
+    monkeypatch.setattr(spill, "PIECE", 300)
     log = read_log(tmp_path / "ideal.parquet", lean=True)
     assert spill.is_spilled(log.gyro) == spilled
     k = 1234

@@ -22,7 +22,13 @@ import numpy as np
 
 from components import progress
 from components.estimation.blocks import Blocks, observation_blocks
-from components.estimation.design import design, predict
+from components.estimation.design import (
+    design,
+    geometry_column_keys,
+    geometry_columns_since,
+    predict,
+    remember_geometry_columns,
+)
 from components.estimation.log_data import LogData
 from components.logs.spill import empty_like_log, is_spilled, release
 
@@ -116,18 +122,15 @@ PARALLEL_CHUNKS = 4  # fewer chunks than this are not worth starting processes f
 
 
 def _in_worker(i: int):
-    from components.estimation import design as design_module
-
     work, chunks = _FORKED
-    known = set(design_module._GEOMETRY_COLUMNS)
+    known = geometry_column_keys()
     progress.enable(False)  # the parent's bar counts the chunks
     chunk, chunks[i] = chunks[i], None  # not kept: a chunk caches its angle profile (300 bytes a sample)
     out = work(chunk)
     chunk.data.release()
     # the geometry columns this worker computed, for the parent's cache (a later call with the
     # same geometry then finds them, as it would without workers)
-    new = {k: v for k, v in design_module._GEOMETRY_COLUMNS.items() if k not in known}
-    return out, new
+    return out, geometry_columns_since(known)
 
 
 def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: bool = False) -> list:
@@ -143,19 +146,15 @@ def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: b
     out = []
     with progress.steps(desc, len(layout.cuts)) as bar:
         if workers > 1 and len(layout.cuts) >= PARALLEL_CHUNKS:
-            from components.estimation import design as design_module
-
             _FORKED = (work, list(layout.chunks(data)))
             try:
                 with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
                     for result, columns in pool.map(_in_worker, range(len(_FORKED[1]))):
                         out.append(result)
-                        design_module._GEOMETRY_COLUMNS.update(columns)
+                        remember_geometry_columns(columns)
                         bar.update()
             finally:
                 _FORKED = None
-            while len(design_module._GEOMETRY_COLUMNS) > design_module.GEOMETRY_CACHE:
-                design_module._GEOMETRY_COLUMNS.popitem(last=False)
             return out
         for chunk in layout.chunks(data):
             out.append(work(chunk))

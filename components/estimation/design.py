@@ -25,6 +25,23 @@ _GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
 GEOMETRY_CACHE = 256  # entries kept
 
 
+def remember_geometry_columns(columns: dict) -> None:
+    """Keep *columns* (key -> (gyro, accelerometer) block columns), the oldest dropped beyond
+    :data:`GEOMETRY_CACHE` (also how a chunk worker's columns reach its parent's cache)."""
+    _GEOMETRY_COLUMNS.update(columns)
+    while len(_GEOMETRY_COLUMNS) > GEOMETRY_CACHE:
+        _GEOMETRY_COLUMNS.popitem(last=False)
+
+
+def geometry_columns_since(known: set) -> dict:
+    """The cached geometry columns whose keys are not in *known*."""
+    return {k: v for k, v in _GEOMETRY_COLUMNS.items() if k not in known}
+
+
+def geometry_column_keys() -> set:
+    return set(_GEOMETRY_COLUMNS)
+
+
 def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Model output increments (N, 3) gyro and acc for sensor-effect values on this motion,
     summed one regressor at a time (all of them at once, as (N, 3, P) arrays, held 0.4 GB for
@@ -80,21 +97,20 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
         ig, ia = ideal_increments(profile, g)
         return gb.sum(ig), ab.sum(ia)
 
-    base_g, base_a = ideal_sums(geo) if table_params else (0, 0)
     blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
                                 + ab.stop.tobytes()).hexdigest() if table_params else ""
     keys = {p: (motion.profile_key, blocks_key, geo, p) for p in table_params}
-    with progress.steps("table effects' columns", sum(k not in _GEOMETRY_COLUMNS for k in keys.values())) as bar:
-        for p, key in keys.items():
-            k = params.index(p)
-            if key not in _GEOMETRY_COLUMNS:
-                v = table_parameter_value(geo, p)
-                sg_p, sa_p = ideal_sums(apply_table_parameter(geo, p, v + TABLE_STEP))
-                _GEOMETRY_COLUMNS[key] = ((sg_p - base_g) / TABLE_STEP, (sa_p - base_a) / TABLE_STEP)
-                while len(_GEOMETRY_COLUMNS) > GEOMETRY_CACHE:
-                    _GEOMETRY_COLUMNS.popitem(last=False)
-                bar.update()
-            Hg[:, :, k], Ha[:, :, k] = _GEOMETRY_COLUMNS[key]
+    missing = [p for p, key in keys.items() if key not in _GEOMETRY_COLUMNS]
+    # the unperturbed sums only when a column must be computed (a kinematics pass of its own)
+    base_g, base_a = ideal_sums(geo) if missing else (0, 0)
+    with progress.steps("table effects' columns", len(missing)) as bar:
+        for p in missing:
+            v = table_parameter_value(geo, p)
+            sg_p, sa_p = ideal_sums(apply_table_parameter(geo, p, v + TABLE_STEP))
+            remember_geometry_columns({keys[p]: ((sg_p - base_g) / TABLE_STEP, (sa_p - base_a) / TABLE_STEP)})
+            bar.update()
+    for p, key in keys.items():
+        Hg[:, :, params.index(p)], Ha[:, :, params.index(p)] = _GEOMETRY_COLUMNS[key]
     var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)
     var_a = ab.count[:, None] * sa[None, :] ** 2
     y = np.concatenate([yg.reshape(-1), ya.reshape(-1)])
