@@ -100,17 +100,20 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
     blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
                                 + ab.stop.tobytes()).hexdigest() if table_params else ""
     keys = {p: (motion.profile_key, blocks_key, geo, p) for p in table_params}
-    missing = [p for p, key in keys.items() if key not in _GEOMETRY_COLUMNS]
+    # taken out of the cache first: adding the missing ones may drop the oldest, which can be ours
+    columns = {p: _GEOMETRY_COLUMNS[key] for p, key in keys.items() if key in _GEOMETRY_COLUMNS}
+    missing = [p for p in keys if p not in columns]
     # the unperturbed sums only when a column must be computed (a kinematics pass of its own)
     base_g, base_a = ideal_sums(geo) if missing else (0, 0)
     with progress.steps("table effects' columns", len(missing)) as bar:
         for p in missing:
             v = table_parameter_value(geo, p)
             sg_p, sa_p = ideal_sums(apply_table_parameter(geo, p, v + TABLE_STEP))
-            remember_geometry_columns({keys[p]: ((sg_p - base_g) / TABLE_STEP, (sa_p - base_a) / TABLE_STEP)})
+            columns[p] = ((sg_p - base_g) / TABLE_STEP, (sa_p - base_a) / TABLE_STEP)
+            remember_geometry_columns({keys[p]: columns[p]})
             bar.update()
-    for p, key in keys.items():
-        Hg[:, :, params.index(p)], Ha[:, :, params.index(p)] = _GEOMETRY_COLUMNS[key]
+    for p, (cg, ca) in columns.items():
+        Hg[:, :, params.index(p)], Ha[:, :, params.index(p)] = cg, ca
     var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)
     var_a = ab.count[:, None] * sa[None, :] ** 2
     y = np.concatenate([yg.reshape(-1), ya.reshape(-1)])
