@@ -165,6 +165,23 @@ def analyse_hidden(job) -> dict:
             "further": d2.verdict}
 
 
+def honest_sigma_p(errors, sigmas) -> float:
+    """Two-sided p-value of Σ (e/σ)² ~ χ²(n): the errors are drawn with the reported σ."""
+    z2 = float(np.sum((np.asarray(errors) / np.asarray(sigmas)) ** 2))
+    n = len(errors)
+    return float(min(1.0, 2 * min(stats.chi2.cdf(z2, n), stats.chi2.sf(z2, n))))
+
+
+def holm(pvalues: dict, alpha: float) -> list:
+    """The names Holm's step-down procedure rejects at family-wise *alpha*."""
+    out = []
+    for i, (name, p) in enumerate(sorted(pvalues.items(), key=lambda kv: kv[1])):
+        if p > alpha / (len(pvalues) - i):
+            break
+        out.append(name)
+    return out
+
+
 def band99(dof: int) -> tuple[float, float]:
     return stats.chi2.ppf(0.005, dof) / dof, stats.chi2.ppf(0.995, dof) / dof
 
@@ -266,8 +283,21 @@ def main(argv=None) -> int:
               + (f"   {row['bounds'][0]:9.2f} {row['bounds'][1]:11.2f}" if "bounds" in row else ""))
     report["parameters"] = table
     for name in ("white", "true", "ident"):
-        ok = sum(1 for p in params if name in table[p] and 0.8 <= table[p][name][0] <= 1.25)
-        print(f"  {name}: {ok}/{len(params)} parameters with RMS error / σ in [0.8, 1.25]")
+        rs = [r[name] for r in null if name in r]
+        if not rs:
+            continue
+        ok = sum(1 for p in params if 0.8 <= table[p][name][0] <= 1.25)
+        n = len(rs)
+        # with n seeds even an exact σ puts RMS/σ outside the band by chance: RMS²/σ² ~ χ²(n)/n
+        p_in = stats.chi2.cdf(1.25**2 * n, n) - stats.chi2.cdf(0.8**2 * n, n)
+        # and a test per parameter that the errors' spread is the reported σ (two-sided, Holm at 1 %)
+        pv = {p: honest_sigma_p([r["error"][p] for r in rs], [r["sigma"][p] for r in rs]) for p in params}
+        rejected = holm(pv, ALPHA)
+        print(f"  {name}: {ok}/{len(params)} parameters with RMS error / σ in [0.8, 1.25] (expected "
+              f"{p_in * len(params):.1f} at {n} seeds were every σ exact); σ rejected as the errors' spread "
+              f"(χ²({n}), Holm at {ALPHA}): " + (", ".join(f"{p} (p {pv[p]:.1g})" for p in rejected) or "none"))
+        report[f"sigma_test_{name}"] = {"in_band": ok, "expected_in_band": float(p_in * len(params)),
+                                        "rejected": rejected, "p": pv}
 
     ident = [r["identified"] for r in null if "identified" in r]
     if ident:
