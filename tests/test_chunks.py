@@ -167,13 +167,13 @@ def test_a_small_geometry_cache_gives_the_same_fit(data, monkeypatch):
     """The table effects' columns come from a cache that drops its oldest entries: with room for
     only 3, a fit whose columns are partly cached (from a fit with fewer table effects) and
     partly new equals the fit made with an empty cache."""
-    from components.estimation import design as design_module
+    from components.estimation import table_columns as cache
 
     effects = list(DEFAULT_EFFECTS) + ["table.base_tilt", "table.nonorth"]
-    monkeypatch.setattr(design_module, "GEOMETRY_CACHE", 3)
-    design_module._GEOMETRY_COLUMNS.clear()
+    monkeypatch.setattr(cache, "GEOMETRY_CACHE", 3)
+    cache._GEOMETRY_COLUMNS.clear()
     fresh = calibrate(data, effects)
-    design_module._GEOMETRY_COLUMNS.clear()
+    cache._GEOMETRY_COLUMNS.clear()
     calibrate(data, list(DEFAULT_EFFECTS) + ["table.base_tilt"])  # some of the columns cached
     mixed = calibrate(data, effects)
     assert np.array_equal(fresh.value, mixed.value)

@@ -22,14 +22,13 @@ import numpy as np
 
 from components import progress
 from components.estimation.blocks import Blocks, observation_blocks
-from components.estimation.design import (
-    design,
+from components.estimation.design import design, predict
+from components.estimation.log_data import LogData
+from components.estimation.table_columns import (
     geometry_column_keys,
     geometry_columns_since,
-    predict,
     remember_geometry_columns,
 )
-from components.estimation.log_data import LogData
 from components.logs.spill import empty_like_log, is_spilled, release
 
 # samples per chunk: ~0.1 GB of work arrays at 3 quadrature nodes and 3 axes, whatever the log (2^16 was

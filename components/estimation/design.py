@@ -2,44 +2,17 @@
 once: per observation block (components.estimation.blocks), measured sum − ideal sum = H θ + v,
 the columns of H the effects' regressors (components.model.effects) summed over the block, and
 for table effects the derivative of the ideal prediction with respect to the geometry parameter
-(forward differences). Rows are weighted by the block's white-noise variance (n σ², plus the
-encoder's count variance at the ends of a moving gyro block)."""
+(components.estimation.table_columns). Rows are weighted by the block's white-noise variance
+(n σ², plus the encoder's count variance at the ends of a moving gyro block)."""
 from __future__ import annotations
-
-import hashlib
-from collections import OrderedDict
 
 import numpy as np
 
-from components import progress
 from components.estimation.blocks import Blocks
 from components.estimation.rest_angles import rest_variance
+from components.estimation.table_columns import table_columns
 from components.model.effects import TIME_OFFSETS, effect_of, regressor_of, time_offset_of_lever
-from components.model.motion import Motion, ideal_increments
-from components.model.table_parameters import apply_table_parameter, table_parameter_value
-
-TABLE_STEP = 1e-6  # rad, forward-difference step of the geometry parameters
-# Geometry columns depend only on the angle profile, the blocks and the geometry: logs that
-# share the motion (Monte-Carlo seeds, effects hidden in the IMU only) reuse them.
-_GEOMETRY_COLUMNS: "OrderedDict[tuple, tuple]" = OrderedDict()
-GEOMETRY_CACHE = 256  # entries kept
-
-
-def remember_geometry_columns(columns: dict) -> None:
-    """Keep *columns* (key -> (gyro, accelerometer) block columns), the oldest dropped beyond
-    :data:`GEOMETRY_CACHE` (also how a chunk worker's columns reach its parent's cache)."""
-    _GEOMETRY_COLUMNS.update(columns)
-    while len(_GEOMETRY_COLUMNS) > GEOMETRY_CACHE:
-        _GEOMETRY_COLUMNS.popitem(last=False)
-
-
-def geometry_columns_since(known: set) -> dict:
-    """The cached geometry columns whose keys are not in *known*."""
-    return {k: v for k, v in _GEOMETRY_COLUMNS.items() if k not in known}
-
-
-def geometry_column_keys() -> set:
-    return set(_GEOMETRY_COLUMNS)
+from components.model.motion import Motion
 
 
 def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,30 +61,8 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
                     Ha[:, :, kt] += lin[k] * d
                 Ha[:, :, k] += tau0 * d
                 ya = ya + tau0 * lin[k] * d
-    # geometry columns by forward differences (the prediction is smooth in these small angles:
-    # the truncation error is ~1e-6 of the column, far below what the fit can resolve)
-    # (the ideal increments alone, not a whole Motion per parameter: 7x faster on a long log)
     profile = data.angle_profile(len(motion.nodes)) if table_params else None
-
-    def ideal_sums(g):
-        ig, ia = ideal_increments(profile, g)
-        return gb.sum(ig), ab.sum(ia)
-
-    blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
-                                + ab.stop.tobytes()).hexdigest() if table_params else ""
-    keys = {p: (motion.profile_key, blocks_key, geo, p) for p in table_params}
-    # taken out of the cache first: adding the missing ones may drop the oldest, which can be ours
-    columns = {p: _GEOMETRY_COLUMNS[key] for p, key in keys.items() if key in _GEOMETRY_COLUMNS}
-    missing = [p for p in keys if p not in columns]
-    # the unperturbed sums only when a column must be computed (a kinematics pass of its own)
-    base_g, base_a = ideal_sums(geo) if missing else (0, 0)
-    with progress.steps("table effects' columns", len(missing)) as bar:
-        for p in missing:
-            v = table_parameter_value(geo, p)
-            sg_p, sa_p = ideal_sums(apply_table_parameter(geo, p, v + TABLE_STEP))
-            columns[p] = ((sg_p - base_g) / TABLE_STEP, (sa_p - base_a) / TABLE_STEP)
-            remember_geometry_columns({keys[p]: columns[p]})
-            bar.update()
+    columns = table_columns(profile, motion.profile_key, gb, ab, geo, table_params)
     for p, (cg, ca) in columns.items():
         Hg[:, :, params.index(p)], Ha[:, :, params.index(p)] = cg, ca
     var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)

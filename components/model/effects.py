@@ -131,7 +131,8 @@ def _k2(m, i):
 
 
 def _k3(m, i):
-    return None, _e(i, _integral(m, _signal(m, "acc", i) ** 3))
+    f = _signal(m, "acc", i)
+    return None, _e(i, _integral(m, f * f * f))
 
 
 def _cross(m, ij):
@@ -140,11 +141,18 @@ def _cross(m, ij):
 
 
 def _lever(m, idx):
-    i, k = idx.split(".")
-    r = np.zeros(3)
-    r[AX.index(k)] = 1.0
-    extra = lever_acceleration(m.omega_q, m.alpha_q, r)
-    return None, _e(i, _integral(m, extra[:, :, AX.index(i)]))
+    # component i of lever_acceleration(ω, α, e_k) = α × e_k + ω (ω_k) − e_k |ω|², written out:
+    # the other two components of the (N, Q, 3) product are never used
+    i, k = (AX.index(x) for x in idx.split("."))
+    om, al = m.omega_q, m.alpha_q
+    extra = om[:, :, i] * om[:, :, k]
+    if i == k:
+        extra = extra - np.einsum("nqj,nqj->nq", om, om)
+    elif k == (i + 2) % 3:
+        extra = extra + al[:, :, (i + 1) % 3]
+    else:
+        extra = extra - al[:, :, (i + 2) % 3]
+    return None, _e(AX[i], _integral(m, extra))
 
 
 def _time_offset(m, _):

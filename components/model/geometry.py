@@ -72,6 +72,22 @@ def rotvec(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * K + (1 - c) * (K @ K)
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for broadcastable (..., 3) arrays: np.cross's products and differences without its
+    axis juggling (2-3x faster on (N, 3); the same bits)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], -1)
+
+
+def rotate_back(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """R(a, t)^T v = R(a, -t) v for unit axes (3,) or (N, 3), angles (N,), vectors (N, 3),
+    by Rodrigues' formula on the vectors (no (N, 3, 3) matrices)."""
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    return v * c - cross(axis, v) * s + axis * (np.sum(axis * v, axis=-1)[:, None] * (1 - c))
+
+
 def perpendicular_pair(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """u = normalize(e_j x a) with e_j the first basis vector of smallest |a . e_j|; v = a x u."""
     j = int(np.argmin(np.abs(a)))
@@ -197,8 +213,37 @@ class TableGeometry:
             Tt = np.swapaxes(T, 1, 2)
             om_prev = np.einsum("nij,nj->ni", Tt, omega)
             rel = rate[:, k, None] * b
-            alpha = np.einsum("nij,nj->ni", Tt, alpha) + acc[:, k, None] * b + np.cross(om_prev, rel)
+            alpha = np.einsum("nij,nj->ni", Tt, alpha) + acc[:, k, None] * b + cross(om_prev, rel)
             omega = om_prev + rel
             C = C @ T
         f = np.einsum("nji,j->ni", C, np.array([0.0, 0.0, self.g]))  # C_n^p f^n
         return C, omega, alpha, f
+
+    def rate_and_force(self, theta: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """omega_ip^p and f^p (N, 3) of :meth:`kinematics` alone, by rotating vectors instead of
+        multiplying matrices: f^p = g C_n^p e_up, and C_n^p e_up is carried stage by stage like
+        omega (T_k^T applied to the vertical's row of C). What the table effects'
+        finite-difference columns evaluate once per parameter (4-5x faster than kinematics)."""
+        theta = np.atleast_2d(np.asarray(theta, float))
+        n = theta.shape[0]
+        rate = np.atleast_2d(np.asarray(rate, float))
+        C_b0n = self.base_to_nav()
+        omega = np.broadcast_to(C_b0n.T @ earth_rate_enu(self.latitude, self.earth_rate), (n, 3))
+        up = np.broadcast_to(C_b0n[2], (n, 3))  # C_n^b0 e_up
+        for k, s in enumerate(self.stages):
+            a = s.effective_axis()
+            t = theta[:, k]
+            A = s.wobble_amp
+            b = a
+            if A != 0.0:
+                # T^T = R(a, t)^T Rot(w)^T, Rot(w)^T = R(w/|w|, -|w|)
+                phi = s.wobble_phase
+                u, v = perpendicular_pair(a)
+                w = A * (np.cos(t + phi)[:, None] * u + np.sin(t + phi)[:, None] * v)
+                amp = np.linalg.norm(w, axis=1)
+                wa = w / np.where(amp > 0, amp, 1.0)[:, None]
+                omega, up = rotate_back(wa, amp, omega), rotate_back(wa, amp, up)
+                b = rodrigues(a, phi) @ rotvec(-A * u) @ a
+            omega = rotate_back(a, t, omega) + rate[:, k, None] * b
+            up = rotate_back(a, t, up)
+        return omega, self.g * up

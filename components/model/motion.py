@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from components.model.geometry import TableGeometry
+from components.model.geometry import TableGeometry, cross
 
 _GL = {
     2: (np.array([-1, 1]) / np.sqrt(3), np.array([1.0, 1.0])),
@@ -36,7 +36,7 @@ def gauss_legendre(q: int) -> tuple[np.ndarray, np.ndarray]:
 def lever_acceleration(omega: np.ndarray, alpha: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Specific force at offset *r* [m] minus that at the reference point of a rigid body turning
     at *omega* [rad/s] with *alpha* [rad/s²] (all in body axes, (..., 3)): α × r + ω × (ω × r)."""
-    return np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+    return cross(alpha, r) + cross(omega, cross(omega, r))
 
 
 @dataclass
@@ -246,28 +246,55 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     )
 
 
+class IdealIncrements:
+    """The ideal gyro and accelerometer increments of one angle profile (no lever arms), for any
+    table geometry, as rest values per attitude (a rest's increment is its attitude's rate and
+    force times the interval) and per moving sample (node by node, by
+    TableGeometry.rate_and_force) — what the table effects' finite-difference columns need, one
+    geometry per parameter."""
+
+    def __init__(self, profile: AngleProfile):
+        self.profile = profile
+        mv = ~profile.static
+        self.moving_index = np.flatnonzero(mv)
+        _, q, n_ax = profile.th_q.shape
+        self._nodes = (profile.th_q[mv].reshape(-1, n_ax), profile.rate_q[mv].reshape(-1, n_ax),
+                       profile.acc_q[mv].reshape(-1, n_ax))
+        self._q = q
+        self._dt_m = profile.dt[mv, None]
+
+    def of(self, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(rest rate (A, 3), rest force (A, 3), moving gyro (M, 3), moving acc (M, 3)) increments
+        per unit time at rest, per sample when moving."""
+        p = self.profile
+        if p.attitudes is not None and len(p.attitudes):
+            om_u, f_u = _at_rest(p, geometry)
+            wsum = float(np.sum(p.weights))
+            rest_g, rest_a = om_u * wsum, f_u * wsum
+        else:
+            rest_g = rest_a = np.zeros((0, 3))
+        if len(self.moving_index) == 0:
+            return rest_g, rest_a, np.zeros((0, 3)), np.zeros((0, 3))
+        th, rate, _ = _true_motion(geometry, *self._nodes)
+        om, f = geometry.rate_and_force(th, rate)
+        w = p.weights
+        mov_g = self._dt_m * np.tensordot(om.reshape(-1, self._q, 3), w, axes=([1], [0]))
+        mov_a = self._dt_m * np.tensordot(f.reshape(-1, self._q, 3), w, axes=([1], [0]))
+        return rest_g, rest_a, mov_g, mov_a
+
+
 def ideal_increments(profile: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray]:
     """The ideal gyro and accelerometer increments (N, 3) of motion_from_profile(profile,
-    geometry) (no lever arms), without building the Motion: a rest's increment is its attitude's
-    rate and force times the interval, so only the moving samples are evaluated node by node.
-    What the table effects' finite-difference columns need (one per parameter per fit)."""
+    geometry) (no lever arms), without building the Motion (:class:`IdealIncrements` per sample)."""
     p = profile
-    n = len(p.dt)
-    gyro = np.empty((n, 3))
-    acc = np.empty((n, 3))
+    rest_g, rest_a, mov_g, mov_a = IdealIncrements(p).of(geometry)
+    gyro = np.empty((len(p.dt), 3))
+    acc = np.empty((len(p.dt), 3))
     st = p.static
     if st.any():
-        om_u, f_u = _at_rest(p, geometry)
-        wsum = float(np.sum(p.weights))
-        dt_s = p.dt[st, None]
-        gyro[st] = dt_s * (om_u * wsum)[p.attitude_of]
-        acc[st] = dt_s * (f_u * wsum)[p.attitude_of]
-    mv = ~st
-    if mv.any():
-        om_m, _, f_m = _moving_nodes(p, geometry)
-        dt_m = p.dt[mv, None]
-        gyro[mv] = dt_m * np.tensordot(om_m, p.weights, axes=([1], [0]))
-        acc[mv] = dt_m * np.tensordot(f_m, p.weights, axes=([1], [0]))
+        gyro[st] = p.dt[st, None] * rest_g[p.attitude_of]
+        acc[st] = p.dt[st, None] * rest_a[p.attitude_of]
+    gyro[~st], acc[~st] = mov_g, mov_a
     return gyro, acc
 
 
