@@ -163,6 +163,46 @@ def test_chunks_on_two_processes_give_the_same_bits(data, monkeypatch):
     assert [(c.effect, c.statistic) for c in diags[0].ranking] == [(c.effect, c.statistic) for c in diags[1].ranking]
 
 
+def test_chunks_on_a_dask_cluster_give_the_same_bits(data, monkeypatch):
+    """The chunk work sent to a Dask cluster (CALBENCH_SCHEDULER; two worker processes here):
+    the same estimates, σ and ranking as on this process, the table columns included (computed
+    on the workers, brought back with the rows)."""
+    from distributed import Client, LocalCluster, get_task_stream
+
+    from components.estimation import table_columns as cache
+
+    effects = list(DEFAULT_EFFECTS) + ["acc.k2", "table.base_tilt"]
+    monkeypatch.setenv("CALBENCH_WORKERS", "1")
+    cache._GEOMETRY_COLUMNS.clear()
+    here = calibrate(data, effects, chunk_samples=SMALL)
+    model = result_from_fit(here, effects, data)
+    diag_here = diagnose(data, model, forward=False, chunk_samples=SMALL)
+    cache._GEOMETRY_COLUMNS.clear()
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as watcher, get_task_stream(client=watcher) as stream:
+        monkeypatch.setenv("CALBENCH_SCHEDULER", cluster.scheduler_address)
+        there = calibrate(data, effects, chunk_samples=SMALL)
+        diag_there = diagnose(data, model, forward=False, chunk_samples=SMALL)
+    # the chunks ran there, on both workers
+    ran = [t for t in stream.data if str(t["key"]).startswith("_with_columns")]
+    assert len(ran) >= 2 * len(BlockLayout.of(data, 200, SMALL).cuts)
+    assert len({t["worker"] for t in ran}) == 2
+    assert np.array_equal(here.value, there.value)
+    assert np.array_equal(here.covariance, there.covariance)
+    assert [(c.effect, c.statistic) for c in diag_here.ranking] == [(c.effect, c.statistic) for c in diag_there.ranking]
+    assert len(cache.geometry_column_keys()) > 0  # the workers' columns reached this process
+
+
+def test_an_unreachable_scheduler_is_one_clear_error(data, monkeypatch):
+    from components.errors import UserError
+    from components.estimation import chunks
+
+    monkeypatch.setattr(chunks, "SCHEDULER_TIMEOUT", "1s")
+    monkeypatch.setenv("CALBENCH_SCHEDULER", "tcp://127.0.0.1:9")
+    with pytest.raises(UserError, match="CALBENCH_SCHEDULER=tcp://127.0.0.1:9: no Dask scheduler answers"):
+        calibrate(data, list(DEFAULT_EFFECTS), chunk_samples=SMALL)
+
+
 def test_a_small_geometry_cache_gives_the_same_fit(data, monkeypatch):
     """The table effects' columns come from a cache that drops its oldest entries: with room for
     only 3, a fit whose columns are partly cached (from a fit with fewer table effects) and
