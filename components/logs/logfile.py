@@ -28,7 +28,6 @@ Choices the spec leaves open, stated here:
 """
 from __future__ import annotations
 
-import csv
 import json
 import re
 from pathlib import Path
@@ -36,13 +35,12 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import LogFormatError
+from components.logs.csv_log import csv_row, labels, not_utf8, read_csv, sensor_groups, wanted_columns
 from components.logs.measurement import MeasurementLog
 from components.logs.rules import (  # noqa: F401  (FORMAT: re-exported)
     FORMAT,
     FORMAT_V2,
     MAX_METADATA_DEPTH,
-    NONFINITE,
-    NUMBER,
     XYZ,
     check_columns,
     check_samples,
@@ -90,122 +88,8 @@ def _read_meta(path: Path) -> dict:
         raise LogFormatError(f"{path}: metadata nested deeper than {MAX_METADATA_DEPTH} levels; expected the flat "
                              "object of docs/measurement-log.md") from None
     except UnicodeDecodeError as e:
-        raise LogFormatError(_not_utf8(path, e)) from None
+        raise LogFormatError(not_utf8(path, e)) from None
     return parse_metadata(raw, str(path))
-
-
-def _not_utf8(path: Path, e: UnicodeDecodeError) -> str:
-    """What a file that is not UTF-8 text is, and what to do."""
-    head = path.read_bytes()[:2]
-    what = " (it looks like UTF-16: save it as UTF-8)" if head in (b"\xff\xfe", b"\xfe\xff") else ""
-    return (f"{path}: byte {e.object[e.start]:#04x} at offset {e.start} is not UTF-8 text{what}; expected a UTF-8 "
-            "file (docs/measurement-log.md)")
-
-
-def _csv_row(i: int) -> str:
-    return f"data row {i + 1} (line {i + 2})"
-
-
-def _read_header(path: Path) -> list[str]:
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            first = f.readline()
-    except UnicodeDecodeError as e:
-        raise LogFormatError(_not_utf8(path, e)) from None
-    if not first.strip():
-        raise LogFormatError(f"{path}: line 1: empty; expected the header row (time, gimbal_<axis>, ...)")
-    return next(csv.reader([first]))
-
-
-def _read_csv(path: Path, meta: dict, lean: bool = False) -> dict[str, np.ndarray]:
-    import pyarrow as pa
-    import pyarrow.csv as pcsv
-
-    header = _read_header(path)
-    check_columns(header, meta, str(path))
-    numeric = numeric_columns(header, meta)
-    types = {c: pa.float64() for c in numeric}
-    if "segment" in header:
-        types["segment"] = pa.dictionary(pa.int32(), pa.string())
-    try:
-        table = pcsv.read_csv(
-            path,
-            read_options=pcsv.ReadOptions(block_size=1 << 22),
-            parse_options=pcsv.ParseOptions(ignore_empty_lines=False),
-            convert_options=pcsv.ConvertOptions(column_types=types, null_values=[""], strings_can_be_null=False,
-                                                quoted_strings_can_be_null=False,
-                                                include_columns=_wanted(header, meta, lean)))
-    except (pa.ArrowInvalid, pa.ArrowTypeError) as e:
-        _diagnose_csv(path, header, numeric, e)
-        raise  # not reached
-    cols: dict[str, np.ndarray] = {}
-    for name in table.column_names:
-        col = table.column(name)
-        if name in types and name != "segment":
-            if col.null_count:
-                i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
-                if all(table.column(c)[i].as_py() is None for c in numeric if c in table.column_names):
-                    raise LogFormatError(f"{path}: {_csv_row(i)}: blank line; expected {len(header)} fields "
-                                         "(blank lines are not allowed between samples)")
-                raise LogFormatError(f"{path}: {_csv_row(i)}, column {name!r}: empty value; expected a number")
-            cols[name] = col.to_numpy()
-        elif name == "segment":
-            cols[name] = _labels(col)
-        else:
-            cols[name] = col.to_numpy(zero_copy_only=False)
-    return cols
-
-
-def _labels(col) -> np.ndarray:
-    """Object array of str from a (chunked) dictionary or string column."""
-    import pyarrow as pa
-
-    parts = []
-    for ch in col.chunks:
-        if pa.types.is_dictionary(ch.type):
-            d = np.array(ch.dictionary.to_pylist() + [None], dtype=object)
-            idx = ch.indices.fill_null(len(ch.dictionary)).to_numpy()
-            parts.append(d[idx])
-        else:
-            parts.append(np.array(ch.to_pylist(), dtype=object))
-    return np.concatenate(parts) if parts else np.zeros(0, dtype=object)
-
-
-def _diagnose_csv(path: Path, header: list[str], numeric: list[str], err: Exception) -> None:
-    """The fast parser refused the file: find the first bad row the slow way, for the message."""
-    idx = {c: header.index(c) for c in numeric}
-    with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
-        r = csv.reader(f)
-        next(r)
-        for k, fields in enumerate(r):
-            line = r.line_num
-            if len(fields) != len(header):
-                raise LogFormatError(f"{path}: data row {k + 1} (line {line}): {len(fields)} field(s); expected "
-                                     f"{len(header)} (the header's columns), comma-separated with '.' as the "
-                                     "decimal point")
-            for c, j in idx.items():
-                s = fields[j]
-                if NONFINITE.match(s):
-                    raise LogFormatError(f"{path}: data row {k + 1} (line {line}), column {c!r}: value {s!r} is "
-                                         "not finite; expected a finite number")
-                if not NUMBER.match(s):
-                    raise LogFormatError(f"{path}: data row {k + 1} (line {line}), column {c!r}: {s!r} is not a "
-                                         "number; expected a decimal number with '.' as the decimal point")
-    raise LogFormatError(f"{path}: cannot be read as CSV ({err})")
-
-
-def _wanted(header: list[str], meta: dict, lean: bool) -> list[str]:
-    """The columns to read: all, or (``lean``) those the estimators use."""
-    if not lean:
-        return list(header)
-    keep = {"time", "temperature", "segment", "mask"} | {f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ} \
-        | {f"gimbal_{a}" for a in meta["axis_names"]}
-    return [h for h in header if h in keep]
-
-
-def _groups(meta: dict) -> dict[str, list[str]]:
-    return {"gyro": [f"gyro_{c}" for c in XYZ], "acc": [f"acc_{c}" for c in XYZ],
-            "gimbal": [f"gimbal_{a}" for a in meta["axis_names"]]}
 
 
 def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dict]:
@@ -230,12 +114,12 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
     spill = lean and n > spill_threshold()
     heavy = {"gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z", "temperature"} if spill else set()
     stacked = {g: spilled_array((n, len(c))) if c and set(c) <= heavy else np.empty((n, len(c)))
-               for g, c in _groups(meta).items()}
-    place = {c: (g, j) for g, cs in _groups(meta).items() for j, c in enumerate(cs)}
+               for g, c in sensor_groups(meta).items()}
+    place = {c: (g, j) for g, cs in sensor_groups(meta).items() for j, c in enumerate(cs)}
     cols: dict[str, np.ndarray] = {}
     # a column at a time (the whole Arrow table beside its numpy copies held 3x the log at once),
     # and a spilled column a row group at a time
-    for name in _wanted(header, meta, lean):
+    for name in wanted_columns(header, meta, lean):
         typ = schema.field(name).type
         if name in numeric and not (pa.types.is_floating(typ) or pa.types.is_integer(typ)):
             raise LogFormatError(f"{path}: column {name!r} has type {typ}; expected numbers")
@@ -262,7 +146,7 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
             elif name in numeric:
                 cols[name] = col.cast(pa.float64()).to_numpy()
             elif name == "segment":
-                cols[name] = _labels(col)
+                cols[name] = labels(col)
             else:
                 cols[name] = col.to_numpy()
             row += len(col)
@@ -297,8 +181,8 @@ def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
         cols, stacked = _read_parquet(data, meta, lean)
         row = lambda i: f"row {i + 1}"  # noqa: E731
     else:
-        cols, stacked = _read_csv(data, meta, lean), {}
-        row = _csv_row
+        cols, stacked = read_csv(data, meta, lean)
+        row = csv_row
     check_samples(cols, meta, str(data), row)
     axes = meta["axis_names"]
     known = {"time", "temperature", "segment", "mask"} | {f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ} | \
