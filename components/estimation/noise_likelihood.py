@@ -111,6 +111,9 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
 
     active = list(terms)
     x, f = optimise(active)
+    # the maximum with every term in, before any is tested away: what the log says of each
+    # magnitude when a term below detection is not set to 0 (noise_sensitivity's σ at estimates)
+    every_term = model(active, x)
     lr = {}
     while active:
         drops = {t: optimise([u for u in active if u != t]) for t in active}
@@ -155,6 +158,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
                     break
             report[t] = {"value": 0.0, "sigma": float("nan"), "likelihood_ratio": 0.0, "present": False,
                          "upper": math.exp(xi)}
+    report["every_term"] = every_term
     report["loglik"] = -f
     report["loglik_without"] = -f_none
     return out, report
