@@ -81,11 +81,12 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], -1)
 
 
-def rotate_back(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """R(a, t)^T v = R(a, -t) v for unit axes (3,) or (N, 3), angles (N,), vectors (N, 3),
-    by Rodrigues' formula on the vectors (no (N, 3, 3) matrices)."""
+def rotate_back(axis: np.ndarray, angle: np.ndarray, *vectors: np.ndarray) -> tuple[np.ndarray, ...]:
+    """R(a, t)^T v = R(a, -t) v for each of *vectors* (N, 3), unit axes (3,) or (N, 3), angles
+    (N,), by Rodrigues' formula on the vectors (no (N, 3, 3) matrices)."""
     c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
-    return v * c - cross(axis, v) * s + axis * (np.sum(axis * v, axis=-1)[:, None] * (1 - c))
+    one_c = 1 - c
+    return tuple(v * c - cross(axis, v) * s + axis * (np.sum(axis * v, axis=-1)[:, None] * one_c) for v in vectors)
 
 
 def perpendicular_pair(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -242,8 +243,8 @@ class TableGeometry:
                 w = A * (np.cos(t + phi)[:, None] * u + np.sin(t + phi)[:, None] * v)
                 amp = np.linalg.norm(w, axis=1)
                 wa = w / np.where(amp > 0, amp, 1.0)[:, None]
-                omega, up = rotate_back(wa, amp, omega), rotate_back(wa, amp, up)
+                omega, up = rotate_back(wa, amp, omega, up)
                 b = rodrigues(a, phi) @ rotvec(-A * u) @ a
-            omega = rotate_back(a, t, omega) + rate[:, k, None] * b
-            up = rotate_back(a, t, up)
+            omega, up = rotate_back(a, t, omega, up)
+            omega = omega + rate[:, k, None] * b
         return omega, self.g * up
