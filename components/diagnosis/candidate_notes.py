@@ -145,6 +145,15 @@ def candidate_notes_lines(c) -> list[str]:
         out.append(f"{c.status}: {c.why}")
     for other, rho, advice in c.indistinguishable:
         out.append(f"cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
+    if c.status in ("verdict", "also significant") and c.naming and not c.indistinguishable:
+        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))[0]
+        naming, rival, rho = c.naming.get(best, (0.0, None, 0.0))
+        if rival and abs(c.parameters[best][0]) < naming and naming > 1.1 * c.threshold.get(best, 0.0):
+            unit, scale = effect_of(best).display
+            out.append(f"its look-alike {rival} (cosine {rho:.2f}) could be the one at this magnitude: this log "
+                       f"names the right one of the two in 95 % of cases from {naming / scale:.2g} {unit} "
+                       f"({naming / c.threshold[best]:.1f} x the detection threshold); add both and compare, or "
+                       f"run a schedule that separates them")
     return out
 
 

@@ -12,7 +12,10 @@ its adjusted p is below α (ΔBIC = χ²_c − χ²_base + k ln n is reported, n
 cost 5–20 Cramér–Rao σ of detection power). The rows are whitened with the noise model, so
 under a correct model the test has its nominal size. Each candidate's theoretical threshold is
 reported: per parameter, the magnitude the test detects with 95 % power at the first Holm
-level α/m (non-central F).
+level α/m (non-central F), and the magnitude from which it is named first rather than its
+closest look-alike (the candidate whose columns take the largest share of its own) in 95 % of
+logs (:func:`naming_snr`): a pair like acc.k2 and acc.sf_asym on rests at ±1 g and 0 is detected
+long before the log can tell which of the two it is.
 
 Stochastic or deterministic: beside the effects, the noise terms the model lacks (components.diagnosis.noise_terms)
 (``gyro.noise.bi``, ``gyro.noise.rrw``, ``acc.noise.bi``, ``acc.noise.rrw``) are candidates too,
@@ -68,6 +71,9 @@ class Candidate:
     correlated: list = field(default_factory=list)  # [(param, other param, rho)] within the fit
     signature: dict | None = None
     threshold: dict = field(default_factory=dict)  # parameter -> magnitude detected with 95 % power
+    # parameter -> (magnitude named first, not the closest look-alike, with 95 % probability — at
+    # least the threshold —, that look-alike, the cosine between them)
+    naming: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         e = EFFECTS[self.effect]
@@ -83,7 +89,9 @@ class Candidate:
                 "implausible": list(self.implausible), "unidentifiable": list(self.unidentifiable),
                 "status": self.status, "why": self.why,
                 "threshold": dict(self.threshold),
-                "threshold_display": {p: v / scale for p, v in self.threshold.items()}}
+                "threshold_display": {p: v / scale for p, v in self.threshold.items()},
+                "naming_threshold": {p: {"value": v, "display": v / scale, "look_alike": o, "cosine": r}
+                                     for p, (v, o, r) in self.naming.items()}}
 
 
 @dataclass
@@ -447,6 +455,8 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
                     c.effect, d.effect, c.signature["parameter"], d.signature["parameter"])))
     # theoretical thresholds: the non-centrality the F test needs for 95 % power at α/m, per
     # parameter through its information beyond the base model's columns
+    # and the magnitude from which it is named first, not its closest look-alike, in 95 % of
+    # logs (naming_snr): above the detection threshold where another candidate's columns lie near
     for c in out:
         k = c.added_rank
         dof_c = max(design.n - len(base) - k, 1)
@@ -456,11 +466,39 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
             info = float(h @ h)
             if info > 0:
                 c.threshold[p] = math.sqrt(lam / info)
+                rivals = [(float(np.linalg.norm(d._basis.T @ h)) / math.sqrt(info), d.effect)  # type: ignore[attr-defined]
+                          for d in out if d is not c]
+                if rivals:
+                    rho, rival = max(rivals)
+                    c.naming[p] = (max(c.threshold[p], naming_snr(min(rho, 1.0)) / math.sqrt(info)), rival, rho)
+    for c in out:
         del c._basis  # type: ignore[attr-defined]
     # what is shown first is what could be an estimate: implausible and unidentifiable candidates
     # go below the others (the order among each group stays by evidence)
     out.sort(key=lambda c: bool(c.implausible or c.unidentifiable))
     return out, chi2_b, dof_b
+
+
+def naming_snr(rho: float, power: float = 0.95) -> float:
+    """The signal-to-noise m (magnitude × √information) at which a one-parameter effect beats a
+    look-alike whose columns take the fraction *rho* (the cosine) of it: with the effect's
+    projection A ~ N(m, 1) and the rival's B ~ N(ρ m, 1), corr ρ, it is named when |A| > |B|,
+    and A − B and A + B are independent, so P = Φ(x) Φ(y) + Φ(−x) Φ(−y) with
+    x = m √((1 − ρ)/2), y = m √((1 + ρ)/2); infinite for ρ → 1 (never told apart)."""
+    from scipy.optimize import brentq
+    from scipy.special import ndtr
+
+    if rho >= 1.0 - 1e-12:
+        return math.inf
+    a, b = math.sqrt((1 - rho) / 2), math.sqrt((1 + rho) / 2)
+
+    def shortfall(m: float) -> float:
+        return ndtr(m * a) * ndtr(m * b) + ndtr(-m * a) * ndtr(-m * b) - power
+
+    hi = 1.0
+    while shortfall(hi) < 0:
+        hi *= 2
+    return float(brentq(shortfall, 0.0, hi))
 
 
 def _noncentrality(k: int, dof: int, level: float, power: float) -> float:
