@@ -49,6 +49,25 @@ def test_rate_and_force_are_the_kinematics():
                        np.einsum("nji,j->ni", plain.kinematics(theta[:3])[0], [0, 0, plain.g]), atol=1e-14)
 
 
+def test_resuming_at_the_changed_stage_gives_the_same_bits():
+    """A geometry that differs from another from stage k on, carried on from the other's
+    vectors before stage k, gives what it gives from the base."""
+    stages = (Stage("outer", (1, 0, 0)), Stage("middle", (0, 1, 0)), Stage("inner", (0, 0, 1)))
+    first = _imperfect(TableGeometry(stages, latitude=0.7, azimuth=0.4))
+    rng = np.random.default_rng(3)
+    theta, rate = rng.uniform(-7, 7, (2000, 3)), rng.normal(0, 1, (2000, 3))
+    states: list = []
+    first.rate_and_force(theta, rate, states=states)
+    for p in parameters_of(TABLE_EFFECTS):
+        other = apply_table_parameter(first, p, table_parameter_value(first, p) + 1e-6)
+        k = other.first_change(first)
+        assert k == (0 if p.startswith("table.base_tilt") else [s.name for s in stages].index(p.split(".")[2])), p
+        resumed = other.rate_and_force(theta, rate, resume=(k, *states[k]) if k else None)
+        fresh = other.rate_and_force(theta, rate)
+        assert all(np.array_equal(a, b) for a, b in zip(resumed, fresh)), p
+    assert first.first_change(first) == 3
+
+
 def test_a_lever_arm_column_is_the_lever_acceleration():
     rng = np.random.default_rng(2)
     n, q = 400, 3

@@ -180,9 +180,9 @@ def _attitudes(measured: np.ndarray, static: np.ndarray) -> tuple[np.ndarray, np
 def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
     """Measured angle derivatives -> true ones through the encoder error e(θ):
     θ_m = θ + e(θ) gives θ̇ = θ̇_m / (1 + e'), θ̈ = (θ̈_m - e'' θ̇²) / (1 + e')."""
-    t = geometry.true_angles(th)
-    if np.array_equal(t, th):
+    if not any(s.enc_s1 or s.enc_c1 or s.enc_s2 or s.enc_c2 for s in geometry.stages):
         return th, rate, acc
+    t = geometry.true_angles(th)
     r, a = rate.copy(), acc.copy()
     for k, s in enumerate(geometry.stages):
         if not (s.enc_s1 or s.enc_c1 or s.enc_s2 or s.enc_c2):
@@ -262,6 +262,7 @@ class IdealIncrements:
                        profile.acc_q[mv].reshape(-1, n_ax))
         self._q = q
         self._dt_m = profile.dt[mv, None]
+        self._first: tuple | None = None  # (geometry, its states) of the first call: later ones resume there
 
     def of(self, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(rest rate (A, 3), rest force (A, 3), moving gyro (M, 3), moving acc (M, 3)) increments
@@ -276,7 +277,15 @@ class IdealIncrements:
         if len(self.moving_index) == 0:
             return rest_g, rest_a, np.zeros((0, 3)), np.zeros((0, 3))
         th, rate, _ = _true_motion(geometry, *self._nodes)
-        om, f = geometry.rate_and_force(th, rate)
+        # a finite-difference step changes one stage (or the base): the stages before it are the
+        # first geometry's, so the vectors are carried on from there
+        if self._first is None:
+            states: list = []
+            om, f = geometry.rate_and_force(th, rate, states=states)
+            self._first = (geometry, states)
+        else:
+            k = geometry.first_change(self._first[0])
+            om, f = geometry.rate_and_force(th, rate, resume=(k, *self._first[1][k]) if k else None)
         w = p.weights
         mov_g = self._dt_m * np.tensordot(om.reshape(-1, self._q, 3), w, axes=([1], [0]))
         mov_a = self._dt_m * np.tensordot(f.reshape(-1, self._q, 3), w, axes=([1], [0]))
