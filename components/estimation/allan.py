@@ -12,6 +12,7 @@ dominates at that τ) add, the runs being disjoint stretches of the record.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import allantools
 import numpy as np
@@ -58,10 +59,13 @@ def octave_factors(longest: int) -> np.ndarray:
     return np.array(m)
 
 
+@lru_cache(maxsize=1 << 16)
 def _edf(alpha: int, m: int, n_phase: int) -> float:
     """Equivalent degrees of freedom of one run's overlapping Allan variance (Greenhall); where
     allantools has no formula (white phase noise at the longest averaging times of a run) the
-    simple approximation of IEEE Std 1139 / NIST SP 1065 (allantools.edf_simple)."""
+    simple approximation of IEEE Std 1139 / NIST SP 1065 (allantools.edf_simple). Kept per
+    (α, m, N): it depends on no data, and a multi-position log's runs share a few lengths, so the
+    noise bootstrap asked the same few hundred values ~10^5 times (half of `calbench noise`)."""
     try:
         return float(allantools.edf_greenhall(alpha=alpha, d=2, m=m, N=n_phase, overlapping=True))
     except (NotImplementedError, AssertionError, ValueError, ZeroDivisionError):
