@@ -65,8 +65,8 @@ class _BlockMap:
         row = _row_of(st, start, stop)
         inside = row >= 0
         n_att = 0 if profile.attitudes is None else len(profile.attitudes)
-        self.rests = sparse.csr_matrix((profile.dt[st][inside], (row[inside], profile.attitude_of[inside])),
-                                       shape=(self.n, n_att))
+        self.rests = (sparse.csr_matrix((profile.dt[st][inside], (row[inside], profile.attitude_of[inside])),
+                                        shape=(self.n, n_att)) if n_att else sparse.csr_matrix((self.n, 0)))
         self.moving_row = _row_of(moving_index, start, stop)
 
     def sums(self, per_attitude: np.ndarray, per_moving: np.ndarray) -> np.ndarray:
