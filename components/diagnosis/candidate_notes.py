@@ -20,6 +20,8 @@ parameter needs (components.model.excitation), or the schedule change known for 
 """
 from __future__ import annotations
 
+import math
+
 from components.model.effects import EFFECTS, effect_of
 from components.model.excitation import needs
 from components.model.plausibility import plausible_limit
@@ -148,7 +150,8 @@ def candidate_notes_lines(c) -> list[str]:
     if c.status in ("verdict", "also significant") and c.naming and not c.indistinguishable:
         best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))[0]
         naming, rival, rho = c.naming.get(best, (0.0, None, 0.0))
-        if rival and abs(c.parameters[best][0]) < naming and naming > 1.1 * c.threshold.get(best, 0.0):
+        if rival and math.isfinite(naming) and abs(c.parameters[best][0]) < naming \
+                and naming > 1.1 * c.threshold.get(best, 0.0):
             unit, scale = effect_of(best).display
             out.append(f"its look-alike {rival} (cosine {rho:.2f}) could be the one at this magnitude: this log "
                        f"names the right one of the two in 95 % of cases from {naming / scale:.2g} {unit} "

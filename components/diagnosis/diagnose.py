@@ -49,6 +49,11 @@ from components.model.noise import NoiseModel
 from components.model.plausibility import expected_magnitude, grade_factor, plausible_limit
 from components.model.result import CalibrationResult
 
+# candidates whose new columns have a canonical correlation above this cannot be told apart on
+# the schedule (and a parameter whose column lies this close to another candidate's is never
+# named first at any magnitude: its naming threshold is infinite)
+TWINS = 0.98
+
 
 @dataclass
 class Candidate:
@@ -90,7 +95,10 @@ class Candidate:
                 "status": self.status, "why": self.why,
                 "threshold": dict(self.threshold),
                 "threshold_display": {p: v / scale for p, v in self.threshold.items()},
-                "naming_threshold": {p: {"value": v, "display": v / scale, "look_alike": o, "cosine": r}
+                # null: never named first on this schedule (its look-alike is a twin)
+                "naming_threshold": {p: {"value": v if math.isfinite(v) else None,
+                                         "display": v / scale if math.isfinite(v) else None,
+                                         "look_alike": o, "cosine": r}
                                      for p, (v, o, r) in self.naming.items()}}
 
 
@@ -450,7 +458,7 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
             if d is c or d.explained_fraction < 0.5 * c.explained_fraction:
                 continue
             s = np.linalg.svd(c._basis.T @ d._basis, compute_uv=False)  # type: ignore[attr-defined]
-            if len(s) and s[0] > 0.98:
+            if len(s) and s[0] > TWINS:
                 c.indistinguishable.append((d.effect, float(s[0]), separation_advice(
                     c.effect, d.effect, c.signature["parameter"], d.signature["parameter"])))
     # theoretical thresholds: the non-centrality the F test needs for 95 % power at α/m, per
@@ -470,7 +478,8 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
                           for d in out if d is not c]
                 if rivals:
                     rho, rival = max(rivals)
-                    c.naming[p] = (max(c.threshold[p], naming_snr(min(rho, 1.0)) / math.sqrt(info)), rival, rho)
+                    snr = naming_snr(min(rho, 1.0)) if rho <= TWINS else math.inf
+                    c.naming[p] = (max(c.threshold[p], snr / math.sqrt(info)), rival, rho)
     for c in out:
         del c._basis  # type: ignore[attr-defined]
     # what is shown first is what could be an estimate: implausible and unidentifiable candidates
