@@ -150,11 +150,12 @@ def _rows_at_most(path: Path) -> int:
     size = path.stat().st_size
     if size < MIN_ROW_BYTES * max(spill_threshold(), 1):
         return 0 if spill_threshold() > 0 else max(size, 1)
-    lines = 0
+    lf = cr = 0
     with open(path, "rb") as f:
         while block := f.read(1 << 24):
-            lines += block.count(b"\n")
-    return lines + 1
+            lf += block.count(b"\n")
+            cr += block.count(b"\r")
+    return max(lf, cr) + 1  # (a file of old Mac line ends has no \n)
 
 
 def _no_empty_value(path: Path, header: list[str], numeric: list[str], table, name: str, row0: int) -> None:
