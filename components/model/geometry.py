@@ -131,6 +131,22 @@ class Stage:
     def wobble_phase(self) -> float:
         return math.atan2(self.wobble_s, self.wobble_c)
 
+    @property
+    def has_encoder_error(self) -> bool:
+        return bool(self.enc_s1 or self.enc_c1 or self.enc_s2 or self.enc_c2)
+
+    def wobble(self, theta: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+        """The wobble rotation vectors w (N, 3) at true angles *theta* and the rate axis b (3,)
+        (module docstring); a stage without wobble has no w to apply (None) and b = its axis."""
+        a = self.effective_axis()
+        A = self.wobble_amp
+        if A == 0.0:
+            return None, a
+        phi = self.wobble_phase
+        u, v = perpendicular_pair(a)
+        w = A * (np.cos(theta + phi)[:, None] * u + np.sin(theta + phi)[:, None] * v)
+        return w, rodrigues(a, phi) @ rotvec(-A * u) @ a
+
     def nonorth_vector(self) -> np.ndarray:
         """The FMU's <axis>.nonorth rotation vector (previous stage's frame)."""
         u, v = perpendicular_pair(self.nominal_axis())
@@ -170,7 +186,7 @@ class TableGeometry:
         """Invert the encoder error model: (N, n_axes) measured -> true (fixed point, 3 passes)."""
         out = np.array(measured, float, copy=True)
         for k, s in enumerate(self.stages):
-            if not (s.enc_s1 or s.enc_c1 or s.enc_s2 or s.enc_c2):
+            if not s.has_encoder_error:
                 continue
             m = measured[:, k]
             t = m.copy()
@@ -182,16 +198,9 @@ class TableGeometry:
 
     def _stage_terms(self, s: Stage, theta: np.ndarray):
         """T_k (N,3,3) and the rate axis b_k (3,) of one stage at true angles theta (N,)."""
-        a = s.effective_axis()
-        R = rodrigues(a, theta)
-        A = s.wobble_amp
-        if A == 0.0:
-            return R, a
-        phi = s.wobble_phase
-        u, v = perpendicular_pair(a)
-        w = A * (np.cos(theta + phi)[:, None] * u + np.sin(theta + phi)[:, None] * v)
-        b = rodrigues(a, phi) @ rotvec(-A * u) @ a
-        return rotvec(w) @ R, b
+        R = rodrigues(s.effective_axis(), theta)
+        w, b = s.wobble(theta)
+        return (R, b) if w is None else (rotvec(w) @ R, b)
 
     def kinematics(self, theta: np.ndarray, rate: np.ndarray | None = None,
                    acc: np.ndarray | None = None):
@@ -244,20 +253,13 @@ class TableGeometry:
         for k, s in enumerate(self.stages[first:], start=first):
             if states is not None:
                 states.append((omega, up))
-            a = s.effective_axis()
             t = theta[:, k]
-            A = s.wobble_amp
-            b = a
-            if A != 0.0:
+            w, b = s.wobble(t)
+            if w is not None:
                 # T^T = R(a, t)^T Rot(w)^T, Rot(w)^T = R(w/|w|, -|w|)
-                phi = s.wobble_phase
-                u, v = perpendicular_pair(a)
-                w = A * (np.cos(t + phi)[:, None] * u + np.sin(t + phi)[:, None] * v)
                 amp = np.linalg.norm(w, axis=1)
-                wa = w / np.where(amp > 0, amp, 1.0)[:, None]
-                omega, up = rotate_back(wa, amp, omega, up)
-                b = rodrigues(a, phi) @ rotvec(-A * u) @ a
-            omega, up = rotate_back(a, t, omega, up)
+                omega, up = rotate_back(w / np.where(amp > 0, amp, 1.0)[:, None], amp, omega, up)
+            omega, up = rotate_back(s.effective_axis(), t, omega, up)
             omega = omega + rate[:, k, None] * b
         if states is not None:
             states.append((omega, up))

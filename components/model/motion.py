@@ -180,12 +180,12 @@ def _attitudes(measured: np.ndarray, static: np.ndarray) -> tuple[np.ndarray, np
 def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
     """Measured angle derivatives -> true ones through the encoder error e(θ):
     θ_m = θ + e(θ) gives θ̇ = θ̇_m / (1 + e'), θ̈ = (θ̈_m - e'' θ̇²) / (1 + e')."""
-    if not any(s.enc_s1 or s.enc_c1 or s.enc_s2 or s.enc_c2 for s in geometry.stages):
+    if not any(s.has_encoder_error for s in geometry.stages):
         return th, rate, acc
     t = geometry.true_angles(th)
     r, a = rate.copy(), acc.copy()
     for k, s in enumerate(geometry.stages):
-        if not (s.enc_s1 or s.enc_c1 or s.enc_s2 or s.enc_c2):
+        if not s.has_encoder_error:
             continue
         u = t[:, k]
         e1 = s.enc_s1 * np.cos(u) - s.enc_c1 * np.sin(u) + 2 * (s.enc_s2 * np.cos(2 * u) - s.enc_c2 * np.sin(2 * u))
