@@ -108,12 +108,17 @@ def annotate(diagnosis) -> None:
             c.status, c.why = "not significant", f"Holm-adjusted p ≥ α = {alpha}"
 
 
+def strongest(c) -> str:
+    """The candidate's parameter fitted at the most σ from zero (the one its line shows)."""
+    return max(c.parameters, key=lambda p: abs(c.parameters[p][0]) / (c.parameters[p][1] or float("inf")))
+
+
 def magnitude_text(c) -> str:
     """The candidate's strongest parameter as an estimate, or why it is not one."""
     if c.status in ("implausible", "unidentifiable"):
         return f"{c.status} (not an estimate)"
-    best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))
-    return display(best[0], *best[1])
+    best = strongest(c)
+    return display(best, *c.parameters[best])
 
 
 LEGEND = ("* significant (Holm-adjusted p < α) and plausible; ! not an estimate (implausible or unidentifiable: "
@@ -131,7 +136,7 @@ def ranking_line(i: int, c) -> str:
     status instead of a value."""
     thr = ""
     if c.status not in ("implausible", "unidentifiable") and c.threshold:
-        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))[0]
+        best = strongest(c)
         if best in c.threshold:
             unit, scale = effect_of(best).display
             thr = f"  [{c.threshold[best] / scale:.2g}]"
@@ -148,7 +153,7 @@ def candidate_notes_lines(c) -> list[str]:
     for other, rho, advice in c.indistinguishable:
         out.append(f"cannot be told apart from {other} on this schedule (correlation {rho:.3f}): {advice}")
     if c.status in ("verdict", "also significant") and c.naming and not c.indistinguishable:
-        best = max(c.parameters.items(), key=lambda kv: abs(kv[1][0]) / (kv[1][1] or float("inf")))[0]
+        best = strongest(c)
         naming, rival, rho = c.naming.get(best, (0.0, None, 0.0))
         if rival and math.isfinite(naming) and abs(c.parameters[best][0]) < naming \
                 and naming > 1.1 * c.threshold.get(best, 0.0):

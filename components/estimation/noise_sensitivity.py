@@ -43,25 +43,6 @@ def at_upper_bounds(identification) -> tuple[NoiseModel | None, list[str]]:
     return NoiseModel(tuple(chans), m.source + "; absent slow terms at their upper bounds", m.sigmas), added
 
 
-def at_estimates(identification) -> NoiseModel | None:
-    """The identified model with each channel's slow terms at their maximum-likelihood values
-    before any was tested away (a term below detection kept at what the log says of it, often
-    0, rather than set to 0 or put at its bound); None when no slow term was tested away."""
-    chans = list(identification.model.channels)
-    changed = False
-    for k, c in enumerate(identification.channels):
-        every = c.slow.get("every_term") if isinstance(c.slow, dict) else None
-        if every is None or all(c.slow.get(t, {}).get("present", True) for t in SLOW_TERMS):
-            continue
-        chans[k] = replace(chans[k], bias_instability=every.bias_instability, random_walk=every.random_walk,
-                           flicker_range=every.flicker_range)
-        changed = True
-    if not changed:
-        return None
-    m = identification.model
-    return NoiseModel(tuple(chans), m.source + "; slow terms at their estimates", m.sigmas)
-
-
 def sigma_under(fit, noise: NoiseModel, span: float, chunk_s: float = 1.0) -> np.ndarray:
     """σ of the parameters of *fit* (components.estimation.lsq.Fit) were the noise *noise*: the
     same rows, whitened with it (the generalised least-squares covariance); *span*: the log's
