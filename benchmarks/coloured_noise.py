@@ -11,7 +11,10 @@ Null logs (no effect beyond the baseline), per seed, three analyses of the same 
   from the sample differences);
 - ``true``   whitened with the injected noise model (the estimator's and the test's own quality);
 - ``ident``  the noise identified on the log (calbench noise), then whitened with it (what a user
-  gets).
+  gets);
+- ``ident+ds`` the same with the gyro's slow terms (bias instability and rate random walk) from
+  the datasheet, i.e. the injected values: ``--noise identify --noise gyro.noise.bi=…
+  --noise gyro.noise.rrw=…``, the user's way when the log is too short to show them.
 Figures: the verdict's false-alarm rate against α ± 2 SE; per default parameter RMS error / RMS
 reported σ (target 0.8–1.25) and reported σ / Cramér–Rao bound under the true noise (target
 ≤ 1.2); the identified terms against the injected ones.
@@ -63,7 +66,7 @@ from components.estimation.log_data import LogData  # noqa: E402
 from components.estimation.lsq import calibrate  # noqa: E402
 from components.estimation.noise_sensitivity import SLOW_TERMS, sensitivity, sigma_under  # noqa: E402
 from components.model.effects import DEFAULT_EFFECTS, EFFECTS, parameters_of  # noqa: E402
-from components.model.noise import CHANNELS, TERMS, NoiseModel, from_fmu_parameters  # noqa: E402
+from components.model.noise import CHANNELS, TERMS, NoiseModel, from_fmu_parameters, from_terms  # noqa: E402
 from components.model.quantities import noise_value  # noqa: E402
 from components.model.result import result_from_fit  # noqa: E402
 from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
@@ -113,6 +116,13 @@ def as_pulse_counts(log, weights: dict, seed: int):
     return log
 
 
+def gyro_datasheet(grade: str) -> dict:
+    """The gyro's slow terms as a datasheet gives them (SI): what a user adds by hand when the
+    log is too short to show them."""
+    return {k: noise_value(k, v, "benchmark") for k, v in noise_spec(grade).items()
+            if k in ("gyro.noise.bi", "gyro.noise.rrw")}
+
+
 def true_noise(grade: str, weights=(None, None)):
     si = {k: noise_value(k, v, "benchmark") for k, v in noise_spec(grade).items()}
     return from_fmu_parameters(si, *weights, source=f"injected ({grade} grade)")
@@ -141,7 +151,7 @@ def at_estimates(identification) -> NoiseModel | None:
 
 
 def analyse_null(job) -> dict:
-    data, truth, noise, identify = job
+    data, truth, noise, identify, datasheet = job
     out = {}
     fit = calibrate(data, BASELINE)
     model = result_from_fit(fit, BASELINE, data)
@@ -150,6 +160,8 @@ def analyse_null(job) -> dict:
     if identify:
         ident = identify_noise(data, model, known=quantization_known(data), bootstrap=10)
         analyses.append(("ident", ident.model, None, None))
+        # as choose_noise applies `--noise identify --noise gyro.noise.bi=…`: the terms over the identified model
+        analyses.append(("ident+ds", from_terms(datasheet, ident.model, "identified; gyro slow terms given"), None, None))
     for name, nm, m, f in analyses:
         if m is None:
             f = calibrate(data, BASELINE, noise=nm)
@@ -264,14 +276,14 @@ def main(argv=None) -> int:
     # null logs
     t = time.time()
     crb = cramer_rao(datas[0], BASELINE, noise)
-    jobs = [(d, truth, noise, k < a.ident_seeds) for k, d in enumerate(datas)]
+    jobs = [(d, truth, noise, k < a.ident_seeds, gyro_datasheet(a.grade)) for k, d in enumerate(datas)]
     null = list(pool.map(analyse_null, jobs))
     print(f"null analyses: {time.time() - t:.0f} s", flush=True)
     report: dict = {"schedule": a.schedule, "grade": a.grade, "seeds": a.seeds, "duration_s": float(datas[0].time[-1]),
                     "counts": counts}
     se = math.sqrt(ALPHA * (1 - ALPHA) / a.seeds)
     print(f"\nFalse alarms on null logs (verdict named; target α = {ALPHA} ± 2 SE = [0, {ALPHA + 2 * se:.3f}]):")
-    for name in ("white", "true", "ident"):
+    for name in ("white", "true", "ident", "ident+ds"):
         rs = [r[name] for r in null if name in r]
         if not rs:
             continue
@@ -286,15 +298,16 @@ def main(argv=None) -> int:
                                          "verdicts": [r["verdict"] for r in rs]}
     params = parameters_of(BASELINE)
     print(f"\nPer parameter: RMS error / RMS reported σ (target 0.8–1.25) and reported σ / CRB under the true noise "
-          f"(target <= 1.2):\n  {'parameter':14s} {'white':>7s} {'true':>7s} {'ident':>7s}   {'σ/CRB true':>10s} "
-          f"{'σ/CRB ident':>11s} {'σ/CRB white':>11s}   {'RMS/σ@bnd':>9s} {'σ@bnd/CRB':>11s}   {'RMS/σ@ml':>9s} "
-          f"{'σ@ml/CRB':>9s}\n"
-          "  (σ@bnd: calibrate's σ with the slow terms identification found absent at their upper bounds;\n"
+          f"(target <= 1.2):\n  {'parameter':14s} {'white':>7s} {'true':>7s} {'ident':>7s} {'ident+ds':>8s}   "
+          f"{'σ/CRB true':>10s} {'σ/CRB ident':>11s} {'ident+ds':>8s} {'σ/CRB white':>11s}   {'RMS/σ@bnd':>9s} "
+          f"{'σ@bnd/CRB':>11s}   {'RMS/σ@ml':>9s} {'σ@ml/CRB':>9s}\n"
+          "  (ident+ds: identified, the gyro's bias instability and rate random walk from the datasheet;\n"
+          "   σ@bnd: calibrate's σ with the slow terms identification found absent at their upper bounds;\n"
           "   σ@ml: with every slow term at its maximum-likelihood value before the presence tests)")
     table = {}
     for p in params:
         row = {}
-        for name in ("white", "true", "ident"):
+        for name in ("white", "true", "ident", "ident+ds"):
             rs = [r[name] for r in null if name in r]
             if not rs:
                 continue
@@ -310,12 +323,15 @@ def main(argv=None) -> int:
                                     float(np.sqrt(np.mean(ml**2)) / crb[p]))
         table[p] = row
         print(f"  {p:14s} " + " ".join(f"{row[n][0]:7.2f}" if n in row else f"{'':7s}" for n in ("white", "true", "ident"))
+              + (f" {row['ident+ds'][0]:8.2f}" if "ident+ds" in row else f" {'':8s}")
               + f"   {row['true'][1]:10.2f} " + (f"{row['ident'][1]:11.2f}" if "ident" in row else f"{'':11s}")
+              + (f" {row['ident+ds'][1]:8.2f}" if "ident+ds" in row else f" {'':8s}")
               + f" {row['white'][1]:11.2f}"
               + (f"   {row['bounds'][0]:9.2f} {row['bounds'][1]:11.2f}" if "bounds" in row else "")
               + (f"   {row['estimates'][0]:9.2f} {row['estimates'][1]:9.2f}" if "estimates" in row else ""))
     report["parameters"] = table
-    for name, field in (("white", "sigma"), ("true", "sigma"), ("ident", "sigma"), ("ident@ml", "sigma_at_estimates")):
+    for name, field in (("white", "sigma"), ("true", "sigma"), ("ident", "sigma"), ("ident+ds", "sigma"),
+                        ("ident@ml", "sigma_at_estimates")):
         rs = [r[name.split("@")[0]] for r in null if name.split("@")[0] in r]
         if not rs:
             continue
