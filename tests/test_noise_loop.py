@@ -119,8 +119,9 @@ def test_counts_coarser_than_the_white_noise_keep_the_white_level_and_honest_sig
     data = LogData.from_log(run.log)
     noise, said, ident = choose_noise(None, data, effects=BASELINE, bootstrap=10)
     assert ident is not None and all(c.white > 0 for c in noise.channels), ident.table()
-    # asked for white noise, the user is told what it gets wrong on these counts
-    assert "coarser than the noise" in choose_noise(["white"], data)[1]
+    # asked for white noise, the user gets it with the counts' quantization as a term of its own
+    white = choose_noise(["white"], data)[0]
+    assert [c.quantization for c in white.channels] == pytest.approx(data.quantization_floor(), rel=1e-12)
     fit = calibrate(data, BASELINE, noise=noise)
     true = from_fmu_parameters({k: noise_value(k, v, "test") for k, v in NOISE.items()},
                                gyro_count=data.count_weight[0], acc_count=data.count_weight[1])
@@ -130,6 +131,32 @@ def test_counts_coarser_than_the_white_noise_keep_the_white_level_and_honest_sig
     assert np.all((ratio > 0.5) & (ratio < 2.0)), ratio
     truth = np.array([run.truth["effects"].get(p, 0.0) for p in fit.parameters])
     assert np.all(np.abs(fit.value - truth) < 3.3 * fit.sigma), (fit.value - truth) / fit.sigma
+
+
+def test_white_noise_on_coarse_counts_keeps_its_quantization_apart_and_an_honest_chi2():
+    """`--noise white` on counts coarser than a sample's white noise (0.2″ and 0.1 mm/s at 200 Hz):
+    the sample differences are mostly 0, and a white level read from them was one count's w/√12
+    in every sample — n times that for a block whose sum carries only its two end remainders
+    (χ²/dof 0.09, an effect named on every log). With the quantization a term of its own and the
+    white level read beside it, a white-noise log's χ²/dof lies in its 99.9 % band, no effect is
+    named, and the σ are those of the true noise model within the white level's own spread."""
+    noise = {"gyro.noise.arw": "0.002 deg/sqrt(h)", "acc.noise.vrw": "10 ug/sqrt(Hz)"}
+    run = _simulate(31, counts=True, count_weight={"gyro": "0.2 arcsec", "acc": "0.1 mm/s"}, noise=noise)
+    data = LogData.from_log(run.log)
+    assert np.mean(np.diff(run.log.gyro[:, 0]) == 0) > 0.5
+    white, said, _ = choose_noise(["white"], data)
+    assert "quantization" in said and all(c.white > 0 for c in white.channels), said
+    fit = calibrate(data, BASELINE, noise=white)
+    model = result_from_fit(fit, BASELINE, data)
+    c = compare(data, model, fitted_parameters=len(model.values), noise=white)
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], c.dof) / c.dof
+    assert lo < c.chi2_per_dof < hi, c.chi2_per_dof
+    assert diagnose(data, model, noise=white).verdict is None
+    true = from_fmu_parameters({k: noise_value(k, v, "test") for k, v in noise.items()}, *data.count_weight)
+    ratio = fit.sigma / calibrate(data, BASELINE, noise=true).sigma
+    assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+    truth = np.array([run.truth["effects"].get(p, 0.0) for p in fit.parameters])
+    assert np.all(np.abs(fit.value - truth) < 3.6 * fit.sigma), (fit.value - truth) / fit.sigma
 
 
 def test_a_systematic_misfit_is_an_effect_not_a_noise_term():

@@ -10,12 +10,12 @@ Specifications, applied in order (``--noise`` on the command line, repeatable):
   calibration result holding a composite model;
 - ``NAME=VALUE``: one term by hand, on top of what came before, e.g. ``acc.noise.bi=10 ug``,
   ``gyro.noise.arw=0.002 deg/sqrt(h)``, ``acc.noise.q.x=1e-5`` (SI without a unit);
-- ``white``: white noise, its level from the data's sample-to-sample differences.
+- ``white``: white noise, its level from the data's sample-to-sample differences; on a pulse
+  output, white noise plus the count weight's quantization as a term of its own (white_noise_model).
 
-Without any: a model's own composite noise if it has one; a log of pulse counts gets its
-quantization from the count weights and the rest identified from the static runs (its sample
-differences are mostly zero, so no white level can be read from them); otherwise white noise
-as ``white`` above.
+Without any: a model's own composite noise if it has one; a log of pulse counts with table
+angles gets its quantization from the count weights and the rest identified from the static
+runs; otherwise white noise as ``white`` above.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import UserError
-from components.model.noise import CHANNELS, FORMAT, NoiseModel, from_terms, grade
+from components.model.noise import CHANNELS, FORMAT, ChannelNoise, NoiseModel, from_terms, grade
 from components.model.quantities import NOISE_TERM_UNITS, QuantityError, quantity
 
 WHITE = "white noise, its level from the static data's sample-to-sample differences"
@@ -99,7 +99,8 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             specs = ["identify"]
             lead = "pulse counts: quantization from the count weights, the rest "
         else:
-            return None, WHITE, None
+            noise, said = white_noise_model(data)
+            return noise, said, None
     else:
         lead = ""
     noise: NoiseModel | None = base
@@ -107,8 +108,8 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
     for spec in specs:
         s = spec.strip()
         if s == "white":
-            noise = None
-            said.append(WHITE + _quantization_warning(data))
+            noise, what = white_noise_model(data)
+            said.append(what)
         elif s in ("navigation", "tactical"):
             noise = grade(s)
             said.append(f"{s} grade (given)")
@@ -143,25 +144,57 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
     return noise, "; ".join(said), ident
 
 
-def _quantization_warning(data) -> str:
-    """What `white` gets wrong on pulse counts coarser than the white noise: their sample
-    differences are mostly 0, so the level is the floor a count leaves in one sample (w/√12),
-    and a block of n samples is given n times that variance where its sum carries only the
-    remainders at its two ends (benchmarks/coloured_noise_counts_diagnosis.txt: χ²/dof 0.09 and
-    an effect named on every log). Empty when no channel's level is that floor."""
+def white_noise_model(data) -> tuple[NoiseModel | None, str]:
+    """(white noise model, the sentence saying what it is) of *data*: None — each channel's level
+    from its static sample differences, read where it is used — for a log without pulse outputs.
+    A pulse output's sample differences are mostly 0 where its counts are coarser than a sample's
+    noise, and a white level read from them is one count's w/√12 in every sample; a block of n
+    samples would be given n times that variance where its sum carries only the remainders at its
+    two ends (benchmarks/coloured_noise_counts_diagnosis.txt: χ²/dof 0.09 and an effect named on
+    every log). So on a pulse output the quantization is a term of its own (w/√12 from the count
+    weight) and the white level is read from the Allan variance beside it
+    (noise_fit.white_beside_quantization)."""
     if data is None or not any(data.count_weight):
-        return ""
+        return None, WHITE
+    from components.diagnosis.noise_id import ALLAN_SAMPLES
+    from components.estimation.allan import static_runs
     from components.estimation.blocks import white_noise_sigma
+    from components.estimation.noise_fit import white_beside_quantization
 
     use = data.static & data.usable
-    floor = data.quantization_floor()
-    raw = np.concatenate([white_noise_sigma(data.gyro, use), white_noise_sigma(data.acc, use)])
-    binds = [CHANNELS[k] for k in range(6) if floor[k] > 0 and not raw[k] > floor[k]]
-    if not binds:
-        return ""
-    return (f" — but on {', '.join(binds)} the counts are coarser than the noise: the level is one count's "
-            "w/√12 in every sample, which overstates a block sum's quantization (only its two end remainders "
-            "count), so χ² and the tests come out far too small; --noise identify models the quantization")
+    runs, total = [], 0
+    for a, b in static_runs(use):
+        if total >= ALLAN_SAMPLES:
+            break
+        runs.append((a, b))
+        total += b - a
+    if not runs:
+        raise UserError("--noise white: this log of pulse counts has no static run of 8 samples or more, so no "
+                        "white level can be read beside the counts' quantization; give the noise (--noise: a grade, "
+                        "a noise file or NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
+    dt = float(np.median(np.diff(data.time)))
+    upto = runs[-1][1]
+    q = data.quantization_floor()
+    chans, said = [], []
+    for s, (sensor, inc) in enumerate((("gyro", data.gyro), ("acc", data.acc))):
+        if not q[3 * s]:
+            level = white_noise_sigma(inc, use) / np.sqrt(dt)
+            chans += [ChannelNoise(white=float(v)) for v in level]
+            continue
+        taus = []
+        for a in range(3):
+            n, tau = white_beside_quantization(np.asarray(inc[:upto, a], float) / dt, runs, dt, float(q[3 * s + a]))
+            chans.append(ChannelNoise(white=n, quantization=float(q[3 * s + a])))
+            taus.append(tau)
+        read = sorted({f"{t:.3g} s" for t in taus if np.isfinite(t)})
+        shown = sum(np.isfinite(t) for t in taus)
+        said.append(f"{sensor}: quantization {data.count_weight[s]:.3g}/√12 (its count weight) and white noise "
+                    + (f"from the Allan variance at τ = {', '.join(read)} beside it" if read else "")
+                    + ("" if shown == 3 else f"{'; ' if read else ''}below what the counts show on "
+                       f"{3 - shown} axes (set to 0)"))
+    text = "white noise, on the pulse outputs with the counts' quantization as a term of its own (" \
+           + "; ".join(said) + ")"
+    return NoiseModel(tuple(chans), text), text
 
 
 def white_fit(data, effects):

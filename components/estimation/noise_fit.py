@@ -89,6 +89,24 @@ def beyond_quantization(av: AllanVariance, quantization: float) -> np.ndarray:
     return keep if np.count_nonzero(keep) >= 2 else np.ones(len(av.tau), bool)
 
 
+def white_beside_quantization(rate: np.ndarray, runs: list[tuple[int, int]], dt: float,
+                               quantization: float) -> tuple[float, float]:
+    """(white level N [rate/√Hz], the τ [s] it was read at) of a channel whose *quantization* Q
+    is known, from the pooled Allan variance of its *rate* on the static *runs*: at the shortest τ
+    where the measured variance is at least :data:`QUANTIZATION_DOMINANCE` times Q's alone,
+    N² = (AVAR(τ) − 3Q²/τ²) τ. Sample differences cannot give it when the counts are coarser than
+    a sample's noise (most are 0; see the module docstring); the shortest such τ keeps the slow
+    terms' share small. (0, nan) where no τ rises above the quantization: the white noise is
+    below what the counts can show."""
+    av = pooled_allan(rate, runs, dt)
+    above = np.flatnonzero(av.avar >= QUANTIZATION_DOMINANCE * basis("quantization", av.tau) * quantization**2)
+    if not len(above):
+        return 0.0, float("nan")
+    k = above[0]
+    tau = float(av.tau[k])
+    return math.sqrt(max(float(av.avar[k]) - 3.0 * quantization**2 / tau**2, 0.0) * tau), tau
+
+
 def _fitted_range(av: AllanVariance, known: dict) -> np.ndarray:
     return beyond_quantization(av, known["quantization"]) if known.get("quantization") \
         else np.ones(len(av.tau), bool)
