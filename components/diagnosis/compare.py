@@ -29,12 +29,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from components.diagnosis.misfit import CHANNELS, Misfits, misfits
 from components.estimation.blocks import observation_blocks, samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
 from components.estimation.design import noise_floor
+from components.estimation.distributions import chi2_sf
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
@@ -65,7 +65,7 @@ def ljung_box(z: np.ndarray, lags: int = 10) -> float:
         return 1.0
     r = np.array([np.dot(z[:-k], z[k:]) / d for k in range(1, lags + 1)])
     q = n * (n + 2) * np.sum(r**2 / (n - np.arange(1, lags + 1)))
-    return float(stats.chi2.sf(q, lags))
+    return float(chi2_sf(q, lags))
 
 
 @dataclass

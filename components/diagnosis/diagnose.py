@@ -34,13 +34,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from components.diagnosis.candidate_notes import annotate, separation_advice
 from components.diagnosis.noise_terms import NOISE_CANDIDATES, has_term, noise_candidates
 from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import noise_floor
+from components.estimation.distributions import f_isf, f_logsf, ncf_sf
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import whiten
@@ -406,7 +406,7 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
         dchi2 = max(chi2_b - chi2_c, 0.0)
         dof_c = max(design.n - rank_c, 1)
         F = (dchi2 / k) / max(chi2_c / dof_c, 1e-300)
-        logp = float(stats.f.logsf(F, k, dof_c))
+        logp = float(f_logsf(F, k, dof_c))
         sig = np.sqrt(np.clip(np.diag(cov), 0, None))
         values = dict(zip(base + ps, zip(sol.tolist(), sig.tolist())))
         # a fitted magnitude far outside anything physical means the linearised model is being
@@ -519,8 +519,8 @@ def _noncentrality(k: int, dof: int, level: float, power: float) -> float:
     """λ with P(F'(k, dof, λ) > F_(1-level)(k, dof)) = power (non-central F)."""
     from scipy.optimize import brentq
 
-    crit = stats.f.isf(level, k, dof)
-    f = lambda lam: stats.ncf.sf(crit, k, dof, lam) - power  # noqa: E731
+    crit = f_isf(level, k, dof)
+    f = lambda lam: ncf_sf(crit, k, dof, lam) - power  # noqa: E731
     hi = 10.0
     while f(hi) < 0:
         hi *= 2

@@ -19,7 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+
+from components.estimation.distributions import chi2_sf
 
 CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
 ALPHA = 0.01
@@ -116,7 +117,7 @@ def _cells(family: str, groups: dict, z: np.ndarray, channel: np.ndarray) -> lis
             if n == 0:
                 continue
             chi2 = float(np.sum(z[m] ** 2))
-            out.append(Cell(family, name, ch, chi2, n, float(stats.chi2.sf(chi2, n))))
+            out.append(Cell(family, name, ch, chi2, n, float(chi2_sf(chi2, n))))
     return out
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import UserError
-from components.model.noise import CHANNELS, FORMAT, ChannelNoise, NoiseModel, from_terms, grade
+from components.model.noise import FORMAT, ChannelNoise, NoiseModel, from_terms, grade
 from components.model.quantities import NOISE_TERM_UNITS, QuantityError, quantity
 
 WHITE = "white noise, its level from the static data's sample-to-sample differences"

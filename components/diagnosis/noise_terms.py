@@ -8,9 +8,9 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy import stats
 
 from components import progress
+from components.estimation.distributions import chi2_isf
 from components.estimation.noise_likelihood import fit_one_term
 from components.estimation.whitening import channel_rows
 from components.model.noise import TERM_OF_NAME, NoiseModel
@@ -59,7 +59,7 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
                 values.append(value)
             lr = 2 * gain
             out.append({"term": term, "values": values, "loglik_gain": gain, "aic_gain": gain - n_new,
-                        "likelihood_ratio": lr, "significant": bool(lr > stats.chi2.isf(alpha, max(n_new, 1))),
+                        "likelihood_ratio": lr, "significant": bool(lr > chi2_isf(alpha, max(n_new, 1))),
                         "model": NoiseModel(tuple(chans), (current.source + "; " if noise is not None else "")
                                             + f"+ {term}", current.sigmas)})
             bar.update()

@@ -35,9 +35,9 @@ def family_critical(tests: int, alpha: float = 0.01) -> float:
     """The likelihood ratio a term must exceed so that *tests* presence tests together name a
     term that is not there with probability at most *alpha* (Bonferroni on the boundary
     distribution ½ χ²₀ + ½ χ²₁: P(χ²₁ > c) = 2 α / tests)."""
-    from scipy.stats import chi2
+    from components.estimation.distributions import chi2_isf
 
-    return float(chi2.isf(2.0 * alpha / max(tests, 1), 1))
+    return float(chi2_isf(2.0 * alpha / max(tests, 1), 1))
 
 
 def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
