@@ -229,3 +229,22 @@ def test_compare_on_counts_without_a_noise_model_keeps_the_quantization(pulse_ru
     model = result_from_fit(calibrate(data, effects), effects, data)
     c = compare(data, model, fitted_parameters=len(model.values), noise=None)
     assert 0 < c.chi2_per_dof < 2.0, c.chi2_per_dof
+
+
+def test_a_noise_free_pulse_outputs_noise_floor_is_its_counts(pulse_run):
+    """This FMU takes no noise: its samples carry only the remainders of their counts, so a
+    sample's residual at rest is of the order of w/√6 (two uniform remainders), and the
+    per-sample noise floor compare reports must be that, not the white level the log lacks
+    (found: 7e-20 rad, rms/noise 1e12 on a supplier's noise-free pulse log)."""
+    from components.diagnosis.compare import compare
+    from components.model.result import result_from_fit
+
+    data, effects = LogData.from_log(pulse_run.log), ["gyro.bias", "acc.bias", "acc.sf"]
+    for spec in (None, ["white"]):
+        noise, said, _ = choose_noise(spec, data, effects=effects)
+        model = result_from_fit(calibrate(data, effects, noise=noise), effects, data)
+        c = compare(data, model, fitted_parameters=len(model.values), noise=noise)
+        for ch, v in c.channels.items():
+            w = data.count_weight[0 if ch.startswith("gyro") else 1]
+            assert 0.2 < v["rms"] / v["noise_floor"] < 2.0, (spec, ch, v["rms"], v["noise_floor"])
+            assert v["noise_floor"] >= w / np.sqrt(6) * (1 - 1e-12), (spec, ch, v["noise_floor"])

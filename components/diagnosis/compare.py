@@ -8,8 +8,10 @@ What the numbers mean (docs/compare.md says the same for users):
 
 - ``residual``: per sample and channel, measured − model, in SI increments (and in the log's
   output units in the ``--residuals`` file).
-- ``noise_floor``: the per-sample white-noise σ of each channel, estimated from the residual's
-  high-frequency content (consecutive differences within static runs, robust scale).
+- ``noise_floor``: the per-sample noise σ of each channel: white, estimated from the residual's
+  high-frequency content (consecutive differences within static runs, robust scale) or the
+  noise model's; with a pulse output's quantization Q in the noise model, the two remainders of
+  a sample's count with it, √(σ² + 2Q²) (a noise-free pulse output has no white level at all).
 - ``rms``: RMS of the per-sample residual over the samples the model predicts sample by sample —
   every accelerometer sample and the static gyro samples; during moves the per-sample gyro
   prediction is limited by the encoder (domain.md §3) and is reported apart as ``rms_moving``.
@@ -174,6 +176,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     dof = max(len(rows["z"]) - fitted_parameters, 1)
     channels = {}
     sums = _sample_sums(data, resid, plate.static)
+    floor = np.sqrt(sigma**2 + 2 * _model_quantization(noise) ** 2)
     for k, ch in enumerate(CHANNELS):
         sel = rows["channel"] == k
         zk = rows["z"][sel]
@@ -182,7 +185,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
         channels[ch] = {
             "rms": float(np.sqrt(sq_ok / n_ok)) if n_ok else float("nan"),
             "rms_moving": float(np.sqrt(sq_moving / n_moving)) if n_moving else None,
-            "noise_floor": float(sigma[k]),
+            "noise_floor": float(floor[k]),
             "chi2_per_dof": float(np.sum(zk**2) / max(len(zk) - fitted_parameters * len(zk) / max(len(rows["z"]), 1), 1)),
             "fit_percent": float(100 * (1 - np.sqrt(sq_all) / np.sqrt(sq_dev))) if sq_dev > 0 else float("nan"),
             "whiteness_p": ljung_box(zk[order]),
@@ -192,6 +195,11 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     comp.coloured = noise is not None and noise.coloured
     locate(comp, data, plate, rows)
     return comp
+
+
+def _model_quantization(noise: NoiseModel | None) -> np.ndarray:
+    """(6,) the quantization Q the noise model carries per channel (0 without one)."""
+    return np.zeros(6) if noise is None else np.array([c.quantization for c in noise.channels])
 
 
 def _sample_sums(data: LogData, resid: np.ndarray, static: np.ndarray) -> list[tuple]:

@@ -80,6 +80,9 @@ def compare_positions(data: LogData, model: CalibrationResult, *, fitted_paramet
     rest = motion.static & modelled
     sigma = white_noise_sigma(np.nan_to_num(resid), rest)
     sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * np.array([7.3e-5] * 3 + [9.8] * 3)
+    # a pulse output's sample differences collapse where its counts are coarser than the noise:
+    # a sample's residual still carries the two remainders of its count
+    sigma = np.maximum(sigma, np.sqrt(2.0) * data.quantization_floor())
     meas = np.hstack([data.gyro, data.acc])
     channels = {}
     for k, ch in enumerate(CHANNELS):
