@@ -391,7 +391,7 @@ def main(argv=None) -> int:
                 print(f"  {e:16s} not excited by this schedule")
                 continue
             # named first needs the naming threshold: the detection threshold, or more where a
-            # look-alike's columns lie near (diagnose.naming_snr)
+            # look-alike's columns lie near (detection_thresholds.naming_snr)
             detect = cand.threshold[p]
             thr, rival, cos = cand.naming.get(p, (detect, None, 0.0))
             if not math.isfinite(thr):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from components.diagnosis.diagnose import _noncentrality, naming_snr
+from components.diagnosis.detection_thresholds import naming_snr, noncentrality
 
 DRAWS = 40000
 SE4 = 4 * math.sqrt(0.95 * 0.05 / DRAWS)
@@ -22,7 +22,7 @@ SE4 = 4 * math.sqrt(0.95 * 0.05 / DRAWS)
 
 @pytest.mark.parametrize("k, dof, level", [(1, 500, 0.01 / 20), (3, 2000, 0.01 / 20), (6, 300, 0.001)])
 def test_detection_threshold_has_95_percent_power(k, dof, level):
-    lam = _noncentrality(k, dof, level, 0.95)
+    lam = noncentrality(k, dof, level, 0.95)
     rng = np.random.default_rng(k)
     num = rng.noncentral_chisquare(k, lam, DRAWS) / k
     den = rng.chisquare(dof, DRAWS) / dof

@@ -14,7 +14,7 @@ under a correct model the test has its nominal size. Each candidate's theoretica
 reported: per parameter, the magnitude the test detects with 95 % power at the first Holm
 level α/m (non-central F), and the magnitude from which it is named first rather than its
 closest look-alike (the candidate whose columns take the largest share of its own) in 95 % of
-logs (:func:`naming_snr`): a pair like acc.k2 and acc.sf_asym on rests at ±1 g and 0 is detected
+logs (components.diagnosis.detection_thresholds): a pair like acc.k2 and acc.sf_asym on rests at ±1 g and 0 is detected
 long before the log can tell which of the two it is.
 
 Stochastic or deterministic: beside the effects, the noise terms the model lacks (components.diagnosis.noise_terms)
@@ -36,11 +36,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.diagnosis.candidate_notes import annotate, separation_advice
+from components.diagnosis.detection_thresholds import theoretical_thresholds
 from components.diagnosis.noise_terms import NOISE_CANDIDATES, has_term, noise_candidates
 from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import noise_floor
-from components.estimation.distributions import f_isf, f_logsf, ncf_sf
+from components.estimation.distributions import f_logsf
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import whiten
@@ -52,12 +53,6 @@ from components.model.result import CalibrationResult
 # candidates whose new columns have a canonical correlation above this cannot be told apart on
 # the schedule (the ranking says so and how to separate them)
 TWINS = 0.98
-# a parameter whose column lies closer than this to another candidate's is never named first:
-# its naming threshold would be > 16 x its detection threshold, where the linearised model's own
-# error is as large as what separates the two (measured, benchmarks/coloured_noise.py on the
-# diagnosis schedule: acc.sf_asym at cosine 0.9805 to acc.k2 named first 20/20 at 1.3 x its
-# naming threshold; imu.time_offset at 0.9997 to acc.time_offset 0/20, with a residual left)
-NAMING_LIMIT = 0.999
 
 
 @dataclass
@@ -466,63 +461,10 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
             if len(s) and s[0] > TWINS:
                 c.indistinguishable.append((d.effect, float(s[0]), separation_advice(
                     c.effect, d.effect, c.signature["parameter"], d.signature["parameter"])))
-    # theoretical thresholds: the non-centrality the F test needs for 95 % power at α/m, per
-    # parameter through its information beyond the base model's columns
-    # and the magnitude from which it is named first, not its closest look-alike, in 95 % of
-    # logs (naming_snr): above the detection threshold where another candidate's columns lie near
-    for c in out:
-        k = c.added_rank
-        dof_c = max(design.n - len(base) - k, 1)
-        lam = _noncentrality(k, dof_c, alpha / max(m, 1), 0.95)
-        for p in available[c.effect]:
-            h = design.projected_column(base, p)
-            info = float(h @ h)
-            if info > 0:
-                c.threshold[p] = math.sqrt(lam / info)
-                rivals = [(float(np.linalg.norm(d._basis.T @ h)) / math.sqrt(info), d.effect)  # type: ignore[attr-defined]
-                          for d in out if d is not c]
-                if rivals:
-                    rho, rival = max(rivals)
-                    snr = naming_snr(min(rho, 1.0)) if rho <= NAMING_LIMIT else math.inf
-                    c.naming[p] = (max(c.threshold[p], snr / math.sqrt(info)), rival, rho)
+    theoretical_thresholds(out, design, base, available, alpha)
     for c in out:
         del c._basis  # type: ignore[attr-defined]
     # what is shown first is what could be an estimate: implausible and unidentifiable candidates
     # go below the others (the order among each group stays by evidence)
     out.sort(key=lambda c: bool(c.implausible or c.unidentifiable))
     return out, chi2_b, dof_b
-
-
-def naming_snr(rho: float, power: float = 0.95) -> float:
-    """The signal-to-noise m (magnitude × √information) at which a one-parameter effect beats a
-    look-alike whose columns take the fraction *rho* (the cosine) of it: with the effect's
-    projection A ~ N(m, 1) and the rival's B ~ N(ρ m, 1), corr ρ, it is named when |A| > |B|,
-    and A − B and A + B are independent, so P = Φ(x) Φ(y) + Φ(−x) Φ(−y) with
-    x = m √((1 − ρ)/2), y = m √((1 + ρ)/2); infinite for ρ → 1 (never told apart)."""
-    from scipy.optimize import brentq
-    from scipy.special import ndtr
-
-    if rho >= 1.0 - 1e-12:
-        return math.inf
-    a, b = math.sqrt((1 - rho) / 2), math.sqrt((1 + rho) / 2)
-
-    def shortfall(m: float) -> float:
-        return ndtr(m * a) * ndtr(m * b) + ndtr(-m * a) * ndtr(-m * b) - power
-
-    hi = 1.0
-    while shortfall(hi) < 0:
-        hi *= 2
-    return float(brentq(shortfall, 0.0, hi))
-
-
-def _noncentrality(k: int, dof: int, level: float, power: float) -> float:
-    """λ with P(F'(k, dof, λ) > F_(1-level)(k, dof)) = power (non-central F)."""
-    from scipy.optimize import brentq
-
-    crit = f_isf(level, k, dof)
-    f = lambda lam: ncf_sf(crit, k, dof, lam) - power  # noqa: E731
-    hi = 10.0
-    while f(hi) < 0:
-        hi *= 2
-    return float(brentq(f, 1e-9, hi))
-
