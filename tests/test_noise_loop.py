@@ -121,7 +121,8 @@ def test_counts_coarser_than_the_white_noise_keep_the_white_level_and_honest_sig
     assert ident is not None and all(c.white > 0 for c in noise.channels), ident.table()
     # asked for white noise, the user gets it with the counts' quantization as a term of its own
     white = choose_noise(["white"], data)[0]
-    assert [c.quantization for c in white.channels] == pytest.approx(data.quantization_floor(), rel=1e-12)
+    w = [0.2 * np.pi / 180 / 3600] * 3 + [1e-4] * 3   # the weights stated above, in rad and m/s
+    assert [c.quantization for c in white.channels] == pytest.approx(np.array(w) / np.sqrt(12), rel=1e-12)
     fit = calibrate(data, BASELINE, noise=noise)
     true = from_fmu_parameters({k: noise_value(k, v, "test") for k, v in NOISE.items()},
                                gyro_count=data.count_weight[0], acc_count=data.count_weight[1])

@@ -157,17 +157,12 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
     if data is None or not any(data.count_weight):
         return None, WHITE
     from components.diagnosis.noise_id import ALLAN_SAMPLES
-    from components.estimation.allan import static_runs
+    from components.estimation.allan import first_runs, static_runs
     from components.estimation.blocks import white_noise_sigma
     from components.estimation.noise_fit import white_beside_quantization
 
     use = data.static & data.usable
-    runs, total = [], 0
-    for a, b in static_runs(use):
-        if total >= ALLAN_SAMPLES:
-            break
-        runs.append((a, b))
-        total += b - a
+    runs = first_runs(static_runs(use), ALLAN_SAMPLES)
     if not runs:
         raise UserError("--noise white: this log of pulse counts has no static run of 8 samples or more, so no "
                         "white level can be read beside the counts' quantization; give the noise (--noise: a grade, "
@@ -187,11 +182,11 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
             chans.append(ChannelNoise(white=n, quantization=float(q[3 * s + a])))
             taus.append(tau)
         read = sorted({f"{t:.3g} s" for t in taus if np.isfinite(t)})
-        shown = sum(np.isfinite(t) for t in taus)
+        hidden = sum(not np.isfinite(t) for t in taus)
+        parts = ([f"from the Allan variance at τ = {', '.join(read)} beside it"] if read else []) \
+            + ([f"below what the counts show on {hidden} axes (set to 0)"] if hidden else [])
         said.append(f"{sensor}: quantization {data.count_weight[s]:.3g}/√12 (its count weight) and white noise "
-                    + (f"from the Allan variance at τ = {', '.join(read)} beside it" if read else "")
-                    + ("" if shown == 3 else f"{'; ' if read else ''}below what the counts show on "
-                       f"{3 - shown} axes (set to 0)"))
+                    + "; ".join(parts))
     text = "white noise, on the pulse outputs with the counts' quantization as a term of its own (" \
            + "; ".join(said) + ")"
     return NoiseModel(tuple(chans), text), text

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from components import progress
-from components.estimation.allan import static_runs
+from components.estimation.allan import first_runs, static_runs
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel
 from components.estimation.noise_likelihood import family_critical, fit_slow_terms
@@ -101,12 +101,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     # hour of rests measures well, and the bootstrap simulates the record up to the last run used
     # (on an 8-hour 1 kHz log, 30 M samples per replicate and a flicker range past what its
     # Gauss–Markov sum can realise)
-    used, total = [], 0
-    for a, b in runs:
-        if total >= ALLAN_SAMPLES:
-            break
-        used.append((a, b))
-        total += b - a
+    used = first_runs(runs, ALLAN_SAMPLES)
+    total = sum(b - a for a, b in used)
     upto = used[-1][1]
     if len(used) < len(runs):
         notes.append(f"quantization and white noise from the first {total} static samples (the log's first "

@@ -51,6 +51,19 @@ def static_runs(static: np.ndarray, min_samples: int = 8) -> list[tuple[int, int
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_samples]
 
 
+def first_runs(runs: list[tuple[int, int]], samples: int) -> list[tuple[int, int]]:
+    """The leading *runs* until they hold at least *samples* samples (all when they hold fewer):
+    the fast terms show at short τ, which the first rests measure well, and the Allan stage need
+    not read an hours-long log to its end."""
+    out, total = [], 0
+    for a, b in runs:
+        if total >= samples:
+            break
+        out.append((a, b))
+        total += b - a
+    return out
+
+
 def octave_factors(longest: int) -> np.ndarray:
     """Averaging factors m = 1, 2, 4, ... that fit at least twice into *longest* samples."""
     m = [1]
