@@ -82,6 +82,7 @@ PARAM = {  # the hidden parameter per sensor effect
     "acc.lever": "acc.lever.x.x", "acc.temp": "acc.temp.y", "acc.sf_temp": "acc.sf_temp.x",
     "acc.drift": "acc.drift.x", "imu.time_offset": "imu.time_offset",
 }
+ANALYSES = ("white", "true", "ident", "ident+ds")  # the null logs' analyses, in print order
 MODE2 = {"temperature.mode": 2}
 CYCLE = heat_cool_cycle(25.0, 5.0, 120.0)
 
@@ -278,14 +279,15 @@ def main(argv=None) -> int:
     # null logs
     t = time.time()
     crb = cramer_rao(datas[0], BASELINE, noise)
-    jobs = [(d, truth, noise, k < a.ident_seeds, gyro_datasheet(a.grade)) for k, d in enumerate(datas)]
+    datasheet = gyro_datasheet(a.grade)
+    jobs = [(d, truth, noise, k < a.ident_seeds, datasheet) for k, d in enumerate(datas)]
     null = list(pool.map(analyse_null, jobs))
     print(f"null analyses: {time.time() - t:.0f} s", flush=True)
     report: dict = {"schedule": a.schedule, "grade": a.grade, "seeds": a.seeds, "duration_s": float(datas[0].time[-1]),
                     "counts": counts}
     se = math.sqrt(ALPHA * (1 - ALPHA) / a.seeds)
     print(f"\nFalse alarms on null logs (verdict named; target α = {ALPHA} ± 2 SE = [0, {ALPHA + 2 * se:.3f}]):")
-    for name in ("white", "true", "ident", "ident+ds"):
+    for name in ANALYSES:
         rs = [r[name] for r in null if name in r]
         if not rs:
             continue
@@ -309,7 +311,7 @@ def main(argv=None) -> int:
     table = {}
     for p in params:
         row = {}
-        for name in ("white", "true", "ident", "ident+ds"):
+        for name in ANALYSES:
             rs = [r[name] for r in null if name in r]
             if not rs:
                 continue
