@@ -198,18 +198,18 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     n = max(b for _, b in runs)
 
     def boot(ch: ChannelNoise, gm_tau):
-        vals, stats_ = [], []
+        vals, stats_, bavs = [], [], []
         for _ in range(bootstrap):
             sim = simulate_rate(ch, n, dt, rng)
-            bav = _at(pooled_allan(sim, runs, dt, alpha_of), fitted)
-            sq, st = _fit_squares(bav, free, fixed, gm_tau)
+            bavs.append(_at(pooled_allan(sim, runs, dt, alpha_of), fitted))
+            sq, st = _fit_squares(bavs[-1], free, fixed, gm_tau)
             vals.append({k: math.sqrt(max(v, 0.0)) for k, v in sq.items()})
             stats_.append(st)
-        return vals, np.array(stats_)
+        return vals, np.array(stats_), bavs
 
     gm_tau = None
     ch = _channel({**squares, **fixed}, None, flicker_range)
-    vals, stats_ = boot(ch, None)
+    vals, stats_, bavs = boot(ch, None)
     p = float(np.mean(stats_ >= stat)) if bootstrap else float("nan")
     if bootstrap and p < 0.01 and len(av.tau) >= 5:
         # a bump the basic terms cannot follow: one Gauss–Markov term, its time constant on a grid
@@ -221,7 +221,7 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
         if best is not None and best[1].get("gauss_markov", 0) > 0 and best[2] < stat:
             gm_tau, squares, stat = best
             ch = _channel({**squares, **fixed}, gm_tau, flicker_range)
-            vals, stats_ = boot(ch, gm_tau)
+            vals, stats_, bavs = boot(ch, gm_tau)
             p = float(np.mean(stats_ >= stat))
             notes.append(f"a Gauss–Markov term (T = {gm_tau:.3g} s) where the basic terms left a misfit")
     sigma = {k: float(np.std([v.get(k, 0.0) for v in vals], ddof=1)) if bootstrap > 1 else float("nan")
@@ -236,6 +236,17 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     present = [k for k in sigma if value.get(k, 0.0) > PRESENT_SIGMAS * sigma[k] and share(k) >= PRESENT_SHARE] \
         + list(known)
     upper = {k: value.get(k, 0.0) + PRESENT_SIGMAS * sigma[k] for k in sigma if k not in present}
-    kept = {k: (v**2 if k in present else 0.0) for k, v in value.items()}
-    final = _channel({**kept, **fixed}, gm_tau if "gauss_markov" in present else None, flicker_range)
+    # the present terms refitted alone: an absent term's estimate is held non-negative, so on
+    # average it took variance that is not its own from the terms beside it (the white level read
+    # 0.5 % low on white-only records, quantization and random walk fitted above 0 by chance)
+    gm_kept = gm_tau if "gauss_markov" in present else None
+    refit = [t for t in free if t in present]
+    kept, _ = _fit_squares(av, refit, fixed, gm_kept)
+    final = _channel({**kept, **fixed}, gm_kept, flicker_range)
+    if bootstrap > 1:
+        # their σ: the same replicates refitted the same way (fewer terms compete, so it is
+        # smaller than the full fit's, which stays the absent terms' for their upper bounds)
+        again = [_fit_squares(b, refit, fixed, gm_kept)[0] for b in bavs]
+        for k in refit + (["gauss_markov"] if gm_kept else []):
+            sigma[k] = float(np.std([math.sqrt(max(a.get(k, 0.0), 0.0)) for a in again], ddof=1))
     return ChannelFit(final, sigma, present, upper, measured, stat, p, gm_tau if "gauss_markov" in present else None, notes)
