@@ -185,7 +185,9 @@ def analyse_null(job) -> dict:
         out["identified"] = [{"present": list(c.present), "values": {t: getattr(c.noise, t) for t in TERMS["gyro"]},
                               "sigma": {t: c.sigma.get(t, float("nan")) for t in TERMS["gyro"]},
                               "upper": {t: c.slow[t].get("upper", float("nan")) for t in c.slow
-                                        if isinstance(c.slow[t], dict) and not c.slow[t]["present"]}}
+                                        if isinstance(c.slow[t], dict) and not c.slow[t]["present"]},
+                              "interval": {t: c.slow[t]["interval"] for t in c.slow
+                                           if isinstance(c.slow[t], dict) and "interval" in c.slow[t]}}
                              for c in ident.channels]
     return out
 
@@ -354,8 +356,9 @@ def main(argv=None) -> int:
 
     ident = [r["identified"] for r in null if "identified" in r]
     if ident:
-        print("\nNoise identification (identified / injected; (est - truth)/σ within 3 for present terms; for absent "
-              "slow terms, the truth below the likelihood's upper bound):")
+        print("\nNoise identification (identified / injected; present terms: (est - truth)/σ within 3, the slow ones "
+              "within their 3σ profile-likelihood interval; absent slow terms: the truth below the likelihood's upper "
+              "bound):")
         within, total = 0, 0
         for k in range(6):
             ch = noise.channels[k]
@@ -365,7 +368,10 @@ def main(argv=None) -> int:
                 sig = np.array([r[k]["sigma"][term] for r in ident])
                 pres = np.array([term in r[k]["present"] for r in ident])
                 z = np.abs(est - tv) / np.where(sig > 0, sig, np.nan)
-                w = np.sum((z <= 3) & pres)
+                # the slow terms: within their profile-likelihood interval (deviance 9: three σ)
+                iv = np.array([r[k].get("interval", {}).get(term, (np.nan, np.nan)) for r in ident], float)
+                inside = np.where(np.isfinite(iv[:, 0]), (iv[:, 0] <= tv) & (tv <= iv[:, 1]), z <= 3)
+                w = np.sum(inside & pres)
                 within += w
                 total += pres.sum()
                 up = np.array([r[k].get("upper", {}).get(term, np.nan) for r in ident])

@@ -188,3 +188,75 @@ def test_the_floors_sigma_counts_what_its_corner_trades_with_it():
     curvature = np.polyfit(steps, [profile(x0 + s) for s in steps], 2)[0] * 2
     sigma_profile = b["value"] / math.sqrt(curvature)
     assert b["sigma"] == pytest.approx(sigma_profile, rel=0.15), (b["sigma"], sigma_profile)
+
+
+def test_the_slow_terms_interval_is_where_the_profile_likelihood_reaches_three_sigma():
+    """On a 5-minute log the floor's likelihood is far from quadratic (the corner trades with the
+    magnitude along a curved valley): value ± 3σ from the curvature held the truth in 87 % of
+    tactical 5-minute logs. The reported interval is the profile likelihood's: at each end the
+    deviance, maximised here over the corner and the block-variance nuisance by an optimiser of
+    its own, is 9 (three σ of a one-parameter interval)."""
+    from scipy.optimize import minimize
+
+    from components.estimation.noise_likelihood import restricted_loglik
+    from components.model.flicker import flicker_terms
+
+    rng = np.random.default_rng(305)
+    blk, nb = 5.0, 60
+    per = int(blk / DT)
+    N, B = 1e-3, 1e-3
+    r = record(nb * per, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0))
+    y = (r * DT).reshape(nb, per).sum(axis=1)
+    H = blk * np.column_stack([np.ones(nb), np.tile(np.repeat([1.0, -1.0, 0.0, 0.5], 3), nb)[:nb]])
+    d = np.full(nb, blk)
+    span = nb * blk
+    _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, span, 1.0, terms=("bias_instability",))
+    b = rep["bias_instability"]
+    assert b["present"], rep
+    lo, hi = b["interval"]
+
+    def nll(log_b, z):
+        c = ChannelNoise(white=N, bias_instability=math.exp(log_b), flicker_range=(math.exp(z[0]), None))
+        return -restricted_loglik(c, y, H, d, N**2 * d * math.exp(z[1]), span, 1.0)
+
+    # the corner within the range the model gives it (the shortest block .. an eighth of the log),
+    # here as bounds of Powell's method
+    corner = (math.log(blk), math.log(span / 8))
+    starts = ([math.log(rep["flicker_corner_s"]), math.log(rep["block_variance_scale"])], [math.log(10.0), 0.0],
+              [math.log(blk) + 0.01, 0.0])
+
+    def profile(log_b):
+        return min(minimize(lambda z: nll(log_b, z), z0, method="Powell", bounds=[corner, (-5, 5)],
+                            options={"xtol": 1e-6, "ftol": 1e-10, "maxiter": 4000}).fun for z0 in starts)
+
+    best = min(minimize(lambda x: nll(x[0], x[1:]), [math.log(b["value"]), *z0], method="Powell",
+                        bounds=[(-15, 0), corner, (-5, 5)],
+                        options={"xtol": 1e-6, "ftol": 1e-10, "maxiter": 6000}).fun for z0 in starts)
+    for end in (lo, hi):
+        assert 2 * (profile(math.log(end)) - best) == pytest.approx(9.0, abs=0.6), (lo, b["value"], hi)
+    # and it is not the symmetric one: the upper side reaches further (log-likelihood flatter there)
+    assert hi / b["value"] > b["value"] / lo, (lo, b["value"], hi)
+
+
+def test_a_floor_on_a_short_log_is_not_taken_for_a_random_walk():
+    """Over five minutes a flicker floor and a random walk both explain the wander; with both
+    in, the fit keeps the floor. Backward elimination must then drop the term the model misses
+    least, each loss against the same fit: ranked by test ratios against different fits (the
+    floor's with its corner held), a random walk the full fit put near 0 outlived the floor, and
+    one was named in its place — 100x any true one — on 6 of 30 tactical 5-minute logs' channels.
+    Floor-only records: a random walk named on at most 2 of 24 (with each record's test at its
+    1 % level, 3 or more has probability 0.2 %; the old ranking named 4)."""
+    from components.model.flicker import flicker_terms
+
+    rng = np.random.default_rng(77)
+    blk, nb = 5.0, 60
+    per = int(blk / DT)
+    N, B = 1e-3, 1e-3
+    H = blk * np.column_stack([np.ones(nb), np.tile(np.repeat([1.0, -1.0, 0.0, 0.5], 3), nb)[:nb]])
+    d = np.full(nb, blk)
+    named = 0
+    for _ in range(24):
+        y = (record(nb * per, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0)) * DT).reshape(nb, per).sum(axis=1)
+        _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, nb * blk, 1.0)
+        named += rep["random_walk"]["present"]
+    assert named <= 2, named

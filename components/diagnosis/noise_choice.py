@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -94,7 +95,7 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             return model.noise_model(), f"the model's own: {model.noise_model().source}", None
         if data is not None and getattr(data, "noise", None):
             own = NoiseModel.from_dict(data.noise)
-            return NoiseModel(own.channels, "the log's own (imu.noise)", own.sigmas), "the log's own (imu.noise)", None
+            return replace(own, source="the log's own (imu.noise)"), "the log's own (imu.noise)", None
         if any(data.count_weight) and data.has_table:
             specs = ["identify"]
             lead = "pulse counts: quantization from the count weights, the rest "
@@ -140,7 +141,7 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             raise UserError(f"--noise {spec!r}: expected identify, white, navigation, tactical, a noise .json file "
                             "or NAME=VALUE (e.g. acc.noise.bi=10 ug)")
     if noise is not None:
-        noise = NoiseModel(noise.channels, "; ".join(said), noise.sigmas)
+        noise = replace(noise, source="; ".join(said))
     return noise, "; ".join(said), ident
 
 

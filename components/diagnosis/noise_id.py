@@ -54,7 +54,8 @@ class NoiseIdentification:
     def table(self) -> list[str]:
         """The identified terms per channel in readable units, with σ; absent terms with their
         upper bound."""
-        lines = [f"{'channel':8s} {'term':18s} {'value':>12s} {'sigma':>10s}  unit           present"]
+        lines = [f"{'channel':8s} {'term':18s} {'value':>12s} {'sigma':>10s}  unit           present  "
+                 "(slow terms: the 3σ profile-likelihood interval)"]
         for k, c in enumerate(self.channels):
             terms = TERMS[sensor_of(k)]
             for t in BASIC:
@@ -62,8 +63,10 @@ class NoiseIdentification:
                 v = getattr(c.noise, t)
                 s = c.sigma.get(t, float("nan"))
                 if t in c.present:
+                    iv = c.slow[t].get("interval") if isinstance(c.slow.get(t), dict) else None
+                    within = f"  [{iv[0] / scale:.3g}, {iv[1] / scale:.3g}]" if iv else ""
                     lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {s / scale:10.2g}  "
-                                 f"{dunit:14s} yes")
+                                 f"{dunit:14s} yes{within}")
                 else:
                     up = c.fast.upper.get(t) if t in c.fast.upper else None
                     if t in c.slow:
@@ -155,12 +158,15 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                 present = list(fast[k].present)
             out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
             bar.update()
-    sig = {}
+    sig, iv = {}, {}
     for k, c in enumerate(out_channels):
         for t in c.present:
             if t in TERMS[sensor_of(k)]:
-                sig[f"{TERMS[sensor_of(k)][t][0]}.{AXES[k % 3]}"] = c.sigma.get(t, float("nan"))
-    model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig)
+                name = f"{TERMS[sensor_of(k)][t][0]}.{AXES[k % 3]}"
+                sig[name] = c.sigma.get(t, float("nan"))
+                if isinstance(c.slow.get(t), dict) and "interval" in c.slow[t]:
+                    iv[name] = c.slow[t]["interval"]
+    model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
     return NoiseIdentification(model_out, out_channels, len(runs), notes)
 
 
@@ -193,4 +199,4 @@ def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[
             chans[k] = replace(ch, **{field_: r["value"]})
             report[f"{term}.{AXES[k % 3]}"] = r
     src = (noise.source + "; " if noise.source else "") + "+ " + ", ".join(terms)
-    return NoiseModel(tuple(chans), src, noise.sigmas), report
+    return replace(noise, channels=tuple(chans), source=src), report

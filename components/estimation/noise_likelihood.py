@@ -14,7 +14,13 @@ from the curvature there, the flicker corner and the block-variance nuisance fre
 The flicker floor's lower corner (the shortest time constant of its Gauss–Markov sum) is fitted
 with it: a real floor does not extend to arbitrarily short times, and a model that puts it there
 would take the rise below the corner for random walk. A term is present when the likelihood ratio against leaving it out
-exceeds the 1 % point of its null distribution (½ χ²₀ + ½ χ²₁ on the boundary: 5.41).
+exceeds the 1 % point of its null distribution (½ χ²₀ + ½ χ²₁ on the boundary: 5.41); terms are
+dropped one at a time, the one the model misses least first.
+
+Each present term also gets its profile-likelihood interval: the magnitudes where the deviance,
+maximised over everything else, reaches 9 (three σ of a one-parameter interval). On a log of a
+few minutes the likelihood is far from quadratic and value ± 3σ from the curvature held the
+truth in 87 % of tactical 5-minute logs; the profile interval in 83 of 84.
 """
 from __future__ import annotations
 
@@ -30,6 +36,7 @@ from components.model.noise import ChannelNoise, block_noise
 LR_CRITICAL = 5.4119  # χ²₁ 98 % point: the 1 % level of ½ χ²₀ + ½ χ²₁
 FLICKER_CORNER_TEST = 10.0  # [s] the floor's lower corner its presence is tested at
 SLOW = ("bias_instability", "random_walk")
+PROFILE_LEVEL = 9.0  # the deviance of the reported interval: three σ of a one-parameter interval (99.7 %)
 
 
 def family_critical(tests: int, alpha: float = 0.01) -> float:
@@ -94,7 +101,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
 
     corner0 = math.log(min(max(FLICKER_CORNER_TEST, lo_min), lo_max))
 
-    def optimise(active: list[str], free_corner: bool = True):
+    def optimise(active: list[str], free_corner: bool = True, start=None):
         x0 = [math.log(getattr(ch, t) or scale * (1.0 if t == "bias_instability" else 0.1 / math.sqrt(span)))
               for t in active]
         k = len(active)
@@ -102,6 +109,8 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         if "bias_instability" in active and free_corner:
             x0.append(corner0)
         x0.append(0.0)
+        if start is not None:
+            x0 = list(start)
 
         def full(z):
             return np.concatenate([z[:k], [corner0], z[k:]]) if held else np.asarray(z, float)
@@ -118,12 +127,23 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     lr = {}
     while active:
         drops = {t: optimise([u for u in active if u != t]) for t in active}
+        # a model with a term more fits at least as well as any without it: where the simplex
+        # stopped short of that (in the floor's corner valley), it restarts from the better fit
+        best = min(active, key=lambda t: drops[t][1])
+        if drops[best][1] < f:
+            x_try, f_try = optimise(active, start=_embed(active, best, drops[best][0], x))
+            if f_try < f:
+                x, f = x_try, f_try
         # the floor's presence is tested with its corner held: without the floor the corner
         # means nothing, and a likelihood ratio maximised over it too is not the 1 % test
         # LR_CRITICAL is for (it named a floor ten times the true one in 2 of 12 short logs)
         f_test = optimise(active, free_corner=False)[1] if "bias_instability" in active else f
         lr = {t: 2 * (drops[t][1] - (f_test if t == "bias_instability" else f)) for t in active}
-        weakest = min(active, key=lambda t: lr[t])
+        # the term to drop is the one the model misses least, each loss against the same fit (the
+        # corner free): the floor's test ratio is against the corner held, and ranked by those a
+        # random walk the full fit put at ~0 outlived a floor it had at full size (6 of 30
+        # 5-minute tactical logs named a random walk 100x the true one in the floor's place)
+        weakest = min(active, key=lambda t: drops[t][1])
         if lr[weakest] > critical:
             break
         active.remove(weakest)
@@ -146,7 +166,12 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         if t in active:
             i = active.index(t)
             value = math.exp(x[i])
+            # steps of about one σ (the curvature's): the crossing at three is a few steps out
+            sd = math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else None
+            step = min(max(sd, 0.02), 0.1) if sd else 0.1
+            lo, hi = profile_interval(lambda z: nll(active, z), x, f, i, PROFILE_LEVEL, step, sd)
             report[t] = {"value": value, "sigma": value * math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else float("nan"),
+                         "interval": (math.exp(lo), math.exp(hi)),
                          "likelihood_ratio": float(lr.get(t, 2 * (f_none - f))), "present": True}
         else:
             # a profile bound: the magnitude at which adding the term costs 4.5 in likelihood
@@ -168,6 +193,64 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     report["loglik"] = -f
     report["loglik_without"] = -f_none
     return out, report
+
+
+def _embed(active: list[str], dropped: str, x_without: np.ndarray, x_with: np.ndarray) -> np.ndarray:
+    """A start for the model with *active* terms from the fit without *dropped* (coordinates
+    [log magnitudes in *active*'s order, log corner if the floor is active, v]): the dropped term
+    at a twentieth of its value in *x_with*, the floor's corner from whichever fit has the floor."""
+    rest = [t for t in active if t != dropped]
+    mags = [x_with[active.index(t)] - math.log(20.0) if t == dropped else x_without[rest.index(t)] for t in active]
+    corner = []
+    if "bias_instability" in active:
+        corner = [x_with[len(active)]] if dropped == "bias_instability" else [x_without[len(rest)]]
+    return np.array(mags + corner + [x_without[-1]])
+
+
+def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: float = 0.1,
+                     sd: float | None = None, reach: float = 7.0) -> tuple[float, float]:
+    """The profile-likelihood interval of x[i] (log scale): where 2 [min over the other
+    coordinates of nll − f0] reaches *level*, walked outwards from the minimum *x* in *step*s
+    (each minimisation started from the last one's), the crossing interpolated in the signed
+    root of the deviance (near-linear in the coordinate, with slope 1/sd where the curvature
+    gives a σ *sd*). ±inf where it is not reached within *reach* (log) of x[i]: the log does not
+    bound the magnitude on that side."""
+    rest = [j for j in range(len(x)) if j != i]
+    jump = 1.5 * max(1.0, step / sd if sd else 1.0)  # a rise of the root that is more than a step's
+    out = []
+    for sign in (-1.0, 1.0):
+        z, b, root_prev, crossing = x[rest].copy(), x[i], 0.0, sign * math.inf
+        while abs(b - x[i]) < reach:
+            b_next = b + sign * step
+
+            def at(zz, bb=b_next):
+                full = np.empty(len(x))
+                full[i], full[rest] = bb, zz
+                return nll(full)
+
+            def least(z0):
+                r = minimize(at, z0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-5,
+                                                                    "maxiter": 400 * len(rest)})
+                return r.x, float(r.fun), math.sqrt(max(2.0 * (float(r.fun) - f0), 0.0))
+
+            if rest:
+                z, val, root = least(z)
+                if root - root_prev > jump:
+                    # a jump of more than a step's worth: the other coordinates may have had to
+                    # move far (the floor's corner trades with its magnitude along a curved
+                    # valley), so the step is also started from the maximum's
+                    z2, val2, root2 = least(x[rest])
+                    if val2 < val:
+                        z, val, root = z2, val2, root2
+            else:
+                val = at(z)
+                root = math.sqrt(max(2.0 * (val - f0), 0.0))
+            if root >= math.sqrt(level):
+                crossing = b + sign * step * (math.sqrt(level) - root_prev) / max(root - root_prev, 1e-12)
+                break
+            b, root_prev = b_next, root
+        out.append(crossing)
+    return out[0], out[1]
 
 
 def _inverse_curvature(nll, x: np.ndarray, f0: float, h: float = 1e-2) -> np.ndarray:

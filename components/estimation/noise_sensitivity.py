@@ -40,7 +40,7 @@ def at_upper_bounds(identification) -> tuple[NoiseModel | None, list[str]]:
     if not added:
         return None, []
     m = identification.model
-    return NoiseModel(tuple(chans), m.source + "; absent slow terms at their upper bounds", m.sigmas), added
+    return replace(m, channels=tuple(chans), source=m.source + "; absent slow terms at their upper bounds"), added
 
 
 def sigma_under(fit, noise: NoiseModel, span: float, chunk_s: float = 1.0) -> np.ndarray:

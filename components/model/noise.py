@@ -99,11 +99,15 @@ class ChannelNoise:
 
 @dataclass(frozen=True)
 class NoiseModel:
-    """Six channels' noise, and how it was obtained (``source``) with a σ per identified term."""
+    """Six channels' noise, and how it was obtained (``source``) with a σ per identified term and,
+    for the slow terms identified by likelihood, their profile-likelihood interval (``intervals``:
+    the magnitudes where the deviance reaches 9, three σ of a one-parameter interval; on short
+    logs far from the symmetric value ± 3σ)."""
 
     channels: tuple
     source: str = ""
     sigmas: dict = field(default_factory=dict)
+    intervals: dict = field(default_factory=dict)
 
     @property
     def coloured(self) -> bool:
@@ -145,6 +149,8 @@ class NoiseModel:
                     d[term] = {"value": v, "unit": unit, "display": [v / scale, dunit]}
                     if pname in self.sigmas:
                         d[term]["sigma"] = self.sigmas[pname]
+                    if pname in self.intervals:
+                        d[term]["interval_3sigma"] = [float(x) for x in self.intervals[pname]]
             if ch.gauss_markov:
                 gu, gd, gs = GM_UNITS[sensor]
                 d["gauss_markov"] = [{"sigma": s, "tau_s": T, "unit": gu, "display": [s / gs, gd]}
@@ -164,13 +170,15 @@ class NoiseModel:
             gm = tuple((float(g["sigma"]), float(g["tau_s"])) for g in c.get("gauss_markov", []))
             fr = tuple(c["flicker_range_s"]) if "flicker_range_s" in c else None
             chans.append(ChannelNoise(gauss_markov=gm, flicker_range=fr, **kw))
-        sig = {}
+        sig, iv = {}, {}
         for k, name in enumerate(CHANNELS):
             for term, (vname, *_rest) in TERMS[sensor_of(k)].items():
-                s = d.get("channels", {}).get(name, {}).get(term, {}).get("sigma")
-                if s is not None:
-                    sig[f"{vname}.{AXES[k % 3]}"] = float(s)
-        return cls(tuple(chans), d.get("source", ""), sig)
+                entry = d.get("channels", {}).get(name, {}).get(term, {})
+                if entry.get("sigma") is not None:
+                    sig[f"{vname}.{AXES[k % 3]}"] = float(entry["sigma"])
+                if entry.get("interval_3sigma") is not None:
+                    iv[f"{vname}.{AXES[k % 3]}"] = tuple(float(x) for x in entry["interval_3sigma"])
+        return cls(tuple(chans), d.get("source", ""), sig, iv)
 
 
 def describe(noise: NoiseModel | None) -> str:
