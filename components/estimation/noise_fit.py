@@ -42,6 +42,7 @@ from scipy.optimize import nnls
 from scipy.signal import lfilter
 
 from components.estimation.allan import ALPHA, AllanVariance, pooled_allan
+from components.estimation.distributions import chi2_isf
 from components.model.flicker import FLICKER_AVAR, flicker_terms, gm_avar_unit
 from components.model.noise import ChannelNoise
 
@@ -238,12 +239,21 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     upper = {k: value.get(k, 0.0) + PRESENT_SIGMAS * sigma[k] for k in sigma if k not in present}
     # the present terms refitted alone: an absent term's estimate is held non-negative, so on
     # average it took variance that is not its own from the terms beside it (the white level read
-    # 0.5 % low on white-only records, quantization and random walk fitted above 0 by chance)
+    # 0.5 % low on white-only records, quantization and random walk fitted above 0 by chance) —
+    # unless leaving the absent ones out spoils the fit: then they are real, only below three σ
+    # (a floor from 10 s beside coarse pulse counts: refitted without it, the white level took
+    # it and read 9 % high), and the present terms keep the full fit's values
     gm_kept = gm_tau if "gauss_markov" in present else None
     refit = [t for t in free if t in present]
-    kept, _ = _fit_squares(av, refit, fixed, gm_kept)
+    kept, stat_refit = _fit_squares(av, refit, fixed, gm_kept)
+    dropped = len(free) - len(refit) + (1 if gm_tau and not gm_kept else 0)
+    if dropped and stat_refit - stat > float(chi2_isf(0.01, dropped)):
+        refit = []
+        kept = {k: (v if k in present else 0.0) for k, v in squares.items()}
+        notes.append(f"terms below three σ still shape the Allan variance (without them the fit statistic rises "
+                     f"by {stat_refit - stat:.3g}): the present terms are the full fit's")
     final = _channel({**kept, **fixed}, gm_kept, flicker_range)
-    if bootstrap > 1:
+    if bootstrap > 1 and refit:
         # their σ: the same replicates refitted the same way (fewer terms compete, so it is
         # smaller than the full fit's, which stays the absent terms' for their upper bounds)
         again = [_fit_squares(b, refit, fixed, gm_kept)[0] for b in bavs]
