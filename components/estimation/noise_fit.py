@@ -245,9 +245,10 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     # it and read 9 % high), and the present terms keep the full fit's values
     gm_kept = gm_tau if "gauss_markov" in present else None
     refit = [t for t in free if t in present]
-    kept, stat_refit = _fit_squares(av, refit, fixed, gm_kept)
+    # (nothing present — a bootstrap of 0 replicates decides nothing — leaves nothing to refit)
+    kept, stat_refit = _fit_squares(av, refit, fixed, gm_kept) if refit or gm_kept else ({}, stat)
     dropped = len(free) - len(refit) + (1 if gm_tau and not gm_kept else 0)
-    if dropped and stat_refit - stat > float(chi2_isf(0.01, dropped)):
+    if refit and dropped and stat_refit - stat > float(chi2_isf(0.01, dropped)):
         refit = []
         kept = {k: (v if k in present else 0.0) for k, v in squares.items()}
         notes.append(f"terms below three σ still shape the Allan variance (without them the fit statistic rises "
