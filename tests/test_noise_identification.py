@@ -137,6 +137,19 @@ def test_without_a_bootstrap_nothing_is_claimed_and_nothing_overflows():
     assert fit.present == [] and fit.noise.white == 0.0, fit
 
 
+def _floor_blocks(rng, blk, nb, N, B):
+    """Block sums (y, design H, durations, span) of *nb* rests of *blk* seconds: white noise N and
+    a flicker floor B from 10 s to an hour (its Gauss–Markov sum), a bias and a scale factor
+    over four attitudes as the design."""
+    from components.model.flicker import flicker_terms
+
+    per = int(blk / DT)
+    r = record(nb * per, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0))
+    y = (r * DT).reshape(nb, per).sum(axis=1)
+    H = blk * np.column_stack([np.ones(nb), np.tile(np.repeat([1.0, -1.0, 0.0, 0.5], 3), nb)[:nb]])
+    return y, H, np.full(nb, blk), nb * blk
+
+
 def _blocks(r, nb, per):
     """1 s block sums of the increments, a bias and a ±1 g scale factor as the design."""
     y = (r[: nb * per] * DT).reshape(nb, per).sum(axis=1)
@@ -196,17 +209,9 @@ def test_the_floors_sigma_counts_what_its_corner_trades_with_it():
     from scipy.optimize import minimize
 
     from components.estimation.noise_likelihood import restricted_loglik
-    from components.model.flicker import flicker_terms
 
-    rng = np.random.default_rng(204)
-    blk, nb = 10.0, 240
-    per = int(blk / DT)
     N, B = 10 * UG, 10 * UG
-    r = record(nb * per, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0))
-    y = (r * DT).reshape(nb, per).sum(axis=1)
-    H = blk * np.column_stack([np.ones(nb), np.tile(np.repeat([1.0, -1.0, 0.0, 0.5], 3), nb)[:nb]])
-    d = np.full(nb, blk)
-    span = nb * blk
+    y, H, d, span = _floor_blocks(np.random.default_rng(204), 10.0, 240, N, B)
     ch, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, span, 1.0, terms=("bias_instability",))
     b = rep["bias_instability"]
     assert b["present"], rep
@@ -234,17 +239,9 @@ def test_the_slow_terms_interval_is_where_the_profile_likelihood_reaches_three_s
     from scipy.optimize import minimize
 
     from components.estimation.noise_likelihood import restricted_loglik
-    from components.model.flicker import flicker_terms
 
-    rng = np.random.default_rng(305)
-    blk, nb = 5.0, 60
-    per = int(blk / DT)
-    N, B = 1e-3, 1e-3
-    r = record(nb * per, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0))
-    y = (r * DT).reshape(nb, per).sum(axis=1)
-    H = blk * np.column_stack([np.ones(nb), np.tile(np.repeat([1.0, -1.0, 0.0, 0.5], 3), nb)[:nb]])
-    d = np.full(nb, blk)
-    span = nb * blk
+    N, B, blk = 1e-3, 1e-3, 5.0
+    y, H, d, span = _floor_blocks(np.random.default_rng(305), blk, 60, N, B)
     _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, span, 1.0, terms=("bias_instability",))
     b = rep["bias_instability"]
     assert b["present"], rep
@@ -281,17 +278,12 @@ def test_a_floor_on_a_short_log_is_not_taken_for_a_random_walk():
     one was named in its place — 100x any true one — on 6 of 30 tactical 5-minute logs' channels.
     Floor-only records: a random walk named on at most 2 of 24 (with each record's test at its
     1 % level, 3 or more has probability 0.2 %; the old ranking named 4)."""
-    from components.model.flicker import flicker_terms
 
     rng = np.random.default_rng(77)
-    blk, nb = 5.0, 60
-    per = int(blk / DT)
-    N, B = 1e-3, 1e-3
-    H = blk * np.column_stack([np.ones(nb), np.tile(np.repeat([1.0, -1.0, 0.0, 0.5], 3), nb)[:nb]])
-    d = np.full(nb, blk)
+    N = 1e-3
     named = 0
     for _ in range(24):
-        y = (record(nb * per, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0)) * DT).reshape(nb, per).sum(axis=1)
-        _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, nb * blk, 1.0)
+        y, H, d, span = _floor_blocks(rng, 5.0, 60, N, 1e-3)
+        _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, span, 1.0)
         named += rep["random_walk"]["present"]
     assert named <= 2, named
