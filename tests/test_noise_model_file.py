@@ -18,3 +18,11 @@ def test_the_noise_block_keeps_values_sigmas_and_intervals_through_json():
     assert back.channels == m.channels
     assert back.sigmas == m.sigmas
     assert back.intervals == m.intervals
+
+
+def test_an_interval_the_log_does_not_bound_is_null_in_the_file():
+    floor = ChannelNoise(white=1e-4, bias_instability=1e-4, flicker_range=(12.5, None))
+    m = NoiseModel((floor,) * 6, "identified", {}, {"acc.noise.bi.x": (0.0, float("inf"))})
+    text = json.dumps(m.to_dict(), allow_nan=False)  # strict JSON: no Infinity
+    assert json.loads(text)["channels"]["acc_x"]["bias_instability"]["interval_3sigma"] == [None, None]
+    assert NoiseModel.from_dict(json.loads(text)).intervals["acc.noise.bi.x"] == (0.0, float("inf"))

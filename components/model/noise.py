@@ -150,7 +150,9 @@ class NoiseModel:
                     if pname in self.sigmas:
                         d[term]["sigma"] = self.sigmas[pname]
                     if pname in self.intervals:
-                        d[term]["interval_3sigma"] = [float(x) for x in self.intervals[pname]]
+                        # an end the log does not bound is null (JSON has no infinity)
+                        d[term]["interval_3sigma"] = [float(x) if math.isfinite(x) and x > 0 else None
+                                                      for x in self.intervals[pname]]
             if ch.gauss_markov:
                 gu, gd, gs = GM_UNITS[sensor]
                 d["gauss_markov"] = [{"sigma": s, "tau_s": T, "unit": gu, "display": [s / gs, gd]}
@@ -177,7 +179,8 @@ class NoiseModel:
                 if entry.get("sigma") is not None:
                     sig[f"{vname}.{AXES[k % 3]}"] = float(entry["sigma"])
                 if entry.get("interval_3sigma") is not None:
-                    iv[f"{vname}.{AXES[k % 3]}"] = tuple(float(x) for x in entry["interval_3sigma"])
+                    lo, hi = entry["interval_3sigma"]
+                    iv[f"{vname}.{AXES[k % 3]}"] = (float(lo or 0.0), math.inf if hi is None else float(hi))
         return cls(tuple(chans), d.get("source", ""), sig, iv)
 
 
