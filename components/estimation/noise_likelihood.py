@@ -214,7 +214,8 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
     (each minimisation started from the last one's), the crossing interpolated in the signed
     root of the deviance (near-linear in the coordinate, with slope 1/sd where the curvature
     gives a σ *sd*). ±inf where it is not reached within *reach* (log) of x[i]: the log does not
-    bound the magnitude on that side."""
+    bound the magnitude on that side. *x* has at least one other coordinate (the likelihood's
+    block-variance nuisance is always one)."""
     rest = [j for j in range(len(x)) if j != i]
     jump = 1.5 * max(1.0, step / sd if sd else 1.0)  # a rise of the root that is more than a step's
     out = []
@@ -233,18 +234,14 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
                                                                     "maxiter": 400 * len(rest)})
                 return r.x, float(r.fun), math.sqrt(max(2.0 * (float(r.fun) - f0), 0.0))
 
-            if rest:
-                z, val, root = least(z)
-                if root - root_prev > jump:
-                    # a jump of more than a step's worth: the other coordinates may have had to
-                    # move far (the floor's corner trades with its magnitude along a curved
-                    # valley), so the step is also started from the maximum's
-                    z2, val2, root2 = least(x[rest])
-                    if val2 < val:
-                        z, val, root = z2, val2, root2
-            else:
-                val = at(z)
-                root = math.sqrt(max(2.0 * (val - f0), 0.0))
+            z, val, root = least(z)
+            if root - root_prev > jump:
+                # a jump of more than a step's worth: the other coordinates may have had to move
+                # far (the floor's corner trades with its magnitude along a curved valley), so
+                # the step is also started from the maximum's
+                z2, val2, root2 = least(x[rest])
+                if val2 < val:
+                    z, val, root = z2, val2, root2
             if root >= math.sqrt(level):
                 crossing = b + sign * step * (math.sqrt(level) - root_prev) / max(root - root_prev, 1e-12)
                 break
