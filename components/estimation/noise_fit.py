@@ -245,19 +245,20 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
     # it and read 9 % high), and the present terms keep the full fit's values
     gm_kept = gm_tau if "gauss_markov" in present else None
     refit = [t for t in free if t in present]
+    refitted = refit + (["gauss_markov"] if gm_kept else [])
     # (nothing present — a bootstrap of 0 replicates decides nothing — leaves nothing to refit)
-    kept, stat_refit = _fit_squares(av, refit, fixed, gm_kept) if refit or gm_kept else ({}, stat)
-    dropped = len(free) - len(refit) + (1 if gm_tau and not gm_kept else 0)
-    if refit and dropped and stat_refit - stat > float(chi2_isf(0.01, dropped)):
-        refit = []
+    kept, stat_refit = _fit_squares(av, refit, fixed, gm_kept) if refitted else ({}, stat)
+    dropped = len(free) + (1 if gm_tau else 0) - len(refitted)
+    if refitted and dropped and stat_refit - stat > float(chi2_isf(0.01, dropped)):
+        refitted = []
         kept = {k: (v if k in present else 0.0) for k, v in squares.items()}
         notes.append(f"terms below three σ still shape the Allan variance (without them the fit statistic rises "
                      f"by {stat_refit - stat:.3g}): the present terms are the full fit's")
     final = _channel({**kept, **fixed}, gm_kept, flicker_range)
-    if bootstrap > 1 and refit:
+    if bootstrap > 1 and refitted:
         # their σ: the same replicates refitted the same way (fewer terms compete, so it is
         # smaller than the full fit's, which stays the absent terms' for their upper bounds)
         again = [_fit_squares(b, refit, fixed, gm_kept)[0] for b in bavs]
-        for k in refit + (["gauss_markov"] if gm_kept else []):
+        for k in refitted:
             sigma[k] = float(np.std([math.sqrt(max(a.get(k, 0.0), 0.0)) for a in again], ddof=1))
     return ChannelFit(final, sigma, present, upper, measured, stat, p, gm_tau if "gauss_markov" in present else None, notes)
