@@ -63,7 +63,7 @@ class NoiseIdentification:
                 v = getattr(c.noise, t)
                 s = c.sigma.get(t, float("nan"))
                 if t in c.present:
-                    iv = c.slow[t].get("interval") if isinstance(c.slow.get(t), dict) else None
+                    iv = self.model.intervals.get(f"{vname}.{AXES[k % 3]}")
                     within = f"  [{iv[0] / scale:.3g}, {iv[1] / scale:.3g}]" if iv else ""
                     lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {s / scale:10.2g}  "
                                  f"{dunit:14s} yes{within}")
