@@ -36,6 +36,17 @@ def record(n, rng, white=0.0, rw=0.0, gm=(), quant=0.0):
     return r
 
 
+def pulse_counts_at_rest(rng, n, position, w, noise):
+    """A pulse output written from its definition over positions of *position* samples, each at a
+    random constant input within ±1 g: the counts are the floor of the running integral of input
+    + *noise()* (a per-sample rate record) over the count weight *w*, the remainder carried from
+    sample to sample. Returns the counts' rate minus the input, the counts and the input."""
+    true_rate = np.repeat(9.80665 * rng.uniform(-1, 1, n // position + 1), position)[:n]
+    inc = (true_rate + noise()) * DT
+    counts = np.floor((np.cumsum(inc) + w * rng.random()) / w)
+    return np.diff(counts, prepend=counts[0] - np.round(inc[0] / w)) * w / DT - true_rate, counts, true_rate
+
+
 def runs_of(n, length, gap):
     static = np.zeros(n, bool)
     for a in range(0, n, length + gap):
@@ -92,10 +103,7 @@ def test_a_pulse_output_at_rest_keeps_its_white_level_beside_coarser_quantizatio
     n, length, gap = 150_000, 3000, 300
     N, w = 1e-4, 1e-4                     # 10 µg/√Hz at 100 Hz: 1e-5 m/s a sample; w/√12 = 2.9e-5
     runs = runs_of(n, length, gap)
-    true_rate = np.repeat(9.80665 * rng.uniform(-1, 1, n // (length + gap) + 1), length + gap)[:n]
-    inc = (true_rate + N / math.sqrt(DT) * rng.standard_normal(n)) * DT
-    counts = np.floor((np.cumsum(inc) + w * rng.random()) / w)
-    rate = np.diff(counts, prepend=counts[0] - np.round(inc[0] / w)) * w / DT - true_rate
+    rate, counts, true_rate = pulse_counts_at_rest(rng, n, length + gap, w, lambda: record(n, rng, white=N))
     assert np.mean(np.diff(counts) == np.round(true_rate[1:] * DT / w)) > 0.2  # coarse: mostly the same count
     fit = identify_channel(rate, runs, DT, known={"quantization": w / math.sqrt(12)}, bootstrap=20, seed=4)
     assert "white" in fit.present and fit.gm_tau is None, (fit.present, fit.gm_tau, fit.notes)
@@ -115,10 +123,8 @@ def test_a_floor_below_three_sigma_beside_coarse_counts_does_not_go_into_the_whi
     n, length, gap = 26 * 3300, 3000, 300
     N, B, w = 1e-4, 1e-4, 1e-4
     runs = runs_of(n, length, gap)
-    true_rate = np.repeat(9.80665 * rng.uniform(-1, 1, n // (length + gap) + 1), length + gap)[:n]
-    inc = (true_rate + record(n, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0))) * DT
-    counts = np.floor((np.cumsum(inc) + w * rng.random()) / w)
-    rate = np.diff(counts, prepend=counts[0] - np.round(inc[0] / w)) * w / DT - true_rate
+    rate, _, _ = pulse_counts_at_rest(rng, n, length + gap, w,
+                                      lambda: record(n, rng, white=N, gm=flicker_terms(B, 10.0, 3600.0)))
     fit = identify_channel(rate, runs, DT, known={"quantization": w / math.sqrt(12)}, bootstrap=20, seed=4)
     assert "bias_instability" not in fit.present and any("below three σ" in x for x in fit.notes), fit.notes
     assert abs(fit.noise.white - N) < stats.t.isf(0.005, 19) * fit.sigma["white"], (fit.noise.white, fit.sigma)
