@@ -15,9 +15,9 @@ import hashlib
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from components.model.geometry import TableGeometry, cross
+from components.model.spline import RunSpline
 
 _GL = {
     2: (np.array([-1, 1]) / np.sqrt(3), np.array([1.0, 1.0])),
@@ -146,17 +146,18 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         kth = np.vstack([measured[lo] if lo >= 0 else measured[0], measured[a:hi + 1]])
         rest_lo = lo < 0 or static[lo]
         rest_hi = b < n and static[b]
-        zero = (1, np.zeros(n_ax))
-        bc = (zero if rest_lo else "not-a-knot", zero if rest_hi else "not-a-knot")
-        if len(kt) < 4 and not (rest_lo and rest_hi):
-            bc = (zero, zero)
-        spl = CubicSpline(kt, kth, axis=0, bc_type=bc)
-        tq = t_prev[a:b, None] + dt[a:b, None] * x[None, :]
-        th_q[a:b] = spl(tq)
-        rate_q[a:b] = spl(tq, 1)
-        acc_q[a:b] = spl(tq, 2)
-        rate_end[a:b] = spl(time[a:b], 1)
-        acc_end[a:b] = spl(time[a:b], 2)
+        # at rest before (after) the run: slope 0 there; else not-a-knot, which needs four knots
+        short = len(kt) < 4
+        spl = RunSpline(kt, kth, rest_lo or short, rest_hi or short)
+        # sample i's interval is the run's knot interval i − a; its end, knot i − a + 1
+        k = np.arange(b - a)
+        kq = np.broadcast_to(k[:, None], (b - a, q))
+        u = dt[a:b, None] * x[None, :]
+        th_q[a:b] = spl(kq, u)
+        rate_q[a:b] = spl(kq, u, 1)
+        acc_q[a:b] = spl(kq, u, 2)
+        rate_end[a:b] = spl.at_knots(k + 1, 1)
+        acc_end[a:b] = spl.at_knots(k + 1, 2)
     att, inv = _attitudes(measured, static)
     digest = hashlib.sha256(time.tobytes() + measured.tobytes() + bytes([quadrature, n_ax])).hexdigest()
     return AngleProfile(time, t_prev, dt, static, x, w, th_q, rate_q, acc_q, measured,
