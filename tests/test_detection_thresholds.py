@@ -44,3 +44,13 @@ def test_look_alikes_need_more_signal_and_twins_cannot_be_named():
     ms = [naming_snr(r) for r in (0.0, 0.5, 0.9, 0.99)]
     assert all(a < b for a, b in zip(ms, ms[1:]))
     assert naming_snr(1.0) == math.inf
+
+
+@pytest.mark.parametrize("k, dof, level", [(1, 500, 0.01 / 20), (4, 80, 0.01), (12, 100000, 1e-4)])
+def test_noncentrality_is_the_root_to_full_precision(k, dof, level):
+    """The threshold's λ gives 95 % power by scipy.stats' non-central F to far below the Monte
+    Carlo test's resolution (the root is solved, not approximated)."""
+    lam = noncentrality(k, dof, level, 0.95)
+    crit = stats.f.isf(level, k, dof)
+    assert abs(stats.ncf.sf(crit, k, dof, lam) - 0.95) < 1e-7
+    assert abs(stats.ncf.sf(crit, k, dof, lam * (1 + 1e-6)) - 0.95) > 1e-9  # λ is pinned: the power moves

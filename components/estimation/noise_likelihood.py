@@ -28,7 +28,6 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import minimize
 
 from components.estimation.whitening import whiten_channel
 from components.model.noise import ChannelNoise, block_noise
@@ -77,6 +76,8 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     ratio, present, and for an absent term a profile upper bound; ``loglik`` at the estimate and
     ``loglik_without`` with none of *terms*. ``critical``: the likelihood ratio a term must
     exceed (default: the 1 % level of one test; :func:`family_critical` for several)."""
+    from scipy.optimize import minimize  # at use: ~0.1 s of every command's start otherwise
+
     lo_min, lo_max = max(float(np.min(durations)), 1e-3), max(span / 8.0, 2 * float(np.min(durations)))
     scale = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
     base = replace(ch, **{t: 0.0 for t in terms})
@@ -216,6 +217,8 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
     gives a σ *sd*). ±inf where it is not reached within *reach* (log) of x[i]: the log does not
     bound the magnitude on that side. *x* has at least one other coordinate (the likelihood's
     block-variance nuisance is always one)."""
+    from scipy.optimize import minimize
+
     rest = [j for j in range(len(x)) if j != i]
     jump = 1.5 * max(1.0, step / sd if sd else 1.0)  # a rise of the root that is more than a step's
     out = []
