@@ -88,21 +88,49 @@ def _norms(x: np.ndarray, which: np.ndarray) -> np.ndarray:
 
 
 def _ideal_gyro_moving(data, moving: np.ndarray) -> tuple[np.ndarray, int]:
-    """The ideal gyro increments of the *moving* samples from the table angles, a chunk of the log
-    at a time (components.estimation.chunks: the interpolated angles of a whole long log would
-    be 300 bytes a sample), and the sample they go up to: the chunks stop once
-    :data:`ENOUGH_MOVING` moving samples are in (a unit mistake scales every sample alike; on an
-    8-hour log the whole pass was 15 s of every command)."""
-    from components.estimation.blocks import samples_per_block
-    from components.estimation.chunks import BlockLayout
+    """The ideal gyro increments of the *moving* samples from the table angles, and the sample
+    they go up to: the angles are interpolated around the moves only (a schedule of rests is
+    mostly at rest: the whole log's profile was a tenth of a diagnose), a window at a time (a
+    long log's interpolated angles are 300 bytes a sample), and only until :data:`ENOUGH_MOVING`
+    moving samples are in (a unit mistake scales every sample alike; on an 8-hour log the whole
+    pass was 15 s of every command)."""
     from components.model.motion import ideal_increments
 
+    n = len(data.time)
     parts, upto, got = [], 0, 0
-    for chunk in BlockLayout.of(data, samples_per_block(data.time, 1.0)).chunks(data):
-        gyro, _ = ideal_increments(chunk.data.angle_profile(3), data.geometry)
-        own = gyro[chunk.own]
-        parts.append(own[moving[chunk.start:chunk.start + len(own)]])
-        upto, got = chunk.start + len(own), got + len(parts[-1])
+    for a, b in _move_windows(data.static):
+        b = min(b, a + ENOUGH_MOVING - got)
+        piece = data.stretch(a, min(b + 1, n))  # the sample after a move: its rest ends the spline
+        gyro, _ = ideal_increments(piece.angle_profile(3), data.geometry)
+        own = gyro[int(a > 0):][:b - a]  # the stretch leads with sample a - 1
+        parts.append(own[moving[a:b]])
+        upto, got = b, got + len(parts[-1])
         if got >= ENOUGH_MOVING:
             break
     return (np.concatenate(parts) if parts else np.zeros((0, 3))), upto
+
+
+MOVE_GAP = 64  # moves fewer rest samples apart share a window (an encoder dithering at rest: a
+WINDOW = 1 << 17  # move every other sample, which one profile each would make a Python call each)
+
+
+def _move_windows(static: np.ndarray):
+    """[a, b) sample ranges covering every moving run: runs close together in one, none longer
+    than :data:`WINDOW` (a longer run is cut: its spline then restarts at rest at the cut, a few
+    samples' error where the check takes a median over thousands)."""
+    from components.model.motion import moving_runs
+
+    cur = None
+    for a, b in moving_runs(static):
+        a, b = int(a), int(b)
+        if cur is not None and a - cur[1] <= MOVE_GAP and b - cur[0] <= WINDOW:
+            cur = (cur[0], b)
+            continue
+        if cur is not None:
+            yield cur
+        while b - a > WINDOW:
+            yield a, a + WINDOW
+            a += WINDOW
+        cur = (a, b)
+    if cur is not None:
+        yield cur

@@ -1,0 +1,66 @@
+"""The gyro unit check's moves (components.estimation.semantics): the angles are interpolated
+around the moves only, in windows; what it measures is the gyro's rotation over the angles'."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from components.estimation import semantics
+from components.estimation.log_data import LogData
+from components.logs.logfile import read_log
+from components.model.motion import moving_runs
+
+
+def _ratio(data):
+    moving = ~data.static & data.usable
+    ideal, upto = semantics._ideal_gyro_moving(data, moving)
+    measured = semantics._norms(data.gyro[:upto], moving[:upto])
+    expected = np.linalg.norm(ideal, axis=1)
+    assert len(ideal) == np.count_nonzero(moving[:upto])
+    turning = expected > 0.1 * np.median(expected)
+    return np.median(measured[turning] / expected[turning]), upto
+
+
+def test_windows_cover_every_move_once_and_stay_short(monkeypatch):
+    monkeypatch.setattr(semantics, "WINDOW", 50)
+    rng = np.random.default_rng(3)
+    static = rng.random(5000) < 0.7  # dithering: short moves everywhere
+    static[1000:1400] = False  # a move longer than a window
+    static[3000:4000] = True
+    covered = np.zeros(len(static), int)
+    windows = list(semantics._move_windows(static))
+    for a, b in windows:
+        assert 0 < b - a <= 50
+        covered[a:b] += 1
+    assert np.all(covered[~static] == 1)  # every moving sample in exactly one window
+    assert np.all(covered <= 1)
+    assert len(windows) < len(moving_runs(static)) / 3  # neighbouring moves share windows
+
+
+@pytest.mark.parametrize("window", [1 << 17, 40])
+def test_the_gyros_turn_as_the_angles_say(conformance, monkeypatch, window):
+    """On the independent simulator's log the gyros turn 1.000 × what the angles give (scale
+    factors of a few hundred ppm), windows cut inside moves or not; with the angles in degrees
+    declared as radians, 180/π."""
+    monkeypatch.setattr(semantics, "WINDOW", window)
+    log = read_log(conformance / "example")
+    ratio, upto = _ratio(LogData.from_log(log))
+    assert ratio == pytest.approx(1.0, abs=2e-3) and upto > 0
+    bad = dataclasses.replace(log, gimbal={k: np.degrees(v) for k, v in log.gimbal.items()})
+    ratio_bad, _ = _ratio(LogData.from_log(bad))
+    assert ratio_bad == pytest.approx(np.pi / 180, rel=2e-3)
+
+
+def test_dithering_encoder_at_rest_is_not_a_move_of_the_gyros(conformance):
+    """An angle readout flickering by one count at rest makes a 'move' of every other sample;
+    the check still reads the real moves (the flicker's expected rotation is below a tenth of
+    the median and left out)."""
+    log = read_log(conformance / "example")
+    a = dict(log.gimbal)
+    name = next(iter(a))
+    angle = a[name].copy()
+    rest = np.concatenate([[False], angle[1:] == angle[:-1]])
+    flick = rest & (np.arange(len(angle)) % 2 == 0)
+    angle[flick] += 2 * np.pi / 2**24  # one count of a 24-bit encoder
+    ratio, _ = _ratio(LogData.from_log(dataclasses.replace(log, gimbal={**a, name: angle})))
+    assert ratio == pytest.approx(1.0, abs=2e-3)
