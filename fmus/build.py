@@ -20,6 +20,7 @@ import zipfile
 from pathlib import Path
 
 from fmus import modeldef
+from fmus.errors import BuildError
 
 HERE = Path(__file__).resolve().parent
 COMMON = HERE / "common"
@@ -34,10 +35,6 @@ CFLAGS = ["-std=c11", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Wshadow",
           "-Werror", "-fvisibility=hidden",
           # no fused multiply-add contraction: the same seed gives the same bits on every CPU
           "-ffp-contract=off", "-fno-fast-math"]
-
-
-class BuildError(RuntimeError):
-    """The FMU could not be built; the message carries the compiler's output."""
 
 
 def cache_dir() -> Path:

@@ -36,7 +36,7 @@ def _error_classes():
     """(could-not-run classes, bad-input classes): a run that failed underway (a unit's fault, the
     FMU build, a table that never settled, a missing engine) exits 3, any other user error 2."""
     from components.errors import CalbenchError, ScheduleFault
-    from fmus.build import BuildError
+    from fmus.errors import BuildError
     from orchestrator.errors import (
         LibcosimError,
         LibcosimUnsupported,
