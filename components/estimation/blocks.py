@@ -236,7 +236,9 @@ def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) ->
             v = np.diff(increments[s.start:s.stop + 1, k])[both[s]]
             d[i:i + len(v)] = v
             i += len(v)
-        d -= np.median(d)
+        # in place: the order of d does not matter to either median (np.median without it
+        # copied a long log's differences, 1.5 s of every command on an 8-hour log)
+        d -= np.median(d, overwrite_input=True)
         np.abs(d, out=d)
         mad[k] = np.median(d, overwrite_input=True)
     sigma = 1.4826 * mad / np.sqrt(2)
