@@ -87,9 +87,10 @@ class Motion:
 
 def moving_runs(static: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) index ranges of consecutive non-static intervals."""
-    moving = ~static
-    edges = np.diff(np.concatenate([[0], moving.astype(np.int8), [0]]))
-    return list(zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]))
+    padded = np.zeros(len(static) + 2, np.int8)  # int8 throughout: a list's 0 made it int64
+    padded[1:-1] = ~np.asarray(static, bool)
+    edges = np.diff(padded)
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
 @dataclass
