@@ -99,7 +99,7 @@ class Comparison:
 
 
 def _blocks_rows(data: LogData, geo, blocks, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
-    dt = float(np.median(np.diff(data.time)))
+    dt = data.sample_interval
     gb, ab = blocks
     zs, vs, sens, axis, start, stop, moving = [], [], [], [], [], [], []
     for blocks, sl, name in ((gb, slice(0, 3), "gyro"), (ab, slice(3, 6), "acc")):

@@ -154,7 +154,7 @@ class _Design:
         geo = model_geometry(data, model)
         table_params = [p for p in params if effect_of(p).target == "table"]
         T0 = model.temperature_ref
-        dt = float(np.median(np.diff(data.time)))
+        dt = data.sample_interval
         layout = BlockLayout.of(data, samples_per_block(data.time, chunk_s), chunk_samples)
         static = data.static
         # noise from the high-frequency content of the data (differences remove the model)

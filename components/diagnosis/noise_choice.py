@@ -168,7 +168,7 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
         raise UserError("--noise white: this log of pulse counts has no static run of 8 samples or more, so no "
                         "white level can be read beside the counts' quantization; give the noise (--noise: a grade, "
                         "a noise file or NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
-    dt = float(np.median(np.diff(data.time)))
+    dt = data.sample_interval
     upto = runs[-1][1]
     q = data.quantization_floor()
     chans, said = [], []

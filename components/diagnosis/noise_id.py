@@ -93,7 +93,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
 
     known = known or {}
     comp = compare(data, model, noise=None)
-    dt = float(np.median(np.diff(data.time)))
+    dt = data.sample_interval
     runs = static_runs(comp.static)
     if not runs:
         raise ValueError("no static run of 8 samples or more: the noise cannot be identified from this "
@@ -177,7 +177,7 @@ def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[
     likelihood ratio, present)."""
     from components.estimation.lsq import calibrate
 
-    dt = float(np.median(np.diff(data.time)))
+    dt = data.sample_interval
     span = float(data.time[-1] - data.time[0] + dt)
     fit = calibrate(data, list(model.effects), chunk_s=chunk_s, temperature_ref=model.temperature_ref, noise=noise)
     rows = fit.rows

@@ -28,7 +28,7 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     params = parameters_of(effects)
     table_params = [p for p in params if effect_of(p).target == "table"]
     geo = data.geometry
-    dt = float(np.median(np.diff(data.time)))
+    dt = data.sample_interval
     white = noise.white_sigma(dt)
     sg, sa = np.maximum(white[:3], 1e-30), np.maximum(white[3:], 1e-30)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)

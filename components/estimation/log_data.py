@@ -41,6 +41,15 @@ class LogData:
     # stretch of a longer log (LogData.stretch) keeps the whole log's
     time_origin: float | None = None
     _profiles: dict = field(default_factory=dict, repr=False, compare=False)
+    _interval: float | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def sample_interval(self) -> float:
+        """The median sample interval [s] (a jittered clock's nominal one), computed once: on an
+        8-hour log each median of the intervals was ~0.4 s, and a command took it in several places."""
+        if self._interval is None:
+            self._interval = float(np.median(np.diff(self.time), overwrite_input=True))
+        return self._interval
 
     @property
     def has_table(self) -> bool:
@@ -121,7 +130,8 @@ class LogData:
         cut = lambda x: None if x is None else x[a:b]  # noqa: E731
         return replace(self, time=self.time[a:b], angles=self.angles[a:b], gyro=self.gyro[a:b],
                        acc=self.acc[a:b], temperature=cut(self.temperature),
-                       segment=cut(self.segment), valid=cut(self.valid), _profiles={})
+                       segment=cut(self.segment), valid=cut(self.valid), _profiles={},
+                       _interval=None)
 
     @classmethod
     def from_log(cls, log, exclude: list | None = None) -> "LogData":
