@@ -64,3 +64,18 @@ def test_dithering_encoder_at_rest_is_not_a_move_of_the_gyros(conformance):
     angle[flick] += 2 * np.pi / 2**24  # one count of a 24-bit encoder
     ratio, _ = _ratio(LogData.from_log(dataclasses.replace(log, gimbal={**a, name: angle})))
     assert ratio == pytest.approx(1.0, abs=2e-3)
+
+
+@pytest.mark.parametrize("enough", [1 << 20, 500])
+def test_the_accelerometers_read_gravity_from_a_spread_of_the_rests(conformance, monkeypatch, enough):
+    """The accelerometers' check reads g at rest from every rest sample, or from a stride of
+    them over the whole log; increments declared as specific force are found either way, and
+    the right declaration says nothing."""
+    monkeypatch.setattr(semantics, "ENOUGH_STATIC", enough)
+    log = read_log(conformance / "example")
+    assert semantics.check_semantics(LogData.from_log(log), log) == []
+    bad = dataclasses.replace(log, acc_output="specific_force")
+    found = semantics.check_semantics(LogData.from_log(bad), bad)
+    assert len(found) == 1 and "increments declared as specific force" in found[0]
+    ratio = float(found[0].split("declared (specific_force), ")[1].split(" ×")[0])
+    assert ratio == pytest.approx(log.dt, rel=2e-3)
