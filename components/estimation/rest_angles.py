@@ -79,7 +79,10 @@ def encoder_quantum(angles: np.ndarray) -> np.ndarray:
     """Per axis, the smallest step between distinct logged angles (the count), or 0."""
     out = []
     for k in range(angles.shape[1]):
-        u = np.unique(angles[:, k])
+        x = angles[:, k]
+        # the distinct values are those of the changes (a rest repeats its angle: sorting every
+        # sample of an 8-hour log was 0.6 s a call)
+        u = np.unique(x[np.concatenate([[True], x[1:] != x[:-1]])]) if len(x) else x
         d = np.diff(u)
         d = d[d > 0]
         out.append(float(d.min()) if len(d) else 0.0)
