@@ -420,3 +420,14 @@ def test_a_lean_read_holds_what_the_estimators_use_bit_identical(tmp_path, ideal
         assert back.segment.tolist() == ideal.segment.tolist()
         if f.endswith(".parquet"):
             assert np.shares_memory(back.angles, back.gimbal[ideal.axis_names[0]])
+
+
+def test_a_bad_value_beyond_the_first_piece_is_named_at_its_row(tmp_path, ideal_head, monkeypatch):
+    """The values are checked a piece of rows at a time (components.logs.spill.PIECE): the row
+    named is the file's, not the piece's."""
+    from components.logs import spill
+
+    monkeypatch.setattr(spill, "PIECE", 64)
+    stem = _write_case(tmp_path, ideal_head, _csv_case(lambda lines: _edit_col(lines, "gyro_y", 150, "inf")))
+    with pytest.raises(LogFormatError, match=r"data row 150 \(line 151\), column 'gyro_y'.*not finite"):
+        read_log(stem)
