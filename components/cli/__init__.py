@@ -52,6 +52,11 @@ def _error_classes():
 def main(argv: list[str] | None = None) -> int:
     from components.cli import json_option
 
+    if argv is None:  # a command of its own (not a call from Python, which owns its process)
+        from components.allocator import keep_freed_memory
+
+        keep_freed_memory()
+
     COULD_NOT_RUN, BAD_INPUT = _error_classes()
     args = build_parser().parse_args(argv)
     from components import progress
