@@ -1,17 +1,17 @@
-"""components.allocator: freed blocks of a few MB stay in the process, so allocating them again
+"""components.cli.allocator: freed blocks of a few MB stay in the process, so allocating them again
 costs no page faults (counted by the kernel, resource.getrusage)."""
 import subprocess
 import sys
 
 import pytest
 
-from components.allocator import glibc_mallopt
+from components.cli.allocator import glibc_mallopt
 
 CHURN = """
 import resource, sys
 import numpy as np
 if sys.argv[1] == "keep":
-    from components.allocator import keep_freed_memory
+    from components.cli.allocator import keep_freed_memory
     assert keep_freed_memory()
 def chunk():  # what a chunk of the log does: several arrays of a few MB at once, then none
     arrays = [np.ones(600_000) for _ in range(10)]  # 4.8 MB each, every page written

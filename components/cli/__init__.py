@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     from components.cli import json_option
 
     if argv is None:  # a command of its own (not a call from Python, which owns its process)
-        from components.allocator import keep_freed_memory
+        from components.cli.allocator import keep_freed_memory
 
         keep_freed_memory()
 
