@@ -72,7 +72,6 @@ def noncentrality(k: int, dof: int, level: float, power: float) -> float:
     return _root(f, 1e-9, hi)
 
 
-
 def _root(f, lo: float, hi: float, xtol: float = 1e-12) -> float:
     """The root of *f* between *lo* and *hi*, where f changes sign: false position with the
     Illinois halving (superlinear, never leaves the bracket). scipy.optimize.brentq did this, at

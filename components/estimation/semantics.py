@@ -28,7 +28,7 @@ MATCH = 1.3
 # samples each unit check looks at, at most: a mis-declaration scales every sample alike, and the
 # median of this many reads the ratio to far better than MATCH (the checks ran over a whole
 # 8-hour log: ~3 s of every command)
-ENOUGH_MOVING = 50_000  # moving samples of the gyro's check (a few more: whole moves)
+ENOUGH_MOVING = 50_000  # moving samples of the gyro's check
 ENOUGH_STATIC = 1 << 20  # static samples of the accelerometers' check, spread over the log
 
 
@@ -115,8 +115,10 @@ def _ideal_gyro_moving(data, moving: np.ndarray) -> tuple[np.ndarray, int]:
     return (np.concatenate(parts) if parts else np.zeros((0, 3))), upto
 
 
-MOVE_GAP = 64  # moves fewer rest samples apart share a window (an encoder dithering at rest: a
-WINDOW = 1 << 17  # move every other sample, which one profile each would make a Python call each)
+# moves fewer rest samples apart than MOVE_GAP share a window: an encoder dithering at rest makes
+# a move of every other sample, and a profile each would be a Python call each
+MOVE_GAP = 64
+WINDOW = 1 << 17  # samples of one window at most (its profile: 300 bytes a sample)
 
 
 def _move_windows(static: np.ndarray):
