@@ -3,10 +3,11 @@
 The estimators work a chunk of the log at a time, allocating and freeing dozens of arrays of a
 few MB per chunk. glibc hands such blocks back to the kernel when they are freed (mapped alone
 above its threshold, or trimmed off the top of the heap), and the next chunk faults every page
-in again, zero-filled: a diagnose of an 8-hour log took 770 000 page faults and 9 s of system
-time in 48 s of CPU. With blocks up to 32 MB served from the heap, the heap's free top kept up
-to 1 GB and grown 256 MB at a time, the same diagnose took 180 000 faults and 3 s, at the same
-peak memory (benchmarks/long_log.py measures both). Elsewhere than glibc: nothing is changed.
+in again, zero-filled: a diagnose of an 8-hour log (one worker) took 770 000 page faults, 9 s of
+system time and 49 s of wall time. With blocks up to 32 MB served from the heap, the heap's free
+top kept up to 1 GB and grown 256 MB at a time, the same diagnose took 170 000-180 000 faults,
+3-9 s of system time (the kernel's share varies from run to run) and 30-39 s, at a peak memory
+~1 % higher (benchmarks/long_log.py). Elsewhere than glibc: nothing is changed.
 """
 from __future__ import annotations
 
