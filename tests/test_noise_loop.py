@@ -195,3 +195,28 @@ def test_a_long_logs_fast_terms_come_from_its_first_rests(monkeypatch):
         + [nv("acc.noise.vrw", white["acc.noise.vrw"], "test")] * 3
     for c, t in zip(ident.channels, truth):
         assert abs(c.noise.white - t) < bound * c.sigma["white"], (c.name, c.noise.white, t, c.sigma["white"], bound)
+
+
+def test_an_added_noise_term_carries_its_own_sigma_and_interval(null_logs):
+    """calbench add --effect acc.noise.bi on a model that already stated a σ and an interval for
+    that term: the new model states the new estimate's (whose 3σ interval holds the injected
+    10 ug floor), never the old ones."""
+    from dataclasses import replace
+
+    from components.diagnosis.noise_id import add_noise_terms
+
+    data = null_logs[0]
+    injected = _injected()
+    names = [f"acc.noise.bi.{a}" for a in "xyz"]
+    stale = replace(injected, sigmas={n: 123.0 for n in names}, intervals={n: (1e-12, 2e-12) for n in names})
+    model = result_from_fit(calibrate(data, BASELINE, noise=injected), BASELINE, data)
+    noise, report = add_noise_terms(data, model, stale, ["acc.noise.bi"])
+    for k, n in zip(range(3, 6), names):
+        r = report[n]
+        if r["present"]:
+            assert noise.sigmas[n] == r["sigma"] and noise.intervals[n] == r["interval"]
+            lo, hi = noise.intervals[n]
+            assert lo <= injected.channels[k].bias_instability <= hi, (n, lo, hi)
+        else:
+            assert n not in noise.sigmas and n not in noise.intervals
+    assert any(report[n]["present"] for n in names)  # a 10 ug floor on 5 minutes is seen on some axis

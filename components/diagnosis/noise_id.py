@@ -199,4 +199,11 @@ def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[
             chans[k] = replace(ch, **{field_: r["value"]})
             report[f"{term}.{AXES[k % 3]}"] = r
     src = (noise.source + "; " if noise.source else "") + "+ " + ", ".join(terms)
-    return replace(noise, channels=tuple(chans), source=src), report
+    # the σ and interval a term had before are not this estimate's: the new ones, or none
+    sigmas = {k: v for k, v in noise.sigmas.items() if k not in report}
+    intervals = {k: v for k, v in noise.intervals.items() if k not in report}
+    for name, r in report.items():
+        if r["present"]:
+            sigmas[name] = r["sigma"]
+            intervals[name] = r["interval"]
+    return replace(noise, channels=tuple(chans), source=src, sigmas=sigmas, intervals=intervals), report
