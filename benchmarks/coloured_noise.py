@@ -140,7 +140,7 @@ def at_estimates(identification) -> NoiseModel | None:
     chans = list(identification.model.channels)
     changed = False
     for k, c in enumerate(identification.channels):
-        every = c.slow.get("every_term") if isinstance(c.slow, dict) else None
+        every = c.slow.get("every_term")
         if every is None or all(c.slow.get(t, {}).get("present", True) for t in SLOW_TERMS):
             continue
         chans[k] = replace(chans[k], bias_instability=every.bias_instability, random_walk=every.random_walk,
@@ -184,10 +184,10 @@ def analyse_null(job) -> dict:
     if ident is not None:
         out["identified"] = [{"present": list(c.present), "values": {t: getattr(c.noise, t) for t in TERMS["gyro"]},
                               "sigma": {t: c.sigma.get(t, float("nan")) for t in TERMS["gyro"]},
-                              "upper": {t: c.slow[t].get("upper", float("nan")) for t in c.slow
-                                        if isinstance(c.slow[t], dict) and not c.slow[t]["present"]},
-                              "interval": {t: c.slow[t]["interval"] for t in c.slow
-                                           if isinstance(c.slow[t], dict) and "interval" in c.slow[t]}}
+                              "upper": {t: c.slow[t]["upper"] for t in SLOW_TERMS
+                                        if t in c.slow and not c.slow[t]["present"]},
+                              "interval": {t: c.slow[t]["interval"] for t in SLOW_TERMS
+                                           if t in c.slow and c.slow[t]["present"]}}
                              for c in ident.channels]
     return out
 

@@ -164,7 +164,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
             if t in TERMS[sensor_of(k)]:
                 name = f"{TERMS[sensor_of(k)][t][0]}.{AXES[k % 3]}"
                 sig[name] = c.sigma.get(t, float("nan"))
-                if isinstance(c.slow.get(t), dict) and "interval" in c.slow[t]:
+                if "interval" in c.slow.get(t, {}):  # a slow term present in the likelihood stage
                     iv[name] = c.slow[t]["interval"]
     model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
     return NoiseIdentification(model_out, out_channels, len(runs), notes)

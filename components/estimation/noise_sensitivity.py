@@ -29,7 +29,7 @@ def at_upper_bounds(identification) -> tuple[NoiseModel | None, list[str]]:
     added = []
     for k, c in enumerate(identification.channels):
         for t in SLOW_TERMS:
-            rep = c.slow.get(t) if isinstance(c.slow, dict) else None
+            rep = c.slow.get(t)  # absent from the report: the likelihood stage did not run
             if not rep or rep.get("present") or not np.isfinite(rep.get("upper", np.nan)):
                 continue
             extra = {t: float(rep["upper"])}
