@@ -95,7 +95,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     for name, v in (fixed or {}).items():
         if effect_of(name).target == "table":
             geo = apply_table_parameter(geo, name, v)
-    dt_mean = float(np.median(np.diff(data.time))) if len(data.time) > 1 else 1.0
+    dt_mean = data.sample_interval if len(data.time) > 1 else 1.0
 
     if temperature_ref is None and data.temperature is not None:
         temperature_ref = float(data.temperature[0])

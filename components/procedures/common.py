@@ -82,7 +82,7 @@ def plate_attitude(data: LogData, angles, geometry=None) -> np.ndarray:
 
 
 def sample_interval(data: LogData) -> float:
-    return float(data.dt0) if data.dt0 else float(np.median(np.diff(data.time)))
+    return float(data.dt0) if data.dt0 else data.sample_interval
 
 
 def linear_covariance(func, x: np.ndarray, var_x: np.ndarray) -> np.ndarray:
