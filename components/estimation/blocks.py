@@ -40,7 +40,7 @@ class Blocks:
         if is_spilled(per_sample) and len(self.start) and np.all(np.diff(self.start) >= 0) \
                 and np.all(np.diff(self.stop) >= 0):
             return self._sum_in_pieces(per_sample)
-        return _block_sums(np.asarray(per_sample, float), self.start, self.stop)
+        return block_sums(np.asarray(per_sample, float), self.start, self.stop)
 
     def _sum_in_pieces(self, per_sample) -> np.ndarray:
         # a spilled log (components.logs.spill): the blocks a piece of samples at a time, each
@@ -50,7 +50,7 @@ class Blocks:
         while first < len(self.start):
             last = max(int(np.searchsorted(self.stop, self.start[first] + spill.PIECE, side="right")), first + 1)
             lo, hi = int(self.start[first]), int(max(self.stop[last - 1], self.start[first]))
-            out[first:last] = _block_sums(np.asarray(per_sample[lo:hi], float), self.start[first:last] - lo,
+            out[first:last] = block_sums(np.asarray(per_sample[lo:hi], float), self.start[first:last] - lo,
                                           self.stop[first:last] - lo)
             release(per_sample)
             first = last
@@ -61,7 +61,8 @@ class Blocks:
         return self.stop - self.start
 
 
-def _block_sums(per_sample: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+def block_sums(per_sample: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """Σ per_sample[start:stop] per block (0 for an empty one), each from its own samples."""
     if len(start) == 0:
         return np.zeros((0,) + per_sample.shape[1:])
     padded = np.concatenate([per_sample, np.zeros((1,) + per_sample.shape[1:])])

@@ -23,6 +23,7 @@ import numpy as np
 
 from components import progress
 from components.errors import UserError
+from components.estimation.block_motion import BlockMotion
 from components.estimation.blocks import Blocks, observation_blocks
 from components.estimation.design import design, predict
 from components.estimation.log_data import LogData
@@ -222,9 +223,9 @@ def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo
     if t0_temperature is None and data.temperature is not None:
         t0_temperature = float(data.temperature[0])  # the whole log's, not each chunk's
     def rows_of(chunk: Chunk):
-        motion = chunk.data.motion(geo, t0_temperature, quadrature)
-        y, H, w, rows = design(chunk.data, motion, params, chunk.gyro, chunk.acc, sg, sa, rest, geo,
-                               table_params, lin)
+        d = chunk.data
+        motion = BlockMotion(d.angle_profile(quadrature), geo, d.temperature, t0_temperature, d.time_origin)
+        y, H, w, rows = design(d, motion, params, chunk.gyro, chunk.acc, sg, sa, rest, geo, table_params, lin)
         return len(chunk.gyro) * 3, dict(rows, start=rows["start"] + chunk.lead, stop=rows["stop"] + chunk.lead)
 
     parts = _each_chunk(rows_of, layout, data, "block rows, chunk by chunk", parallel="anywhere")

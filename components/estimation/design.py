@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from components.estimation.block_motion import BlockMotion
 from components.estimation.blocks import Blocks
 from components.estimation.rest_angles import rest_variance
 from components.estimation.table_columns import table_columns
@@ -34,20 +35,25 @@ def noise_floor(sig: np.ndarray, scale: float) -> np.ndarray:
     return np.where(np.isfinite(sig) & (sig > 0), sig, 0.0) + 1e-13 * scale
 
 
-def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params, lin=None):
+def design(data, motion: BlockMotion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, table_params,
+           lin=None):
     """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info.
     ``lin``: the values (per parameter) the time offset × lever-arm product is linearised at."""
-    yg = gb.sum(data.gyro - motion.ideal_gyro)
-    ya = ab.sum(data.acc - motion.ideal_acc)
-    # block sums column by column: never hold (N, 3, P) regressors for long logs
+    ideal_gyro, ideal_acc = motion.ideal_per_sample()
+    yg = gb.sum(np.subtract(data.gyro, ideal_gyro, out=ideal_gyro))
+    ya = ab.sum(np.subtract(data.acc, ideal_acc, out=ideal_acc))
+    del ideal_gyro, ideal_acc
+    # block sums column by column, the moving samples one by one and each rest block at once
+    # (components.estimation.block_motion): never (N, 3, P) regressors, nor a row per rest sample
+    rg, ra = motion.rests(gb), motion.rests(ab)
     Hg = np.zeros((len(gb), 3, len(params)))
     Ha = np.zeros((len(ab), 3, len(params)))
     for k, p in enumerate(params):
-        g, a = regressor_of(motion, p)
+        g, a = regressor_of(motion.moving, p)
         if g is not None:
-            Hg[:, :, k] = gb.sum(g)
+            Hg[:, :, k] = motion.sums(gb, g, regressor_of(rg, p)[0])
         if a is not None:
-            Ha[:, :, k] = ab.sum(a)
+            Ha[:, :, k] = motion.sums(ab, a, regressor_of(ra, p)[1])
     if lin is not None:
         # τ D(r) ≈ τ D(r0) + τ0 D(r) − τ0 D(r0), D linear in r, τ the accelerometers' whole shift
         # (imu.time_offset + acc.time_offset): each time-offset column gains D(r0), each lever
@@ -56,13 +62,13 @@ def design(data, motion, params, gb: Blocks, ab: Blocks, sg, sa, rest, geo, tabl
         tau0 = sum(lin[kt] for kt in kts)
         for k, p in enumerate(params):
             if effect_of(p).name == "acc.lever":
-                d = ab.sum(time_offset_of_lever(motion, p.split(".", 2)[2]))
+                idx = p.split(".", 2)[2]
+                d = motion.sums(ab, time_offset_of_lever(motion.moving, idx), time_offset_of_lever(ra, idx))
                 for kt in kts:
                     Ha[:, :, kt] += lin[k] * d
                 Ha[:, :, k] += tau0 * d
                 ya = ya + tau0 * lin[k] * d
-    profile = data.angle_profile(len(motion.nodes)) if table_params else None
-    columns = table_columns(profile, motion.profile_key, gb, ab, geo, table_params)
+    columns = table_columns(motion.profile, motion.profile.key, gb, ab, geo, table_params)
     for p, (cg, ca) in columns.items():
         Hg[:, :, params.index(p)], Ha[:, :, params.index(p)] = cg, ca
     var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)

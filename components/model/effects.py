@@ -181,9 +181,8 @@ def time_offset_of_lever(m, idx: str) -> np.ndarray:
     i, k = idx.split(".")
     r = np.zeros(3)
     r[AX.index(k)] = 1.0
-    alpha_start = np.vstack([m.alpha_end[:1], m.alpha_end[:-1]])
     change = (lever_acceleration(m.omega_end, m.alpha_end, r)
-              - lever_acceleration(m.omega_start, alpha_start, r))
+              - lever_acceleration(m.omega_start, m.alpha_at_start(), r))
     return _e(i, change[:, AX.index(i)])
 
 

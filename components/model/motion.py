@@ -59,6 +59,14 @@ class Motion:
     t0_temperature: float
     lever: np.ndarray      # (3, 3) row i: offset of accelerometer i used by f_at
     profile_key: str = ""  # the angle profile it was computed from
+    # (N, 3) at the start of each interval (the previous sample's alpha_end); None: shift
+    # alpha_end by one row (a motion whose rows are consecutive samples)
+    alpha_start: np.ndarray | None = None
+
+    def alpha_at_start(self) -> np.ndarray:
+        if self.alpha_start is not None:
+            return self.alpha_start
+        return np.vstack([self.alpha_end[:1], self.alpha_end[:-1]])
 
     def f_at(self, i: str) -> np.ndarray:
         """Specific force (N, Q, 3) at accelerometer i's location (size effect)."""
@@ -113,6 +121,13 @@ class AngleProfile:
     attitudes: np.ndarray | None = None  # distinct angles of the static intervals
     attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
     key: str = ""  # digest of time, angles and quadrature: equal profiles give equal motions
+    _static_samples: np.ndarray | None = None
+
+    def attitude_at(self, samples: np.ndarray) -> np.ndarray:
+        """The row in `attitudes` of each of the static *samples* (sample indices)."""
+        if self._static_samples is None:
+            self._static_samples = np.flatnonzero(self.static)
+        return self.attitude_of[np.searchsorted(self._static_samples, samples)]
 
 
 def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
@@ -199,53 +214,84 @@ def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc:
 
 def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
                         temperature: np.ndarray | None = None, t0_temperature: float | None = None,
-                        lever: np.ndarray | None = None, time_origin: float | None = None) -> Motion:
+                        lever: np.ndarray | None = None, time_origin: float | None = None,
+                        samples: np.ndarray | None = None) -> Motion:
     """Plate motion at the profile's nodes for one geometry. ``time_origin``: the time drift
     terms count from (default: the start of the profile's first interval; a stretch of a longer
-    log gives the log's)."""
+    log gives the log's). ``samples``: sorted sample indices, the motion of those samples alone
+    (a row each, the same values as the whole profile's rows; the estimators' block sums need
+    the moving samples one by one but a rest only once, components.estimation.block_motion)."""
     p = profile
-    n, q, n_ax = p.th_q.shape
+    n_all, q, n_ax = p.th_q.shape
+    whole = samples is None
+    idx = np.arange(n_all) if whole else np.asarray(samples, int)
+
+    def take(a):
+        return a if whole else a[idx]
+
+    n = len(idx)
     om = np.empty((n, q, 3))
     al = np.zeros((n, q, 3))
     f = np.empty((n, q, 3))
     # static intervals: one kinematics evaluation per distinct attitude (a schedule has few)
-    st = p.static
+    st = take(p.static)
+    om_u = f_u = None
+    if st.any() or (not whole and p.static.any()):
+        om_u, f_u = rest_values(p, geometry)
     if st.any():
-        om_u, f_u = _at_rest(p, geometry)
-        om[st] = om_u[p.attitude_of][:, None, :]
-        f[st] = f_u[p.attitude_of][:, None, :]
+        att = p.attitude_of if whole else p.attitude_at(idx[st])
+        om[st] = om_u[att][:, None, :]
+        f[st] = f_u[att][:, None, :]
     mv = ~st
     if mv.any():
-        om[mv], al[mv], f[mv] = _moving_nodes(p, geometry)
-    # values at the sample times: static ends share the attitudes above; moving ends computed
-    om_e = np.empty((n, 3))
-    f_e = np.empty((n, 3))
-    al_e = np.zeros((n, 3))
-    om_e[st], f_e[st] = om[st, 0], f[st, 0]
-    if mv.any():
-        the, re, ae = _true_motion(geometry, p.th_end[mv], p.rate_end[mv], p.acc_end[mv])
-        _, om_e[mv], al_e[mv], f_e[mv] = geometry.kinematics(the, re, ae)
-    omega_start = np.vstack([om_e[:1], om_e[:-1]])
-    f_start = np.vstack([f_e[:1], f_e[:-1]])
-    tq_all = p.t_prev[:, None] + p.dt[:, None] * p.nodes[None, :]
+        om[mv], al[mv], f[mv] = _moving_nodes(p, geometry, None if whole else idx[mv])
+    # values at the sample times, of these samples and of the ones before them (their starts):
+    # static ends share the attitudes above; moving ends computed
+    prev = np.maximum(idx - 1, 0)
+    ends = idx if whole else np.union1d(idx, prev)
+    om_e, al_e, f_e = _ends(p, geometry, ends, om_u, f_u)
+    if whole:
+        at, before = slice(None), np.concatenate([[0], idx[:-1]])
+    else:
+        at, before = np.searchsorted(ends, idx), np.searchsorted(ends, prev)
+    tq_all = take(p.t_prev)[:, None] + take(p.dt)[:, None] * p.nodes[None, :]
     if temperature is not None:
         T = np.asarray(temperature, float)
-        T_prev = np.concatenate([[T[0]], T[:-1]])
-        T_q = T_prev[:, None] + (T - T_prev)[:, None] * p.nodes[None, :]
+        T_prev, T_end = T[prev], T[idx]
+        T_q = T_prev[:, None] + (T_end - T_prev)[:, None] * p.nodes[None, :]
         T0 = float(T[0]) if t0_temperature is None else float(t0_temperature)
         dtemp_q = T_q - T0
     else:
         T0 = float(t0_temperature or 0.0)
         dtemp_q = np.zeros((n, q))
     return Motion(
-        time=p.time, dt=p.dt, static=p.static, nodes=p.nodes, weights=p.weights,
+        time=take(p.time), dt=take(p.dt), static=st, nodes=p.nodes, weights=p.weights,
         omega_q=om, alpha_q=al, f_q=f,
-        omega_start=omega_start, omega_end=om_e, f_start=f_start, f_end=f_e, alpha_end=al_e,
+        omega_start=om_e[before], omega_end=om_e[at], f_start=f_e[before], f_end=f_e[at],
+        alpha_end=al_e[at], alpha_start=al_e[before],
         dtemp_q=dtemp_q, elapsed_q=tq_all - (p.t_prev[0] if time_origin is None else time_origin),
         t0_temperature=T0,
         lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
         profile_key=p.key,
     )
+
+
+def _ends(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray, om_u, f_u):
+    """Inertial rate, angular acceleration and specific force (len(samples), 3) at the ends of
+    the intervals of *samples* (sorted indices)."""
+    om_e = np.empty((len(samples), 3))
+    f_e = np.empty((len(samples), 3))
+    al_e = np.zeros((len(samples), 3))
+    st = p.static[samples]
+    if st.any():
+        att = p.attitude_at(samples[st]) if len(samples) != len(p.static) else p.attitude_of
+        om_e[st], f_e[st] = om_u[att], f_u[att]
+    mv = ~st
+    if mv.any():
+        k = samples[mv]
+        the, re, ae = _true_motion(geometry, p.th_end[k], p.rate_end[k], p.acc_end[k])
+        _, om_e[mv], al_e[mv], f_e[mv] = geometry.kinematics(the, re, ae)
+    return om_e, al_e, f_e
 
 
 class IdealIncrements:
@@ -271,7 +317,7 @@ class IdealIncrements:
         per unit time at rest, per sample when moving."""
         p = self.profile
         if p.attitudes is not None and len(p.attitudes):
-            om_u, f_u = _at_rest(p, geometry)
+            om_u, f_u = rest_values(p, geometry)
             wsum = float(np.sum(p.weights))
             rest_g, rest_a = om_u * wsum, f_u * wsum
         else:
@@ -309,7 +355,7 @@ def ideal_increments(profile: AngleProfile, geometry: TableGeometry) -> tuple[np
     return gyro, acc
 
 
-def _at_rest(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray]:
+def rest_values(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray]:
     """Inertial rate and specific force (A, 3) at each distinct rest attitude of the profile
     (one kinematics evaluation per attitude: a schedule has few)."""
     att = p.attitudes
@@ -318,10 +364,10 @@ def _at_rest(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, np.n
     return om_u, f_u
 
 
-def _moving_nodes(p: AngleProfile, geometry: TableGeometry):
+def _moving_nodes(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray | None = None):
     """Inertial rate, angular acceleration and specific force (M, Q, 3) at the quadrature nodes
-    of the moving intervals."""
-    mv = ~p.static
+    of the moving intervals (or of the moving *samples*, indices)."""
+    mv = ~p.static if samples is None else samples
     _, q, n_ax = p.th_q.shape
     th, rate, acc = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax), p.rate_q[mv].reshape(-1, n_ax),
                                  p.acc_q[mv].reshape(-1, n_ax))
