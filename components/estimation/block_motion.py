@@ -34,7 +34,7 @@ class BlockMotion:
         self.temperature = None if temperature is None else np.asarray(temperature, float)
         self.t0_temperature = t0_temperature
         self.time_origin = profile.t_prev[0] if time_origin is None else time_origin
-        self.moving_index = np.flatnonzero(~profile.static)
+        self.moving_index = profile.moving_index
         self.moving = motion_from_profile(profile, geometry, temperature, t0_temperature,
                                           time_origin=time_origin, samples=self.moving_index)
         self._rests: dict = {}

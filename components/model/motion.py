@@ -112,11 +112,14 @@ class AngleProfile:
     static: np.ndarray
     nodes: np.ndarray
     weights: np.ndarray
-    th_q: np.ndarray    # (N, Q, n_axes) measured angle at the nodes
+    # the moving samples' node values: a rest's angle is its sample's, its rates zero (a log is
+    # mostly rests: rows for them were 216 bytes a sample of copies)
+    moving_index: np.ndarray  # (M,) the samples of the rows below
+    th_q: np.ndarray    # (M, Q, n_axes) measured angle at the nodes
     rate_q: np.ndarray
     acc_q: np.ndarray
-    th_end: np.ndarray  # (N, n_axes) at the sample times
-    rate_end: np.ndarray
+    th_end: np.ndarray  # (N, n_axes) at the sample times (every sample: the measured angles)
+    rate_end: np.ndarray  # (M, n_axes) at the moving samples' times
     acc_end: np.ndarray
     attitudes: np.ndarray | None = None  # distinct angles of the static intervals
     attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
@@ -148,11 +151,11 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
     x, w = gauss_legendre(quadrature)
     q = len(x)
     n_ax = measured.shape[1]
-    th_q = np.repeat(measured[:, None, :], q, axis=1)  # static: angle held
-    rate_q = np.zeros_like(th_q)
-    acc_q = np.zeros_like(th_q)
-    rate_end = np.zeros((n, n_ax))
-    acc_end = np.zeros((n, n_ax))
+    moving = np.flatnonzero(~static)
+    m = len(moving)
+    th_q, rate_q, acc_q = (np.empty((m, q, n_ax)) for _ in range(3))
+    rate_end, acc_end = np.empty((m, n_ax)), np.empty((m, n_ax))
+    row = 0  # the run's first row
     for a, b in moving_runs(static):
         # knots: the rest sample before the run (index a-1, or the virtual one) to sample b-1,
         # plus the rest sample after it when there is one
@@ -169,14 +172,16 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         k = np.arange(b - a)
         kq = np.broadcast_to(k[:, None], (b - a, q))
         u = dt[a:b, None] * x[None, :]
-        th_q[a:b] = spl(kq, u)
-        rate_q[a:b] = spl(kq, u, 1)
-        acc_q[a:b] = spl(kq, u, 2)
-        rate_end[a:b] = spl.at_knots(k + 1, 1)
-        acc_end[a:b] = spl.at_knots(k + 1, 2)
+        rows = slice(row, row + b - a)
+        th_q[rows] = spl(kq, u)
+        rate_q[rows] = spl(kq, u, 1)
+        acc_q[rows] = spl(kq, u, 2)
+        rate_end[rows] = spl.at_knots(k + 1, 1)
+        acc_end[rows] = spl.at_knots(k + 1, 2)
+        row += b - a
     att, inv = _attitudes(measured, static)
     digest = hashlib.sha256(time.tobytes() + measured.tobytes() + bytes([quadrature, n_ax])).hexdigest()
-    return AngleProfile(time, t_prev, dt, static, x, w, th_q, rate_q, acc_q, measured,
+    return AngleProfile(time, t_prev, dt, static, x, w, moving, th_q, rate_q, acc_q, measured,
                         rate_end, acc_end, att, inv.ravel(), digest)
 
 
@@ -222,7 +227,7 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     (a row each, the same values as the whole profile's rows; the estimators' block sums need
     the moving samples one by one but a rest only once, components.estimation.block_motion)."""
     p = profile
-    n_all, q, n_ax = p.th_q.shape
+    n_all, q = len(p.time), len(p.nodes)
     whole = samples is None
     idx = np.arange(n_all) if whole else np.asarray(samples, int)
 
@@ -289,7 +294,8 @@ def _ends(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray, om_u, f
     mv = ~st
     if mv.any():
         k = samples[mv]
-        the, re, ae = _true_motion(geometry, p.th_end[k], p.rate_end[k], p.acc_end[k])
+        r = np.searchsorted(p.moving_index, k)
+        the, re, ae = _true_motion(geometry, p.th_end[k], p.rate_end[r], p.acc_end[r])
         _, om_e[mv], al_e[mv], f_e[mv] = geometry.kinematics(the, re, ae)
     return om_e, al_e, f_e
 
@@ -304,10 +310,10 @@ class IdealIncrements:
     def __init__(self, profile: AngleProfile):
         self.profile = profile
         mv = ~profile.static
-        self.moving_index = np.flatnonzero(mv)
+        self.moving_index = profile.moving_index
         _, q, n_ax = profile.th_q.shape
-        self._nodes = (profile.th_q[mv].reshape(-1, n_ax), profile.rate_q[mv].reshape(-1, n_ax),
-                       profile.acc_q[mv].reshape(-1, n_ax))
+        self._nodes = (profile.th_q.reshape(-1, n_ax), profile.rate_q.reshape(-1, n_ax),
+                       profile.acc_q.reshape(-1, n_ax))
         self._q = q
         self._dt_m = profile.dt[mv, None]
         self._first: tuple | None = None  # (geometry, its states) of the first call: later ones resume there
@@ -367,10 +373,10 @@ def rest_values(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, n
 def _moving_nodes(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray | None = None):
     """Inertial rate, angular acceleration and specific force (M, Q, 3) at the quadrature nodes
     of the moving intervals (or of the moving *samples*, indices)."""
-    mv = ~p.static if samples is None else samples
+    rows = slice(None) if samples is None else np.searchsorted(p.moving_index, samples)
     _, q, n_ax = p.th_q.shape
-    th, rate, acc = _true_motion(geometry, p.th_q[mv].reshape(-1, n_ax), p.rate_q[mv].reshape(-1, n_ax),
-                                 p.acc_q[mv].reshape(-1, n_ax))
+    th, rate, acc = _true_motion(geometry, p.th_q[rows].reshape(-1, n_ax), p.rate_q[rows].reshape(-1, n_ax),
+                                 p.acc_q[rows].reshape(-1, n_ax))
     _, om_m, al_m, f_m = geometry.kinematics(th, rate, acc)
     return tuple(x.reshape(-1, q, 3) for x in (om_m, al_m, f_m))
 
