@@ -87,9 +87,10 @@ def test_block_sums_of_every_regressor_equal_the_per_sample_sums(data, blocks):
         assert np.abs(want).max() > 0
         _close(got, want, np.abs(want).max(), f"time offset x {q}")
     # the ideal increments the measured are differenced against
-    ig, ia = bm.ideal_per_sample()
-    _close(ig, full.ideal_gyro, np.abs(full.ideal_gyro).max(), "ideal gyro")
-    _close(ia, full.ideal_acc, np.abs(full.ideal_acc).max(), "ideal acc")
+    for blocks, rows, sensor in ((gb, rg, "gyro"), (ab, ra, "acc")):
+        want = blocks.sum(getattr(full, f"ideal_{sensor}"))
+        got = bm.sums(blocks, getattr(bm.moving, f"ideal_{sensor}"), getattr(rows, f"ideal_{sensor}"))
+        _close(got, want, np.abs(want).max(), f"ideal {sensor}")
 
 
 def test_temperature_and_time_at_rest_are_the_blocks_interval_means(data, blocks):

@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 
 from components.estimation.blocks import Blocks, block_sums
-from components.model.motion import AngleProfile, Motion, motion_from_profile, rest_values
+from components.model.motion import AngleProfile, Motion, motion_from_profile
 
 
 class BlockMotion:
@@ -88,19 +88,3 @@ class BlockMotion:
         if np.any(stop - start != blocks.stop[m] - blocks.start[m]):
             raise ValueError("block motion: a moving block holds a rest sample")
         return start, stop
-
-    def ideal_per_sample(self) -> tuple[np.ndarray, np.ndarray]:
-        """The ideal gyro and accelerometer increments (N, 3) of every sample (no lever arms):
-        the measured minus these, summed per block, is what the design fits."""
-        p = self.profile
-        om_u, f_u = rest_values(p, self.geometry)
-        gyro = np.empty((len(p.dt), 3))
-        acc = np.empty((len(p.dt), 3))
-        st = p.static
-        if st.any():
-            gyro[st] = p.dt[st, None] * om_u[p.attitude_of]
-            acc[st] = p.dt[st, None] * f_u[p.attitude_of]
-        if len(self.moving_index):
-            gyro[self.moving_index] = self.moving.ideal_gyro
-            acc[self.moving_index] = self.moving.ideal_acc
-        return gyro, acc

@@ -56,6 +56,10 @@ class Blocks:
             first = last
         return out
 
+    def subset(self, which: np.ndarray) -> "Blocks":
+        """The blocks *which* (a mask or indices), in their order."""
+        return Blocks(self.start[which], self.stop[which], self.moving[which], self.whole_moves)
+
     @property
     def count(self) -> np.ndarray:
         return self.stop - self.start

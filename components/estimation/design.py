@@ -39,13 +39,14 @@ def design(data, motion: BlockMotion, params, gb: Blocks, ab: Blocks, sg, sa, re
            lin=None):
     """Stacked rows (gyro blocks x 3 axes, then acc blocks x 3 axes): y, H, weights, row info.
     ``lin``: the values (per parameter) the time offset × lever-arm product is linearised at."""
-    ideal_gyro, ideal_acc = motion.ideal_per_sample()
-    yg = gb.sum(np.subtract(data.gyro, ideal_gyro, out=ideal_gyro))
-    ya = ab.sum(np.subtract(data.acc, ideal_acc, out=ideal_acc))
-    del ideal_gyro, ideal_acc
     # block sums column by column, the moving samples one by one and each rest block at once
-    # (components.estimation.block_motion): never (N, 3, P) regressors, nor a row per rest sample
+    # (components.estimation.block_motion): never (N, 3, P) regressors, nor a row per rest sample.
+    # A rest block's measured sum minus its ideal sum (~10 m/s for 1 s of gravity) leaves ~1e-15
+    # m/s of rounding, 1e-11 of a navigation-grade accelerometer's noise over that second
     rg, ra = motion.rests(gb), motion.rests(ab)
+    mi, mv = motion.moving_index, motion.moving
+    yg = motion.sums(gb, data.gyro[mi] - mv.ideal_gyro, gb.subset(~gb.moving).sum(data.gyro) - rg.ideal_gyro)
+    ya = motion.sums(ab, data.acc[mi] - mv.ideal_acc, ab.subset(~ab.moving).sum(data.acc) - ra.ideal_acc)
     Hg = np.zeros((len(gb), 3, len(params)))
     Ha = np.zeros((len(ab), 3, len(params)))
     for k, p in enumerate(params):
@@ -68,7 +69,7 @@ def design(data, motion: BlockMotion, params, gb: Blocks, ab: Blocks, sg, sa, re
                     Ha[:, :, kt] += lin[k] * d
                 Ha[:, :, k] += tau0 * d
                 ya = ya + tau0 * lin[k] * d
-    columns = table_columns(motion.profile, motion.profile.key, gb, ab, geo, table_params)
+    columns = table_columns(motion.profile, gb, ab, geo, table_params)
     for p, (cg, ca) in columns.items():
         Hg[:, :, params.index(p)], Ha[:, :, params.index(p)] = cg, ca
     var_g = gb.count[:, None] * sg[None, :] ** 2 + rest_variance(data, geo, gb, rest)

@@ -85,16 +85,17 @@ def _row_of(samples: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndar
     return np.where(ok, row, -1)
 
 
-def table_columns(profile: AngleProfile, profile_key: str, gb: Blocks, ab: Blocks, geo: TableGeometry,
-                  table_params: list[str]) -> dict:
+def table_columns(profile: AngleProfile, gb: Blocks, ab: Blocks, geo: TableGeometry,
+                  table_params: list[str], profile_key: str | None = None) -> dict:
     """parameter -> (gyro block columns (B_g, 3), accelerometer block columns (B_a, 3)): d(ideal
     block sums)/d(parameter) by a forward step of :data:`TABLE_STEP`, from the cache where the
-    profile, blocks and geometry were seen before."""
+    profile, blocks and geometry were seen before (``profile_key``: the profile's, default
+    its digest)."""
     if not table_params:
         return {}
     blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
                                 + ab.stop.tobytes()).hexdigest()
-    keys = {p: (profile_key, blocks_key, geo, p) for p in table_params}
+    keys = {p: (profile_key or profile.key, blocks_key, geo, p) for p in table_params}
     # taken out of the cache first: adding the missing ones may drop the oldest, which can be ours
     columns = {p: _GEOMETRY_COLUMNS[key] for p, key in keys.items() if key in _GEOMETRY_COLUMNS}
     missing = [p for p in keys if p not in columns]

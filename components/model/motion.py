@@ -12,7 +12,7 @@ with the table over whole rest-to-rest moves (see components.estimation.blocks).
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -58,7 +58,6 @@ class Motion:
     elapsed_q: np.ndarray  # (N, Q) time since the start of the log
     t0_temperature: float
     lever: np.ndarray      # (3, 3) row i: offset of accelerometer i used by f_at
-    profile_key: str = ""  # the angle profile it was computed from
     # (N, 3) at the start of each interval (the previous sample's alpha_end); None: shift
     # alpha_end by one row (a motion whose rows are consecutive samples)
     alpha_start: np.ndarray | None = None
@@ -123,8 +122,22 @@ class AngleProfile:
     acc_end: np.ndarray
     attitudes: np.ndarray | None = None  # distinct angles of the static intervals
     attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
-    key: str = ""  # digest of time, angles and quadrature: equal profiles give equal motions
+    _key: str | None = None
     _static_samples: np.ndarray | None = None
+    # geometry -> rest_values, the last few (a chunk's design asks for the same geometry's four
+    # times; the table columns' steps each once)
+    _rest: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def key(self) -> str:
+        """Digest of time, angles and quadrature: equal profiles give equal motions (computed when
+        first asked: only the table columns' cache needs it, and it reads the whole log)."""
+        if self._key is None:
+            h = hashlib.sha256(np.ascontiguousarray(self.time))
+            h.update(np.ascontiguousarray(self.th_end))
+            h.update(bytes([len(self.nodes), self.th_end.shape[1]]))
+            self._key = h.hexdigest()
+        return self._key
 
     def attitude_at(self, samples: np.ndarray) -> np.ndarray:
         """The row in `attitudes` of each of the static *samples* (sample indices)."""
@@ -180,9 +193,8 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         acc_end[rows] = spl.at_knots(k + 1, 2)
         row += b - a
     att, inv = _attitudes(measured, static)
-    digest = hashlib.sha256(time.tobytes() + measured.tobytes() + bytes([quadrature, n_ax])).hexdigest()
     return AngleProfile(time, t_prev, dt, static, x, w, moving, th_q, rate_q, acc_q, measured,
-                        rate_end, acc_end, att, inv.ravel(), digest)
+                        rate_end, acc_end, att, inv.ravel())
 
 
 def _attitudes(measured: np.ndarray, static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -277,7 +289,6 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
         dtemp_q=dtemp_q, elapsed_q=tq_all - (p.t_prev[0] if time_origin is None else time_origin),
         t0_temperature=T0,
         lever=np.zeros((3, 3)) if lever is None else np.asarray(lever, float),
-        profile_key=p.key,
     )
 
 
@@ -363,11 +374,22 @@ def ideal_increments(profile: AngleProfile, geometry: TableGeometry) -> tuple[np
 
 def rest_values(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray]:
     """Inertial rate and specific force (A, 3) at each distinct rest attitude of the profile
-    (one kinematics evaluation per attitude: a schedule has few)."""
-    att = p.attitudes
-    th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
-    _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
-    return om_u, f_u
+    (one kinematics evaluation per attitude: a schedule has few), kept for the last few
+    geometries (read-only: shared by every caller)."""
+    got = p._rest.get(geometry)
+    if got is None:
+        att = p.attitudes
+        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
+        _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
+        for a in (om_u, f_u):
+            a.setflags(write=False)
+        got = p._rest[geometry] = (om_u, f_u)
+        while len(p._rest) > REST_VALUES_KEPT:
+            p._rest.pop(next(iter(p._rest)))
+    return got
+
+
+REST_VALUES_KEPT = 4
 
 
 def _moving_nodes(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray | None = None):
