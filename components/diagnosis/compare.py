@@ -140,7 +140,7 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     geo = model_geometry(data, model)
     sensor_params = [p for p in model.values if effect_of(p).target != "table"]
     values = np.array([model.values[p] for p in sensor_params])
-    layout = BlockLayout.of(data, samples_per_block(data.time, chunk_s), chunk_samples)
+    layout = BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s), chunk_samples)
     pred, plate = chunked_prediction(data, layout, sensor_params, values, geo, model.temperature_ref)
     if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
         rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
@@ -158,7 +158,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     plate at the samples (PlateAtSamples.of a Motion, or from chunked_prediction); *blocks*:
     the log's (gyro, accelerometer) observation blocks if already laid out."""
     if blocks is None:
-        blocks = observation_blocks(plate.static, data.angles, samples_per_block(data.time, chunk_s), data.valid)
+        blocks = observation_blocks(plate.static, data.angles, samples_per_block(data.sample_interval, chunk_s), data.valid)
     # residual written in place, a piece at a time: a long log's (N, 6) arrays are 48 bytes a
     # sample each (and spilled to disk with a spilled log, components.logs.spill)
     resid = empty_like_log(pred.shape, pred)

@@ -213,9 +213,11 @@ def make_blocks(static: np.ndarray, samples_per_chunk: int, whole_moves: bool,
     return Blocks(arr[:, 0].astype(int), arr[:, 1].astype(int), arr[:, 2].astype(bool), whole_moves)
 
 
-def samples_per_block(time: np.ndarray, block_s: float) -> int:
-    """Samples in a static block of *block_s* seconds at the log's median interval (at least 1)."""
-    dt = float(np.median(np.diff(time))) if len(time) > 1 else block_s
+def samples_per_block(dt: float, block_s: float) -> int:
+    """Samples in a static block of *block_s* seconds at the sample interval *dt* (the log's
+    median, LogData.sample_interval; NaN for a log of one sample), at least 1."""
+    if not (np.isfinite(dt) and dt > 0):
+        return 1
     return max(1, int(round(block_s / dt)))
 
 

@@ -34,7 +34,7 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     # the bound needs the design's columns only (the rows' measured side is not used), built a
     # chunk of the schedule at a time like the estimators' (components.estimation.chunks)
-    y, H, w, rows = chunked_design(data, BlockLayout.of(data, samples_per_block(data.time, chunk_s)), params, sg, sa, q, geo, table_params, None)
+    y, H, w, rows = chunked_design(data, BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s)), params, sg, sa, q, geo, table_params, None)
     span = data.time[-1] - data.time[0] + dt
     _, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
     # a parameter the schedule does not determine has no bound: inf, never the min-norm σ of a

@@ -49,7 +49,8 @@ class LogData:
         """The median sample interval [s] (a jittered clock's nominal one), computed once: on an
         8-hour log each median of the intervals was ~0.4 s, and a command took it in several places."""
         if self._interval is None:
-            self._interval = float(np.median(np.diff(self.time), overwrite_input=True))
+            self._interval = (float(np.median(np.diff(self.time), overwrite_input=True)) if len(self.time) > 1
+                              else float("nan"))
         return self._interval
 
     @property

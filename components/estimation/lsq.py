@@ -99,7 +99,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
 
     if temperature_ref is None and data.temperature is not None:
         temperature_ref = float(data.temperature[0])
-    layout = BlockLayout.of(data, samples_per_block(data.time, chunk_s), chunk_samples)
+    layout = BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s), chunk_samples)
     gb = layout.gyro
     static = data.static
 
