@@ -122,8 +122,8 @@ class AngleProfile:
     acc_end: np.ndarray
     attitudes: np.ndarray | None = None  # distinct angles of the static intervals
     attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
-    _key: str | None = None
-    _static_samples: np.ndarray | None = None
+    _key: str | None = field(default=None, repr=False, compare=False)
+    _static_samples: np.ndarray | None = field(default=None, repr=False, compare=False)
     # geometry -> rest_values, the last few (a chunk's design asks for the same geometry's four
     # times; the table columns' steps each once)
     _rest: dict = field(default_factory=dict, repr=False, compare=False)
