@@ -81,6 +81,36 @@ def test_estimates_comparison_and_diagnosis_equal_in_memory(pair):
     assert [(c.effect, c.statistic) for c in diags[0].ranking] == [(c.effect, c.statistic) for c in diags[1].ranking]
 
 
+def test_spilled_groups_read_by_name_and_empty_cells_named(pair, tmp_path, monkeypatch):
+    """A spilled column is read a row group at a time: in a file holding the columns in another
+    order they still land on their axes, and an empty cell in a later row group is named by its
+    row and column."""
+    import pyarrow as pa
+
+    from components.errors import LogFormatError
+
+    memory, _ = pair
+    src = _write(tmp_path, "src")
+    table = pq.read_table(src)
+    order = [c for c in table.column_names if c not in ("gyro_x", "acc_y")] + ["acc_y", "gyro_x"]
+    shuffled = tmp_path / "shuffled.parquet"
+    pq.write_table(table.select(order), shuffled, row_group_size=7000)
+    (tmp_path / "shuffled.json").write_text(src.with_suffix(".json").read_text())
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
+    got = LogData.from_log(read_log(shuffled, lean=True))
+    assert spill.is_spilled(got.gyro) and spill.is_spilled(got.acc)
+    for k in ("gyro", "acc"):
+        assert np.array_equal(_bits(getattr(memory, k)), _bits(getattr(got, k))), k
+    acc_y = table.column("acc_y").to_numpy().astype(object)
+    acc_y[15000] = None
+    holed = tmp_path / "holed.parquet"
+    pq.write_table(table.set_column(table.column_names.index("acc_y"), "acc_y", pa.array(acc_y, pa.float64())),
+                   holed, row_group_size=7000)
+    (tmp_path / "holed.json").write_text(src.with_suffix(".json").read_text())
+    with pytest.raises(LogFormatError, match=r"row 15001, column 'acc_y': empty value"):
+        read_log(holed, lean=True)
+
+
 def test_a_spilled_pulse_output_is_converted_a_piece_at_a_time(tmp_path, monkeypatch):
     path = _write(tmp_path, "counts", counts=True)
     memory = LogData.from_log(read_log(path, lean=True))
