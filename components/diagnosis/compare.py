@@ -166,10 +166,12 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
         np.subtract(data.gyro[s], pred[s, :3], out=resid[s, :3])
         np.subtract(data.acc[s], pred[s, 3:], out=resid[s, 3:])
     sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
-    sigma = noise_floor(sigma, np.array([7.3e-5] * 3 + [9.8] * 3) * float(np.median(plate.dt)))
+    dt = float(np.median(plate.dt))
+    release(plate.dt)  # a spilled log's: its pages back (the plate's columns, 56 bytes a sample)
+    sigma = noise_floor(sigma, np.array([7.3e-5] * 3 + [9.8] * 3) * dt)
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if noise is not None and noise.coloured:
-        white = noise.white_sigma(float(np.median(plate.dt)))
+        white = noise.white_sigma(dt)
         sigma = np.where(white > 0, white, sigma)
     rows = _blocks_rows(data, geo, blocks, resid, sigma, rest, chunk_s, noise)
     chi2 = float(np.sum(rows["z"] ** 2))
@@ -255,6 +257,7 @@ def _condition_masks(data: LogData, plate: PlateAtSamples, rows: dict) -> dict:
     mid = (rows["start"] + rows["stop"] - 1) // 2
     f = plate.f[mid]
     w = plate.omega[mid]
+    release(plate.f, plate.omega)  # the blocks' middles touch every page of a spilled log's columns
     cond: dict[str, np.ndarray] = {}
     cond["static"] = ~rows["moving"]
     cond["rotating"] = rows["moving"]
