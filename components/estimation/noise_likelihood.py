@@ -35,6 +35,7 @@ from components.model.noise import ChannelNoise, block_noise
 LR_CRITICAL = 5.4119  # χ²₁ 98 % point: the 1 % level of ½ χ²₀ + ½ χ²₁
 FLICKER_CORNER_TEST = 10.0  # [s] the floor's lower corner its presence is tested at
 SLOW = ("bias_instability", "random_walk")
+SPREAD = (-0.5, 0.5)  # log: where profile_interval also starts along a coordinate of several valleys
 PROFILE_LEVEL = 9.0  # the deviance of the reported interval: three σ of a one-parameter interval (99.7 %)
 
 
@@ -170,7 +171,9 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             # steps of about one σ (the curvature's): the crossing at three is a few steps out
             sd = math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else None
             step = min(max(sd, 0.02), 0.1) if sd else 0.1
-            lo, hi = profile_interval(lambda z: nll(active, z), x, f, i, PROFILE_LEVEL, step, sd)
+            # the floor's corner can hold two valleys of the likelihood at one magnitude
+            spread = (len(active),) if "bias_instability" in active else ()
+            lo, hi = profile_interval(lambda z: nll(active, z), x, f, i, PROFILE_LEVEL, step, sd, spread=spread)
             report[t] = {"value": value, "sigma": value * math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else float("nan"),
                          "interval": (math.exp(lo), math.exp(hi)),
                          "likelihood_ratio": float(lr.get(t, 2 * (f_none - f))), "present": True}
@@ -209,14 +212,19 @@ def _embed(active: list[str], dropped: str, x_without: np.ndarray, x_with: np.nd
 
 
 def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: float = 0.1,
-                     sd: float | None = None, reach: float = 7.0) -> tuple[float, float]:
+                     sd: float | None = None, reach: float = 7.0, spread: tuple = ()) -> tuple[float, float]:
     """The profile-likelihood interval of x[i] (log scale): where 2 [min over the other
     coordinates of nll − f0] reaches *level*, walked outwards from the minimum *x* in *step*s
     (each minimisation started from the last one's), the crossing interpolated in the signed
     root of the deviance (near-linear in the coordinate, with slope 1/sd where the curvature
     gives a σ *sd*). ±inf where it is not reached within *reach* (log) of x[i]: the log does not
     bound the magnitude on that side. *x* has at least one other coordinate (the likelihood's
-    block-variance nuisance is always one)."""
+    block-variance nuisance is always one). ``spread``: coordinates (indices into *x*) along which
+    the likelihood may hold more than one valley at a given x[i] (the flicker floor's corner):
+    each step is also minimised from the last step's point moved by each of :data:`SPREAD` along
+    each, and the least taken. From the last point alone, one acc floor's lower end came out at
+    1.1e-4 or at 7.1e-5 of the same log as its last bits went (the simplex went up one valley or
+    down the other, the truth 9.8e-5 between them); the profile is the lower valley's."""
     from scipy.optimize import minimize
 
     rest = [j for j in range(len(x)) if j != i]
@@ -237,7 +245,15 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
                                                                     "maxiter": 400 * len(rest)})
                 return r.x, float(r.fun), math.sqrt(max(2.0 * (float(r.fun) - f0), 0.0))
 
+            z_last = z
             z, val, root = least(z)
+            for j in spread:
+                for off in SPREAD:
+                    z0 = z_last.copy()
+                    z0[rest.index(j)] += off
+                    z2, val2, root2 = least(z0)
+                    if val2 < val:
+                        z, val, root = z2, val2, root2
             if root - root_prev > jump:
                 # a jump of more than a step's worth: the other coordinates may have had to move
                 # far (the floor's corner trades with its magnitude along a curved valley), so
