@@ -117,8 +117,22 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         def full(z):
             return np.concatenate([z[:k], [corner0], z[k:]]) if held else np.asarray(z, float)
 
-        r = minimize(lambda z: nll(active, full(z)), np.array(x0), method="Nelder-Mead",
-                     options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400 * max(1, len(x0) - 1)})
+        def run(z0):
+            return minimize(lambda z: nll(active, full(z)), np.array(z0), method="Nelder-Mead",
+                            options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400 * max(1, len(z0) - 1)})
+
+        r = run(x0)
+        if "bias_instability" in active and free_corner and start is None:
+            # the corner can hold two valleys, one at each end of its range: from the test
+            # corner alone the simplex ran to the short end on a 5-minute log whose maximum was
+            # at the long end (the floor 0.76e-3 for 0.97e-3, truth 1e-3, and both interval ends
+            # measured from the wrong maximum), so it also starts at the long end, from the
+            # first start and from where that fit ended
+            for x1 in (list(x0), list(r.x)):
+                x1[k] = math.log(lo_max)
+                r1 = run(x1)
+                if r1.fun < r.fun:
+                    r = r1
         return full(r.x), float(r.fun)
 
     active = list(terms)
@@ -172,7 +186,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             sd = math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else None
             step = min(max(sd, 0.02), 0.1) if sd else 0.1
             # the floor's corner can hold two valleys of the likelihood at one magnitude
-            spread = (len(active),) if "bias_instability" in active else ()
+            spread = {len(active): (math.log(lo_min), math.log(lo_max))} if "bias_instability" in active else {}
             lo, hi = profile_interval(lambda z: nll(active, z), x, f, i, PROFILE_LEVEL, step, sd, spread=spread)
             report[t] = {"value": value, "sigma": value * math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else float("nan"),
                          "interval": (math.exp(lo), math.exp(hi)),
@@ -212,7 +226,7 @@ def _embed(active: list[str], dropped: str, x_without: np.ndarray, x_with: np.nd
 
 
 def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: float = 0.1,
-                     sd: float | None = None, reach: float = 7.0, spread: tuple = ()) -> tuple[float, float]:
+                     sd: float | None = None, reach: float = 7.0, spread: dict | None = None) -> tuple[float, float]:
     """The profile-likelihood interval of x[i] (log scale): where 2 [min over the other
     coordinates of nll − f0] reaches *level*, walked outwards from the minimum *x* in *step*s
     (each minimisation started from the last one's), the crossing interpolated in the signed
@@ -222,7 +236,8 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
     block-variance nuisance is always one). ``spread``: coordinates (indices into *x*) along which
     the likelihood may hold more than one valley at a given x[i] (the flicker floor's corner):
     each step is also minimised from the last step's point moved by each of :data:`SPREAD` along
-    each, and the least taken. From the last point alone, one acc floor's lower end came out at
+    each and put at each of its given values (the ends of the corner's range), and the least
+    taken. From the last point alone, one acc floor's lower end came out at
     1.1e-4 or at 7.1e-5 of the same log as its last bits went (the simplex went up one valley or
     down the other, the truth 9.8e-5 between them); the profile is the lower valley's."""
     from scipy.optimize import minimize
@@ -247,10 +262,10 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
 
             z_last = z
             z, val, root = least(z)
-            for j in spread:
-                for off in SPREAD:
+            for j, ends in (spread or {}).items():
+                for to in [z_last[rest.index(j)] + off for off in SPREAD] + list(ends):
                     z0 = z_last.copy()
-                    z0[rest.index(j)] += off
+                    z0[rest.index(j)] = to
                     z2, val2, root2 = least(z0)
                     if val2 < val:
                         z, val, root = z2, val2, root2
