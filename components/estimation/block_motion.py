@@ -36,15 +36,11 @@ class BlockMotion:
         self.time_origin = profile.t_prev[0] if time_origin is None else time_origin
         self.moving_index = profile.moving_index
         self.moving = motion_from_profile(profile, geometry, temperature, t0_temperature,
-                                          time_origin=time_origin, samples=self.moving_index)
-        self._rests: dict = {}
+                                          time_origin=self.time_origin, samples=self.moving_index)
 
     def rests(self, blocks: Blocks) -> Motion:
         """One row per rest block of *blocks* (in their order), one node at weight 1: a
         regressor on it is the block's sum of that regressor over its samples."""
-        key = (blocks.start.tobytes(), blocks.stop.tobytes(), blocks.moving.tobytes())
-        if key in self._rests:
-            return self._rests[key]
         p = self.profile
         r = ~blocks.moving
         start, stop = blocks.start[r], blocks.stop[r]
@@ -63,11 +59,9 @@ class BlockMotion:
         else:
             dtemp = np.zeros(len(start))
         safe = np.where(total > 0, total, 1.0)
-        rows = replace(first, time=p.time[np.maximum(stop - 1, start)], dt=total, nodes=np.array([0.5]),
+        return replace(first, time=p.time[np.maximum(stop - 1, start)], dt=total, nodes=np.array([0.5]),
                        weights=np.array([1.0]), omega_q=first.omega_q[:, :1], alpha_q=first.alpha_q[:, :1],
                        f_q=first.f_q[:, :1], dtemp_q=(dtemp / safe)[:, None], elapsed_q=(elapsed / safe)[:, None])
-        self._rests[key] = rows
-        return rows
 
     def sums(self, blocks: Blocks, per_moving: np.ndarray, per_rest: np.ndarray) -> np.ndarray:
         """Block sums (B, ...) from a per-sample array over the moving samples (rows of
