@@ -252,9 +252,8 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     f = np.empty((n, q, 3))
     # static intervals: one kinematics evaluation per distinct attitude (a schedule has few)
     st = take(p.static)
-    om_u = f_u = None
-    if st.any() or (not whole and p.static.any()):
-        om_u, f_u = rest_values(p, geometry)
+    # (the ends below may need them where these samples are all moving: cached per geometry)
+    om_u, f_u = rest_values(p, geometry) if p.static.any() else (None, None)
     if st.any():
         att = p.attitude_of if whole else p.attitude_at(idx[st])
         om[st] = om_u[att][:, None, :]
@@ -266,7 +265,7 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     # static ends share the attitudes above; moving ends computed
     prev = np.maximum(idx - 1, 0)
     ends = idx if whole else np.union1d(idx, prev)
-    om_e, al_e, f_e = _ends(p, geometry, ends, om_u, f_u)
+    om_e, al_e, f_e = _ends(p, geometry, ends, om_u, f_u, whole)
     if whole:
         at, before = slice(None), np.concatenate([[0], idx[:-1]])
     else:
@@ -292,15 +291,15 @@ def motion_from_profile(profile: AngleProfile, geometry: TableGeometry,
     )
 
 
-def _ends(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray, om_u, f_u):
+def _ends(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray, om_u, f_u, whole: bool):
     """Inertial rate, angular acceleration and specific force (len(samples), 3) at the ends of
-    the intervals of *samples* (sorted indices)."""
+    the intervals of *samples* (sorted indices; *whole*: every sample of the profile)."""
     om_e = np.empty((len(samples), 3))
     f_e = np.empty((len(samples), 3))
     al_e = np.zeros((len(samples), 3))
     st = p.static[samples]
     if st.any():
-        att = p.attitude_at(samples[st]) if len(samples) != len(p.static) else p.attitude_of
+        att = p.attitude_of if whole else p.attitude_at(samples[st])
         om_e[st], f_e[st] = om_u[att], f_u[att]
     mv = ~st
     if mv.any():
@@ -320,13 +319,12 @@ class IdealIncrements:
 
     def __init__(self, profile: AngleProfile):
         self.profile = profile
-        mv = ~profile.static
         self.moving_index = profile.moving_index
         _, q, n_ax = profile.th_q.shape
         self._nodes = (profile.th_q.reshape(-1, n_ax), profile.rate_q.reshape(-1, n_ax),
                        profile.acc_q.reshape(-1, n_ax))
         self._q = q
-        self._dt_m = profile.dt[mv, None]
+        self._dt_m = profile.dt[self.moving_index, None]
         self._first: tuple | None = None  # (geometry, its states) of the first call: later ones resume there
 
     def of(self, geometry: TableGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
