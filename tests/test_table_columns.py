@@ -98,7 +98,7 @@ def test_columns_are_the_differences_of_whole_motions(data):
     profile = data.angle_profile(3)
     gb, ab = observation_blocks(data.static, data.angles, 200)
     params = parameters_of(TABLE_EFFECTS)
-    got = table_columns(profile, gb, ab, geo, params, profile_key="test_table_columns")
+    got = table_columns(profile, gb, ab, geo, params)
     m0 = motion_from_profile(profile, geo)
     for p in params:
         m1 = motion_from_profile(profile, apply_table_parameter(geo, p, table_parameter_value(geo, p) + TABLE_STEP))

@@ -86,16 +86,15 @@ def _row_of(samples: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndar
 
 
 def table_columns(profile: AngleProfile, gb: Blocks, ab: Blocks, geo: TableGeometry,
-                  table_params: list[str], profile_key: str | None = None) -> dict:
+                  table_params: list[str]) -> dict:
     """parameter -> (gyro block columns (B_g, 3), accelerometer block columns (B_a, 3)): d(ideal
     block sums)/d(parameter) by a forward step of :data:`TABLE_STEP`, from the cache where the
-    profile, blocks and geometry were seen before (``profile_key``: the profile's, default
-    its digest)."""
+    profile (its digest), blocks and geometry were seen before."""
     if not table_params:
         return {}
     blocks_key = hashlib.sha256(gb.start.tobytes() + gb.stop.tobytes() + ab.start.tobytes()
                                 + ab.stop.tobytes()).hexdigest()
-    keys = {p: (profile_key or profile.key, blocks_key, geo, p) for p in table_params}
+    keys = {p: (profile.key, blocks_key, geo, p) for p in table_params}
     # taken out of the cache first: adding the missing ones may drop the oldest, which can be ours
     columns = {p: _GEOMETRY_COLUMNS[key] for p, key in keys.items() if key in _GEOMETRY_COLUMNS}
     missing = [p for p in keys if p not in columns]
