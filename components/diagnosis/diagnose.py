@@ -155,7 +155,7 @@ class _Design:
         table_params = [p for p in params if effect_of(p).target == "table"]
         T0 = model.temperature_ref
         dt = data.sample_interval
-        layout = BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s), chunk_samples)
+        layout = BlockLayout.of(data, samples_per_block(dt, chunk_s), chunk_samples)
         static = data.static
         # noise from the high-frequency content of the data (differences remove the model)
         q = data.quantization_floor(noise)

@@ -233,13 +233,13 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
     root of the deviance (near-linear in the coordinate, with slope 1/sd where the curvature
     gives a σ *sd*). ±inf where it is not reached within *reach* (log) of x[i]: the log does not
     bound the magnitude on that side. *x* has at least one other coordinate (the likelihood's
-    block-variance nuisance is always one). ``spread``: coordinates (indices into *x*) along which
-    the likelihood may hold more than one valley at a given x[i] (the flicker floor's corner):
-    each step is also minimised from the last step's point moved by each of :data:`SPREAD` along
-    each and put at each of its given values (the ends of the corner's range), and the least
-    taken. From the last point alone, one acc floor's lower end came out at
-    1.1e-4 or at 7.1e-5 of the same log as its last bits went (the simplex went up one valley or
-    down the other, the truth 9.8e-5 between them); the profile is the lower valley's."""
+    block-variance nuisance is always one). ``spread``: {index into *x*: values} of coordinates
+    along which the likelihood may hold more than one valley at a given x[i] (the flicker floor's
+    corner, with the ends of its range): each step is also minimised from the last step's point
+    moved by each of :data:`SPREAD` along such a coordinate and put at each of its values, and
+    the least taken. From the last point alone, one acc floor's lower end came out at 1.1e-4 or
+    at 7.1e-5 of the same log as its last bits went (the simplex went up one valley or down the
+    other, the truth 9.8e-5 between them); the profile is the lower valley's."""
     from scipy.optimize import minimize
 
     rest = [j for j in range(len(x)) if j != i]
