@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.diagnosis.misfit import CHANNELS, Misfits, misfits
+from components.estimation import order_statistics
 from components.estimation.blocks import observation_blocks, samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
 from components.estimation.design import noise_floor
@@ -166,7 +167,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
         np.subtract(data.gyro[s], pred[s, :3], out=resid[s, :3])
         np.subtract(data.acc[s], pred[s, 3:], out=resid[s, 3:])
     sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
-    dt = float(np.median(plate.dt))
+    dt = order_statistics.median(plate.dt)
     release(plate.dt)  # a spilled log's: its pages back (the plate's columns, 56 bytes a sample)
     sigma = noise_floor(sigma, np.array([7.3e-5] * 3 + [9.8] * 3) * dt)
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from components.estimation import order_statistics
 from components.logs import spill
 from components.logs.spill import is_spilled, pieces, release
 from components.model.motion import moving_runs
@@ -245,8 +246,8 @@ def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) ->
             i += len(v)
         # in place: the order of d does not matter to either median (np.median without it
         # copied a long log's differences, 1.5 s of every command on an 8-hour log)
-        d -= np.median(d, overwrite_input=True)
+        d -= order_statistics.median(d, overwrite_input=True)
         np.abs(d, out=d)
-        mad[k] = np.median(d, overwrite_input=True)
+        mad[k] = order_statistics.median(d, overwrite_input=True)
     sigma = 1.4826 * mad / np.sqrt(2)
     return sigma if floor is None else np.maximum(sigma, floor)

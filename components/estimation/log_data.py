@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from components.estimation import order_statistics
 from components.logs.spill import pieces, release
 from components.model.geometry import Stage, TableGeometry
 from components.model.motion import Motion, interpolate_angles, motion_from_profile
@@ -49,7 +50,7 @@ class LogData:
         """The median sample interval [s] (a jittered clock's nominal one), computed once: on an
         8-hour log each median of the intervals was ~0.4 s, and a command took it in several places."""
         if self._interval is None:
-            self._interval = (float(np.median(np.diff(self.time), overwrite_input=True)) if len(self.time) > 1
+            self._interval = (order_statistics.median(np.diff(self.time), overwrite_input=True) if len(self.time) > 1
                               else float("nan"))
         return self._interval
 
