@@ -329,3 +329,20 @@ def test_a_floor_on_a_short_log_is_not_taken_for_a_random_walk():
         _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, span, 1.0)
         named += rep["random_walk"]["present"]
     assert named <= 2, named
+
+
+def test_a_magnitude_far_along_a_flat_direction_does_not_overflow_the_fit():
+    """The simplex may wander far along a direction the rows do not see (a random walk on a
+    5-minute log was restarted from e^-928 and reached e^355, where its square overflowed:
+    OverflowError out of `calbench noise`). A start at an absurd magnitude is the same path in
+    one step: the fit ends, and on white rows finds neither slow term."""
+    rng = np.random.default_rng(8)
+    nb, per = 300, int(1 / DT)
+    N = 10 * UG
+    y, H = _blocks(record(nb * per, rng, white=N), nb, per)
+    d = np.ones(nb)
+    ch, rep = fit_slow_terms(ChannelNoise(white=N, random_walk=1e200, bias_instability=1e-300), y, H, d,
+                             N**2 * d, float(nb), 1.0)
+    assert not rep["random_walk"]["present"] and not rep["bias_instability"]["present"], rep
+    assert ch.random_walk == 0.0 and ch.bias_instability == 0.0
+    assert np.isfinite(rep["loglik"]) and rep["loglik"] >= rep["loglik_without"] - 1e-9

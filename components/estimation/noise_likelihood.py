@@ -37,6 +37,7 @@ FLICKER_CORNER_TEST = 10.0  # [s] the floor's lower corner its presence is teste
 SLOW = ("bias_instability", "random_walk")
 SPREAD = (-0.5, 0.5)  # log: where profile_interval also starts along a coordinate of several valleys
 PROFILE_LEVEL = 9.0  # the deviance of the reported interval: three σ of a one-parameter interval (99.7 %)
+MAGNITUDE_REACH = 50.0  # log: how far a slow term's magnitude may go from the white level in a fit (e^50 = 5e21)
 
 
 def family_critical(tests: int, alpha: float = 0.01) -> float:
@@ -94,9 +95,15 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     def nll(active: list[str], x) -> float:
         return -loglik(model(active, x), x[-1])
 
+    # magnitudes are clipped in log space to MAGNITUDE_REACH either side of the white level: the
+    # simplex may wander far along a flat direction, and at e^355 a square overflows (a random
+    # walk restarted from -928, where the first fit had left it, reached it on a 5-minute
+    # tactical log: OverflowError out of `calbench noise`); beyond the reach a term is nothing
+    # or everything, and its likelihood no different
+    mag_lo, mag_hi = math.log(scale) - MAGNITUDE_REACH, math.log(scale) + MAGNITUDE_REACH
+
     def model(active: list[str], x) -> ChannelNoise:
-        # (clipped in log space: the simplex may wander far along a flat direction)
-        kw = {t: math.exp(min(max(v, -700.0), 700.0)) for t, v in zip(active, x)}
+        kw = {t: math.exp(min(max(v, mag_lo), mag_hi)) for t, v in zip(active, x)}
         if "bias_instability" in active:
             kw["flicker_range"] = (math.exp(min(max(x[len(active)], math.log(lo_min)), math.log(lo_max))), None)
         return replace(base, **kw)
