@@ -431,3 +431,26 @@ def test_a_bad_value_beyond_the_first_piece_is_named_at_its_row(tmp_path, ideal_
     stem = _write_case(tmp_path, ideal_head, _csv_case(lambda lines: _edit_col(lines, "gyro_y", 150, "inf")))
     with pytest.raises(LogFormatError, match=r"data row 150 \(line 151\), column 'gyro_y'.*not finite"):
         read_log(stem)
+
+
+@pytest.mark.parametrize("broken", ["repeat", "gap", "gap then repeat", "repeat on a piece boundary"])
+def test_the_time_checks_name_the_first_offending_row_across_pieces(ideal, tmp_path, monkeypatch, broken):
+    """The time column is checked a piece at a time (components.logs.spill.PIECE samples): the row
+    named is the first offending one wherever the piece boundaries fall, and a time that does not
+    increase is named before any gap, as in one pass over the whole column."""
+    from components.logs import spill
+
+    monkeypatch.setattr(spill, "PIECE", 97)
+    t = ideal.time.copy()
+    if "gap" in broken:
+        t[5000:] += 0.5   # a gap between rows 5000 and 5001 (1-based)
+    if broken == "repeat on a piece boundary":
+        t[97 * 60] = t[97 * 60 - 1]   # the interval between the last sample of a piece and the next
+    elif "repeat" in broken:
+        t[7001] = t[7000]
+    bad = MeasurementLog(**{**ideal.__dict__, "time": t})
+    expected = (rf"sample {97 * 60 + 1}, column 'time'.*strictly increasing" if "boundary" in broken else
+                r"sample 7002, column 'time'.*strictly increasing" if "repeat" in broken else
+                r"sample 5001, column 'time': interval 0\.50[45]\d* s .*expected 1/sample_rate_hz")
+    with pytest.raises(LogFormatError, match=expected):
+        write_log(tmp_path / "x", bad)
