@@ -50,15 +50,19 @@ def labels(col) -> np.ndarray:
     """Object array of str from a (chunked) dictionary or string column."""
     import pyarrow as pa
 
-    parts = []
+    # each chunk straight into its place (chunks made and then joined were the 8-hour log's labels
+    # twice over, 240 MB of fresh pages more)
+    out = np.empty(len(col), dtype=object)
+    pos = 0
     for ch in (col.chunks if hasattr(col, "chunks") else [col]):
         if pa.types.is_dictionary(ch.type):
             d = np.array(ch.dictionary.to_pylist() + [None], dtype=object)
             idx = ch.indices.fill_null(len(ch.dictionary)).to_numpy()
-            parts.append(d[idx])
+            np.take(d, idx, out=out[pos:pos + len(ch)])
         else:
-            parts.append(np.array(ch.to_pylist(), dtype=object))
-    return np.concatenate(parts) if parts else np.zeros(0, dtype=object)
+            out[pos:pos + len(ch)] = ch.to_pylist()
+        pos += len(ch)
+    return out
 
 
 def read_csv(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dict]:
