@@ -200,3 +200,20 @@ def test_a_bad_row_of_a_streamed_csv_is_named(csv_pair, tmp_path, monkeypatch, l
     monkeypatch.setattr(csv_log, "BLOCK_BYTES", 20000)
     with pytest.raises(LogFormatError, match=words):
         read_log(bad, lean=True)
+
+
+@pytest.mark.parametrize("shape", [(5000,), (5000, 3)])
+def test_rows_gathered_from_a_spilled_column_a_piece_at_a_time_are_its_rows(monkeypatch, shape):
+    """spill.gathered(a, index) is a[index] for indices in any order, repeated, at the ends and
+    on piece boundaries, whether *a* is spilled (read a piece at a time) or not."""
+    monkeypatch.setattr(spill, "PIECE", 64)
+    rng = np.random.default_rng(2)
+    values = rng.standard_normal(shape)
+    on_disk = spill.spilled_array(shape)
+    on_disk[:] = values
+    index = np.concatenate([rng.integers(0, shape[0], 700), [0, shape[0] - 1, 64, 63, 128, 64], [17] * 3])
+    for a in (values, on_disk):
+        got = spill.gathered(a, index)
+        assert got.shape == (len(index),) + shape[1:]
+        assert np.array_equal(got, values[index])
+    assert spill.gathered(on_disk, np.zeros(0, int)).shape == (0,) + shape[1:]

@@ -41,7 +41,7 @@ from components.estimation.distributions import chi2_sf
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
-from components.logs.spill import empty_like_log, pieces, release
+from components.logs.spill import empty_like_log, gathered, pieces, release
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
@@ -256,9 +256,8 @@ def _per_segment(data: LogData, rows: dict) -> dict:
 def _condition_masks(data: LogData, plate: PlateAtSamples, rows: dict) -> dict:
     """Condition name -> which block rows it holds."""
     mid = (rows["start"] + rows["stop"] - 1) // 2
-    f = plate.f[mid]
-    w = plate.omega[mid]
-    release(plate.f, plate.omega)  # the blocks' middles touch every page of a spilled log's columns
+    # the blocks' middles touch every page of a spilled log's columns: a piece at a time
+    f, w = gathered(plate.f, mid), gathered(plate.omega, mid)
     cond: dict[str, np.ndarray] = {}
     cond["static"] = ~rows["moving"]
     cond["rotating"] = rows["moving"]
@@ -276,9 +275,13 @@ def _condition_masks(data: LogData, plate: PlateAtSamples, rows: dict) -> dict:
     cond["rate sign +"] = rows["moving"] & (wsign > 0)
     cond["rate sign -"] = rows["moving"] & (wsign < 0)
     if data.temperature is not None:
-        T = np.asarray(data.temperature)[mid]
-        lo, hi = np.quantile(data.temperature, [1 / 3, 2 / 3])
-        release(data.temperature)
+        T = gathered(data.temperature, mid)
+        # (a copy it may reorder, made a piece at a time: a spilled column's pages go back)
+        copy = np.empty(len(data.temperature))
+        for s in pieces(len(copy), data.temperature):
+            copy[s] = data.temperature[s]
+        lo, hi = np.quantile(copy, [1 / 3, 2 / 3], overwrite_input=True)
+        del copy
         cond["temperature low"] = T <= lo
         cond["temperature mid"] = (T > lo) & (T <= hi)
         cond["temperature high"] = T > hi

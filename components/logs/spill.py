@@ -74,6 +74,24 @@ def pieces(n: int, *arrays):
         release(*arrays)
 
 
+def gathered(array: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """array[index] (rows at *index*, in its order); for a spilled *array*, a piece of it at a
+    time with each piece's pages given back: indices spread over the whole log (a block's middle
+    each second) otherwise fault every page of it in at once."""
+    index = np.asarray(index)
+    if not is_spilled(array) or index.size == 0:
+        return array[index]
+    order = np.argsort(index, kind="stable")
+    at = index[order]
+    out = np.empty((len(index),) + array.shape[1:], dtype=array.dtype)
+    bounds = np.searchsorted(at, np.arange(0, len(array) + PIECE, PIECE))
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b > a:
+            out[order[a:b]] = array[at[a:b]]
+            release(array)
+    return out
+
+
 def empty_like_log(shape, like, dtype=np.float64) -> np.ndarray:
     """An empty array of *shape*: spilled when *like* (a column of the log) is."""
     return spilled_array(shape, dtype) if is_spilled(like) else np.empty(shape, dtype)
