@@ -218,3 +218,50 @@ def test_a_small_geometry_cache_gives_the_same_fit(data, monkeypatch):
     mixed = calibrate(data, effects)
     assert np.array_equal(fresh.value, mixed.value)
     assert np.array_equal(fresh.covariance, mixed.covariance)
+
+
+def _dense_cut_candidates(static, gb, ab, n):
+    """The definition, a sample at a time: p - 1 and p at rest, p a boundary of a block of each
+    set, no block of either set with start < p < stop."""
+    ok = []
+    for p in range(1, n):
+        if not (static[p - 1] and static[p]):
+            continue
+        if all(np.any((b.start == p) | (b.stop == p)) and not np.any((b.start < p) & (b.stop > p))
+               for b in (gb, ab)):
+            ok.append(p)
+    return np.array(ok, dtype=int)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_cut_candidates_are_the_definitions(seed):
+    """From the blocks' boundaries alone, the same cut points as the per-sample definition, for
+    sorted or shuffled, disjoint or overlapping blocks (one set empty in one case)."""
+    from components.estimation.blocks import Blocks
+    from components.estimation.chunks import cut_candidates
+
+    rng = np.random.default_rng(seed)
+    n = 400
+    static = rng.random(n) > 0.15
+
+    def blocks(k, overlapping):
+        if k == 0:
+            return Blocks(np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool), False)
+        if overlapping:
+            start = rng.integers(0, n - 1, k)
+            stop = np.minimum(start + rng.integers(1, 40, k), n)
+        else:
+            edges = np.sort(rng.choice(np.arange(n + 1), 2 * k, replace=False))
+            start, stop = edges[0::2], edges[1::2]
+        order = rng.permutation(k) if seed % 2 else np.arange(k)
+        return Blocks(start[order], stop[order], np.zeros(k, bool), False)
+
+    gb = blocks(60, overlapping=seed >= 3)
+    ab = blocks(0 if seed == 5 else 45, overlapping=seed == 4)
+    # blocks of one set that share boundaries with the other, so that there are cuts to find
+    ab = Blocks(np.concatenate([ab.start, gb.start[::2]]), np.concatenate([ab.stop, gb.stop[::2]]),
+                np.zeros(len(ab.start) + len(gb.start[::2]), bool), False) if seed != 5 else ab
+    expected = _dense_cut_candidates(static, gb, ab, n)
+    got = cut_candidates(static, gb, ab, n)
+    assert np.array_equal(got, expected), (got, expected)
+    assert seed >= 4 or len(expected) > 0  # (both sets overlapping or one empty: no cut may exist)

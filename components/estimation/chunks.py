@@ -85,23 +85,32 @@ def _within(blocks: Blocks, a: int, b: int, shift: int) -> Blocks:
     return Blocks(blocks.start[keep] - shift, blocks.stop[keep] - shift, blocks.moving[keep], blocks.whole_moves)
 
 
+def cut_candidates(static: np.ndarray, gb: Blocks, ab: Blocks, n: int) -> np.ndarray:
+    """The sample indices p in [1, n) the log can be cut at, increasing: samples p - 1 and p
+    both at rest, p a boundary (start or stop) of a block of each set, and no block of either
+    set spanning it (start < p < stop). From the blocks' boundaries alone: dense per-sample
+    masks and a running count were five arrays of the log's length (0.6 s and ~1 GB of fresh
+    pages on an 8-hour log)."""
+    p = np.intersect1d(np.concatenate([gb.start, gb.stop]), np.concatenate([ab.start, ab.stop]))
+    p = p[(p >= 1) & (p < n)]
+    p = p[static[p - 1] & static[p]]
+    for blocks in (gb, ab):
+        if len(blocks.start) == 0:
+            continue
+        order = np.argsort(blocks.start, kind="stable")
+        start, reach = blocks.start[order], np.maximum.accumulate(blocks.stop[order])
+        # the blocks that start before p reach past it at most as far as the furthest of them
+        last = np.searchsorted(start, p, side="left") - 1
+        spanned = (last >= 0) & (reach[np.maximum(last, 0)] > p)
+        p = p[~spanned]
+    return p
+
+
 def _cuts(static: np.ndarray, gb: Blocks, ab: Blocks, n: int, target: int) -> np.ndarray:
     """Chunk starts about *target* samples apart where the log can be cut (module docstring)."""
     if n <= target:
         return np.array([0])
-    ok = np.zeros(n + 1, bool)
-    ok[1:n] = static[:-1] & static[1:]
-    # a cut is a boundary of both block sets, and no block spans it
-    for blocks in (gb, ab):
-        bound = np.zeros(n + 1, bool)
-        bound[blocks.start] = True
-        bound[blocks.stop] = True
-        inside = np.zeros(n + 2, int)
-        np.add.at(inside, blocks.start + 1, 1)
-        np.add.at(inside, blocks.stop, -1)
-        spanned = np.cumsum(inside)[: n + 1] > 0  # some block covers samples on both sides
-        ok &= bound & ~spanned
-    candidates = np.nonzero(ok)[0]
+    candidates = cut_candidates(static, gb, ab, n)
     cuts = [0]
     for c in candidates:
         if c - cuts[-1] >= target:
