@@ -200,3 +200,27 @@ def test_demo_page_shows_before_after_and_the_truth(tmp_path, capsys):
     assert twin["views"][1]["diagnosis"]["verdict"] is None
     assert "Recovered against the truth: + acc.k2" in html_text
     assert twin["truth"] and twin["truth"][0].startswith("acc.k2.z: truth +40 ug/g2, recovered")
+
+
+def test_a_long_logs_residual_plot_stays_a_page_not_a_megabyte_per_thousand_points():
+    """An 8-hour log has ~30 000 blocks a channel: drawn as one vector element each, the
+    residual plot alone was 19 MB of SVG. Above report_plots.DENSE_POINTS a channel's points are
+    one embedded image, so the plot's size no longer grows with the log; below, they stay
+    vector marks (one per point)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from components.diagnosis.report_plots import DENSE_POINTS, residual_vs_time
+
+    def plot(blocks):
+        rng = np.random.default_rng(1)
+        n = blocks * 10
+        rows = {"channel": np.repeat(np.arange(6), blocks), "start": np.tile(np.arange(blocks) * 10, 6),
+                "stop": np.tile(np.arange(blocks) * 10 + 10, 6), "z": rng.standard_normal(6 * blocks)}
+        return residual_vs_time(SimpleNamespace(rows=rows, time=np.arange(n) * 0.01, segment=None), "m")
+
+    few, many, more = plot(DENSE_POINTS // 4), plot(15_000), plot(30_000)
+    assert few.count("<use") >= 6 * (DENSE_POINTS // 4) and "<image" not in few
+    assert many.count("<image") == 6 and many.count("<use") < 100
+    assert len(more) < 1.25 * len(many) and len(more) < 2_000_000, (len(many), len(more))

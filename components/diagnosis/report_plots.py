@@ -7,10 +7,15 @@ import numpy as np
 
 from components.diagnosis.misfit import CHANNELS
 
+# scatter plots with more points than this draw them as one embedded image in the SVG: each point
+# as a vector element was ~110 bytes, and an 8-hour log's page came to 78 MB
+DENSE_POINTS = 2000
+RASTER_DPI = 150
+
 
 def svg_of(fig) -> str:
     buf = io.StringIO()
-    fig.savefig(buf, format="svg", bbox_inches="tight")
+    fig.savefig(buf, format="svg", bbox_inches="tight", dpi=RASTER_DPI)
     import matplotlib.pyplot as plt
 
     plt.close(fig)
@@ -76,7 +81,7 @@ def residual_vs_time(comparison, model_name: str) -> str:
     for k, ax in enumerate(axes):
         sel = rows["channel"] == k
         tm = t[np.minimum((rows["start"][sel] + rows["stop"][sel]) // 2, len(t) - 1)]
-        ax.plot(tm, rows["z"][sel], ".", ms=2, color="C0" if k < 3 else "C1")
+        ax.plot(tm, rows["z"][sel], ".", ms=2, color="C0" if k < 3 else "C1", rasterized=len(tm) > DENSE_POINTS)
         ax.axhline(3, color="grey", lw=0.5)
         ax.axhline(-3, color="grey", lw=0.5)
         ax.set_ylabel(CHANNELS[k], fontsize=8)
@@ -119,7 +124,7 @@ def signature_plot(candidate) -> str:
     if not sig:
         return ""
     fig, ax = plt.subplots(figsize=(4, 3))
-    ax.plot(sig["x"], sig["y"], ".", ms=2)
+    ax.plot(sig["x"], sig["y"], ".", ms=2, rasterized=len(sig["x"]) > DENSE_POINTS)
     lim = np.nanmax(np.abs(sig["x"])) if len(sig["x"]) else 1
     ax.plot([-lim, lim], [-lim, lim], "r-", lw=0.8, label="fitted magnitude")
     ax.set_xlabel(f"{sig['parameter']} contribution (normalised)")
