@@ -1,6 +1,6 @@
-"""Long logs: calibrate, compare, diagnose on a 41.6-minute 200 Hz log (502,420 samples), each
-command in a child process of its own, timed (CPU: user + system of the child) with its peak
-resident memory.
+"""Long logs: calibrate, compare, diagnose (then noise and report, without a baseline) on a
+41.6-minute 200 Hz log (502,420 samples), each command in a child process of its own, timed
+(CPU: user + system of the child) with its peak resident memory; and the report page's size.
 
 The log: the demo's navigation-grade scenario (hidden K2 on z) on the twenty-six-position
 schedule with 88 s dwells (the length of the log issue #18 measured), written as Parquet.
@@ -219,7 +219,10 @@ def main() -> int:
              ("compare", ["compare", str(log), "--model", str(model)]),
              ("diagnose", ["diagnose", str(log), "--model", str(model)]),
              ("diagnose8", ["diagnose", str(log), "--model", str(model), "--candidates", ",".join(CANDIDATES)]),
-             ("numpy", [str(ROOT / "benchmarks" / "numpy_ranking.py"), str(log)])]
+             ("numpy", [str(ROOT / "benchmarks" / "numpy_ranking.py"), str(log)]),
+             # the other commands of issue #18 item 1 on the same log (no baseline)
+             ("noise", ["noise", str(log), "--model", str(model)]),
+             ("report", ["report", str(log), "--model", str(model), "--out", str(a.dir / "report.html")])]
     print(f"{'command':10s} {'CPU s':>7s} {'wall s':>7s} {'peak GB':>8s} {'tree GB':>8s} {'us/sample':>9s} "
           f"{'B/sample':>8s}   against the baselines (CPU ratio, memory ratio)\n"
           "  (CPU: the command's and its worker processes'; peak: the command's resident set; tree: the peak of "
@@ -233,6 +236,9 @@ def main() -> int:
             ratios = "; ".join(x for x in (ratios, "numpy ranking: below") if x)
         print(f"{name:10s} {cpu:7.1f} {wall:7.1f} {peak:8.2f} {tree:8.2f} {cpu / n * 1e6:9.1f} "
               f"{max(peak, tree) * 1024**3 / n:8.0f}   {ratios}", flush=True)
+    page = a.dir / "report.html"
+    if page.exists():
+        print(f"report page: {page.stat().st_size / 1e6:.2f} MB (its JSON twin {page.with_suffix('.json').stat().st_size / 1e6:.2f} MB)")
     nc, _, nm, _ = got["numpy"]
     for name, what in (("diagnose", "all its candidates"),
                        ("diagnose8", f"the numpy ranking's {len(CANDIDATES)} candidates: the same test")):
