@@ -181,14 +181,15 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     cov = _inverse_curvature(lambda z: nll(active, z), x, f)[:k, :k]
     if not np.all(np.isfinite(np.diag(cov))):
         cov = _inverse_curvature(lambda z: nll(active, np.concatenate([z, x[k:]])), x[:k], f)
-    report: dict = {"block_variance_scale": math.exp(x[-1])}
+    # (the values the likelihood used: clipped as in loglik and model)
+    report: dict = {"block_variance_scale": math.exp(min(max(x[-1], -50.0), 50.0))}
     if "bias_instability" in active:
         report["flicker_corner_s"] = out.flicker_range[0]
     f_none = optimise([])[1]
     for t in terms:
         if t in active:
             i = active.index(t)
-            value = math.exp(x[i])
+            value = getattr(out, t)
             # steps of about one σ (the curvature's): the crossing at three is a few steps out
             sd = math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else None
             step = min(max(sd, 0.02), 0.1) if sd else 0.1
