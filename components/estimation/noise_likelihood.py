@@ -38,6 +38,7 @@ SLOW = ("bias_instability", "random_walk")
 SPREAD = (-0.5, 0.5)  # log: where profile_interval also starts along a coordinate of several valleys
 PROFILE_LEVEL = 9.0  # the deviance of the reported interval: three σ of a one-parameter interval (99.7 %)
 MAGNITUDE_REACH = 50.0  # log: how far a slow term's magnitude may go from the white level in a fit (e^50 = 5e21)
+VARIANCE_REACH = 50.0  # log: how far the blocks' independent variance may be scaled in a fit
 
 
 def family_critical(tests: int, alpha: float = 0.01) -> float:
@@ -84,9 +85,11 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     scale = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
     base = replace(ch, **{t: 0.0 for t in terms})
 
+    def variance_scale(v: float) -> float:
+        return math.exp(min(max(v, -VARIANCE_REACH), VARIANCE_REACH))
+
     def loglik(c: ChannelNoise, v: float = 0.0) -> float:
-        return restricted_loglik(c, y, H, durations, white_var * math.exp(min(max(v, -50.0), 50.0)), span, t_lo,
-                                 restricted)
+        return restricted_loglik(c, y, H, durations, white_var * variance_scale(v), span, t_lo, restricted)
 
     # x = [magnitudes of the active terms (log), the floor's corner (log) if it is active, v]:
     # v (log) scales the blocks' independent variance, a nuisance refitted with every model, so
@@ -182,7 +185,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     if not np.all(np.isfinite(np.diag(cov))):
         cov = _inverse_curvature(lambda z: nll(active, np.concatenate([z, x[k:]])), x[:k], f)
     # (the values the likelihood used: clipped as in loglik and model)
-    report: dict = {"block_variance_scale": math.exp(min(max(x[-1], -50.0), 50.0))}
+    report: dict = {"block_variance_scale": variance_scale(x[-1])}
     if "bias_instability" in active:
         report["flicker_corner_s"] = out.flicker_range[0]
     f_none = optimise([])[1]
