@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import math
 import os
 import subprocess
 import sys
@@ -114,6 +115,49 @@ def make_thermal_log(stem: Path, hours: float, step: float, dwell: float) -> Pat
     return stem.with_suffix(".parquet")
 
 
+def as_pulse_counts(log: Path, stem: Path, gyro_count_rad: float, acc_count_mps: float) -> Path:
+    """*log* (Parquet, increments) rewritten as <stem>.parquet + .json with the gyro and
+    accelerometer columns as the whole pulse counts of a logger with those count weights (int64,
+    each axis's remainder started at a random fraction of a count), a row group at a time: the
+    running totals are carried from one row group to the next, so the counts are those of the
+    whole log's sums. What a laser-gyro or pulse-output IMU's logger writes."""
+    import json
+
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    weights = {"gyro": gyro_count_rad, "acc": acc_count_mps}
+    rng = np.random.default_rng(7)
+    total = {f"{s}_{c}": rng.random() * weights[s] for s in weights for c in "xyz"}   # running sums
+    floor = {k: math.floor(v / weights[k[:-2]]) for k, v in total.items()}           # their whole counts
+    pf = pq.ParquetFile(log)
+    writer = None
+    try:
+        for i in range(pf.num_row_groups):
+            table = pf.read_row_group(i)
+            for name, carry in total.items():
+                w = weights[name[:-2]]
+                sums = np.cumsum(np.concatenate([[carry], table.column(name).to_numpy()]))
+                whole = np.floor(sums / w)
+                whole[0] = floor[name]
+                total[name], floor[name] = float(sums[-1]), float(whole[-1])
+                counts = pa.array(np.diff(whole).astype(np.int64))
+                table = table.set_column(table.schema.get_field_index(name), name, counts)
+            if writer is None:
+                writer = pq.ParquetWriter(stem.with_suffix(".parquet"), table.schema)
+            writer.write_table(table, row_group_size=1 << 20)
+    finally:
+        if writer is not None:
+            writer.close()
+    meta = json.loads(log.with_suffix(".json").read_text())
+    meta["imu"].update(gyro_output="counts", acc_output="counts", gyro_count_rad=gyro_count_rad,
+                       acc_count_mps=acc_count_mps)
+    meta["description"] = meta.get("description", "") + f"; pulse counts of {gyro_count_rad:g} rad and {acc_count_mps:g} m/s"
+    stem.with_suffix(".json").write_text(json.dumps(meta, indent=1))
+    return stem.with_suffix(".parquet")
+
+
 def _tree_pss(pid: int) -> int:
     """Proportional set size [bytes] of *pid* and its descendants (shared pages split among the
     processes that map them: the sum is what the job holds, a forked worker's shared pages
@@ -192,6 +236,8 @@ def main() -> int:
     ap.add_argument("--hours", type=float, help="a thermal run of this many hours instead (module docstring)")
     ap.add_argument("--log", type=Path, help="time the commands on this Parquet log instead of simulating one")
     ap.add_argument("--only-make", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("--counts", help="GYRO_RAD,ACC_MPS: time the commands on the log rewritten as pulse counts of "
+                    "these weights (e.g. 1e-6,1e-5; as_pulse_counts)")
     a = ap.parse_args()
     from numpy_ranking import CANDIDATES
 
@@ -217,6 +263,11 @@ def main() -> int:
         subprocess.run([sys.executable, __file__, "--only-make", str(a.dir / "long"), "--dwell", str(a.dwell),
                         "--rate", str(a.rate)] + (["--hours", str(a.hours)] if a.hours else []), check=True)
         log = (a.dir / "long").with_suffix(".parquet")
+    if a.counts:
+        t = time.perf_counter()
+        g, f = (float(v) for v in a.counts.split(","))
+        log = as_pulse_counts(log, a.dir / "counts", g, f)
+        print(f"pulse counts of {g:g} rad and {f:g} m/s written in {time.perf_counter() - t:.1f} s -> {log.name}")
     import pyarrow.parquet as pq
 
     n = pq.ParquetFile(log).metadata.num_rows

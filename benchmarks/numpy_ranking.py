@@ -2,7 +2,8 @@
 here without calbench's code, to time calbench's diagnose against on the same file.
 
 What it does — calbench's test on the candidates below, nothing more:
-- reads the Parquet log with pyarrow (time, gimbal angles, gyro, accelerometer, temperature);
+- reads the Parquet log with pyarrow (time, gimbal angles, gyro, accelerometer, temperature;
+  increments, or pulse counts times their weight);
 - the rows: 1 s block sums within each rest (np.add.reduceat) and, with ``moves=True`` (the
   default), one row per move from rest to rest; each row divided by the square root of its
   sample count (white noise per sample);
@@ -88,6 +89,9 @@ def rank(path: str | Path, moves: bool = True) -> dict:
     ang = np.column_stack([table.column(f"gimbal_{n}").to_numpy() for n, _ in axes])
     meas = {"gyro": np.column_stack([table.column(f"gyro_{c}").to_numpy() for c in "xyz"]),
             "acc": np.column_stack([table.column(f"acc_{c}").to_numpy() for c in "xyz"])}
+    for s, key in (("gyro", "gyro_count_rad"), ("acc", "acc_count_mps")):
+        if meta["imu"][f"{s}_output"] == "counts":  # a pulse output: whole counts of a weight
+            meas[s] *= meta["imu"][key]
     temp = table.column("temperature").to_numpy()
     del table
     dt = float(np.median(np.diff(t)))
