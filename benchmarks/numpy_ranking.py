@@ -91,7 +91,7 @@ def rank(path: str | Path, moves: bool = True) -> dict:
             "acc": np.column_stack([table.column(f"acc_{c}").to_numpy() for c in "xyz"])}
     for s, key in (("gyro", "gyro_count_rad"), ("acc", "acc_count_mps")):
         if meta["imu"][f"{s}_output"] == "counts":  # a pulse output: whole counts of a weight
-            meas[s] *= meta["imu"][key]
+            meas[s] = meas[s] * meta["imu"][key]
     temp = table.column("temperature").to_numpy()
     del table
     dt = float(np.median(np.diff(t)))
