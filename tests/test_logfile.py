@@ -433,6 +433,20 @@ def test_a_bad_value_beyond_the_first_piece_is_named_at_its_row(tmp_path, ideal_
         read_log(stem)
 
 
+def test_a_count_that_is_not_whole_beyond_the_first_piece_is_named_at_its_row(ideal, tmp_path, monkeypatch):
+    """Pulse counts are checked for whole numbers a piece at a time: the row named is the log's
+    first offending one in the first offending column, wherever the pieces fall."""
+    from components.logs import spill
+
+    monkeypatch.setattr(spill, "PIECE", 64)
+    counts = np.round(ideal.gyro / 1e-7)
+    counts[149, 1] += 0.5   # sample 150, in the third piece
+    counts[9, 2] += 0.25    # an earlier sample of a later column: named after gyro_y
+    bad = MeasurementLog(**{**ideal.__dict__, "gyro": counts, "gyro_output": "counts", "gyro_count_rad": 1e-7})
+    with pytest.raises(LogFormatError, match=r"sample 150, column 'gyro_y': .* is not a whole number"):
+        write_log(tmp_path / "x", bad)
+
+
 @pytest.mark.parametrize("broken", ["repeat", "gap", "gap then repeat", "repeat on a piece boundary"])
 def test_the_time_checks_name_the_first_offending_row_across_pieces(ideal, tmp_path, monkeypatch, broken):
     """The time column is checked a piece at a time (components.logs.spill.PIECE samples): the row

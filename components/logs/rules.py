@@ -335,11 +335,15 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labe
             continue
         for c in XYZ:
             a = cols[f"{sensor}_{c}"]
-            frac = a != np.round(a)
-            if frac.any():
-                i = int(np.argmax(frac))
-                raise LogFormatError(f"{where}: {row(i)}, column '{sensor}_{c}': {float(a[i])!r} is not a whole number; "
-                                     f"expected integer counts (imu.{sensor}_output is 'counts')")
+            # a piece at a time: a whole spilled column's rounding faulted in its sensor's three
+            # columns and a copy of it beside them (compare on an 8-hour pulse log peaked at 2.93 GB
+            # here, against 1.91 GB on the same log as increments)
+            for s in pieces(len(a), a):
+                frac = a[s] != np.round(a[s])
+                if frac.any():
+                    i = s.start + int(np.argmax(frac))
+                    raise LogFormatError(f"{where}: {row(i)}, column '{sensor}_{c}': {float(a[i])!r} is not a whole "
+                                         f"number; expected integer counts (imu.{sensor}_output is 'counts')")
     seg = cols.get("segment")
     if labels and seg is not None:
         bad = np.array([not isinstance(s, str) for s in seg]) if seg.dtype == object else None
