@@ -40,13 +40,28 @@ def identified():
     d["scenario"]["seed"] = 41
     data = LogData.from_log(run_scenario(scenario_from_dict(d, source="test_noise_sensitivity"), progress=False).log)
     white = result_from_fit(calibrate(data, EFFECTS), EFFECTS, data)
-    ident = identify_noise(data, white, bootstrap=10)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("CALBENCH_WORKERS", "2")  # the channels on two forked processes
+        ident = identify_noise(data, white, bootstrap=10)
     fit = calibrate(data, EFFECTS, noise=ident.model)
-    return data, ident, fit
+    return data, ident, fit, white
+
+
+def test_the_channels_on_two_processes_give_the_same_bits(identified, monkeypatch):
+    """The six channels' identification on forked processes is what one process gives, term by
+    term, σ and likelihood-stage report included."""
+    data, ident, _, white = identified
+    monkeypatch.setenv("CALBENCH_WORKERS", "1")
+    alone = identify_noise(data, white, bootstrap=10)
+    assert alone.model.channels == ident.model.channels
+    for a, b in zip(alone.channels, ident.channels):
+        assert repr(a.sigma) == repr(b.sigma) and a.present == b.present  # (NaN: an unbounded σ)
+        assert repr(a.slow) == repr(b.slow)
+        assert np.array_equal(a.fast.allan.avar, b.fast.allan.avar)
 
 
 def test_sigma_at_the_bounds_is_never_below_the_reported(identified):
-    data, ident, fit = identified
+    data, ident, fit, _ = identified
     span = float(data.time[-1] - data.start_time)
     sens = sensitivity(fit, ident, span)
     assert sens is not None and sens["terms_at_upper_bound"]
@@ -55,7 +70,7 @@ def test_sigma_at_the_bounds_is_never_below_the_reported(identified):
 
 
 def test_the_true_sigma_lies_below_the_bound(identified):
-    data, ident, fit = identified
+    data, ident, fit, _ = identified
     span = float(data.time[-1] - data.start_time)
     noise, added = at_upper_bounds(ident)
     assert any(t.startswith("gyro") and "bias_instability" in t for t in added), added

@@ -24,6 +24,7 @@ import numpy as np
 
 from components import progress
 from components.estimation.allan import first_runs, static_runs
+from components.estimation.chunks import forked_map
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel
 from components.estimation.noise_likelihood import family_critical, fit_slow_terms
@@ -110,11 +111,16 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     if len(used) < len(runs):
         notes.append(f"quantization and white noise from the first {total} static samples (the log's first "
                      f"{upto * dt / 60:.0f} minutes); the slow terms from the whole log")
-    fast = []
-    for k in range(6):
-        fast.append(identify_channel(comp.residual[:upto, k] / dt, used, dt, terms=tuple(terms),
-                                     known=known.get(k), bootstrap=bootstrap, seed=seed + k))
+    # the channels are independent (each bootstrap from its own seed), so they run on the chunk
+    # workers with the same bits as one after the other
+    def fast_channel(k: int) -> ChannelFit:
+        out = identify_channel(comp.residual[:upto, k] / dt, used, dt, terms=tuple(terms),
+                               known=known.get(k), bootstrap=bootstrap, seed=seed + k)
         release(comp.residual)
+        return out
+
+    with progress.steps("noise: Allan variance per channel", 6) as bar:
+        fast = forked_map(fast_channel, 6, bar)
     chans = [f.noise for f in fast]
     out_channels = []
     rows = None
@@ -130,34 +136,32 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     # not for each of its tests (12 tests at 1 % each name a term that is not there on 11 % of
     # logs, and a term named by chance comes at several times any true size, with the σ of every
     # estimate it touches)
-    n_tests = sum(1 for k in range(6) for t in ("bias_instability", "random_walk")
-                  if t in terms and t not in (known.get(k) or {}))
-    critical = family_critical(n_tests)
+    slow_terms = [[t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
+                  for k in range(6)]
+    critical = family_critical(sum(map(len, slow_terms)))
+
+    def slow_channel(k: int) -> tuple[ChannelNoise, dict]:
+        idx = channel_rows(rows, k)
+        H = rows["H"][idx]
+        active = np.any(H != 0, axis=0)
+        durations = (rows["stop"][idx] - rows["start"][idx]) * dt
+        base = replace(chans[k], bias_instability=0.0, random_walk=0.0, gauss_markov=())
+        return fit_slow_terms(base, rows["y"][idx], H[:, active], durations, 1.0 / rows["weight"][idx] ** 2, span,
+                              chunk_s, slow_terms[k], critical=critical)
+
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
-        for k in range(6):
-            ch = chans[k]
-            report: dict = {}
-            sigma = dict(fast[k].sigma)
+        slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
+    for k, (ch, report) in enumerate(slow_fits):
+        sigma = dict(fast[k].sigma)
+        if rows is not None:
             present = [t for t in fast[k].present if t in ("quantization", "white")]
-            if rows is not None:
-                idx = channel_rows(rows, k)
-                H = rows["H"][idx]
-                active = np.any(H != 0, axis=0)
-                y, Hc = rows["y"][idx], H[:, active]
-                durations = (rows["stop"][idx] - rows["start"][idx]) * dt
-                white_var = 1.0 / rows["weight"][idx] ** 2
-                slow_terms = [t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
-                base = replace(ch, bias_instability=0.0, random_walk=0.0, gauss_markov=())
-                ch, report = fit_slow_terms(base, y, Hc, durations, white_var, span, chunk_s, slow_terms,
-                                            critical=critical)
-                for t in slow_terms:
-                    sigma[t] = report[t]["sigma"]
-                    if report[t]["present"]:
-                        present.append(t)
-            else:
-                present = list(fast[k].present)
-            out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
-            bar.update()
+            for t in slow_terms[k]:
+                sigma[t] = report[t]["sigma"]
+                if report[t]["present"]:
+                    present.append(t)
+        else:
+            present = list(fast[k].present)
+        out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     sig, iv = {}, {}
     for k, c in enumerate(out_channels):
         for t in c.present:

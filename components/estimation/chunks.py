@@ -194,6 +194,38 @@ def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: s
     return out
 
 
+def forked_map(work, count: int, bar=None) -> list:
+    """[work(i) for i in range(count)], the pieces on :func:`chunk_workers` forked processes
+    (each inherits what *work* reads at the fork), results in order: the same bits as one
+    process, where each piece depends on nothing another piece changes (a noise identification's
+    channels, each from its own seed). ``bar``: a progress bar advanced as each result comes."""
+    global _FORKED
+    workers = min(chunk_workers(), count)
+    if workers <= 1:
+        out = []
+        for i in range(count):
+            out.append(work(i))
+            if bar is not None:
+                bar.update()
+        return out
+    _FORKED = (work, None)
+    out = []
+    try:
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
+            for result in pool.map(_piece_in_worker, range(count)):
+                out.append(result)
+                if bar is not None:
+                    bar.update()
+    finally:
+        _FORKED = None
+    return out
+
+
+def _piece_in_worker(i: int):
+    progress.enable(False)  # the caller's bar counts the pieces
+    return _FORKED[0](i)
+
+
 def _on_cluster(address: str, work, chunks, data: LogData):
     """(result, geometry columns) of each chunk in order, computed on the Dask cluster at
     *address*: each chunk's samples are sent with its task (a worker need not see the log's
