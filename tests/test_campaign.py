@@ -260,6 +260,30 @@ def _write(tmp_path, text: str) -> Path:
     return p
 
 
+@pytest.mark.parametrize("where", ["fsync", "replace"])
+def test_a_record_interrupted_while_written_leaves_no_file(tmp_path, monkeypatch, where):
+    """SIGTERM becomes an exception wherever it lands in the main thread; landing between a
+    record's write and its rename (the fsync waits on the disk: the kill-and-resume test once left
+    a .tmp there), it leaves the old record as it was and no temporary file."""
+    from components.campaign import store as store_module
+
+    store = Store(tmp_path)
+    store.prepare()
+    store.write_case({"id": "kept"}, '{"old": 1}')
+
+    def interrupted(*_):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(store_module.os, where, interrupted)
+    for case in ("kept", "new"):
+        with pytest.raises(KeyboardInterrupt):
+            store.write_case({"id": case}, '{"new": 2}')
+    monkeypatch.undo()
+    assert sorted(p.name for p in store.cases_dir.iterdir()) == ["kept.json"]
+    assert store.case_path("kept").read_text() == '{"old": 1}'
+    assert store.done() == {"kept"}
+
+
 @pytest.mark.parametrize("change, words", [
     (("requirement = \"REQ-010\"\n", ""), ["[[criteria]] ACC-BIAS requirement", "requirement it verifies"]),
     (('kind = "chi2"', 'kind = "chi3"'), ["kind", "estimate, chi2, crb, diagnosis"]),

@@ -19,11 +19,18 @@ from pathlib import Path
 def atomic_write(path: Path, text: str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        # a SIGTERM is raised in the main thread wherever it lands (components.campaign.execute),
+        # also between the write and the rename (the fsync waits on the disk): no half file, and
+        # no temporary one left in the cases folder either
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
