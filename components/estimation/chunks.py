@@ -132,20 +132,12 @@ def chunk_scheduler() -> str | None:
     return os.environ.get("CALBENCH_SCHEDULER") or None
 
 
-# the work and the chunks a forked worker reads (inherited at the fork: a closure over the log
-# cannot be pickled, and the log's arrays are shared, not copied)
-_FORKED: tuple | None = None
+# the work a forked worker runs (inherited at the fork: a closure over the log cannot be pickled,
+# and the log's arrays are shared, not copied)
+_FORKED = None
 PARALLEL_CHUNKS = 4  # fewer chunks than this are not worth starting processes for
 IN_FLIGHT = 2  # chunks sent to a cluster per worker thread before the first result is back
 SCHEDULER_TIMEOUT = "30s"  # connecting to CALBENCH_SCHEDULER
-
-
-def _in_worker(i: int):
-    work, chunks = _FORKED
-    chunk, chunks[i] = chunks[i], None  # not kept: a chunk caches its angle profile (300 bytes a sample)
-    out = _with_columns(work, chunk)
-    chunk.data.release()
-    return out
 
 
 def _with_columns(work, chunk):
@@ -163,7 +155,6 @@ def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: s
     result, so the chunks may also go to the Dask cluster at :func:`chunk_scheduler`. The
     results, and so every estimate, are the same bits in the same order. (Threads gained 1.09x on
     2 cores: the chunk work is mostly short numpy calls that hold the interpreter.)"""
-    global _FORKED
     if len(layout.cuts) == 1:
         return [work(c) for c in layout.chunks(data)]
     address = chunk_scheduler() if parallel == "anywhere" else None
@@ -177,15 +168,17 @@ def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: s
                 bar.update()
             return out
         if workers > 1 and len(layout.cuts) >= PARALLEL_CHUNKS:
-            _FORKED = (work, list(layout.chunks(data)))
-            try:
-                with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
-                    for result, columns in pool.map(_in_worker, range(len(_FORKED[1]))):
-                        out.append(result)
-                        remember_geometry_columns(columns)
-                        bar.update()
-            finally:
-                _FORKED = None
+            chunks = list(layout.chunks(data))
+
+            def in_worker(i: int):
+                chunk, chunks[i] = chunks[i], None  # not kept: a chunk caches its angle profile (300 bytes a sample)
+                result = _with_columns(work, chunk)
+                chunk.data.release()
+                return result
+
+            for result, columns in forked_map(in_worker, len(chunks), bar):
+                out.append(result)
+                remember_geometry_columns(columns)
             return out
         for chunk in layout.chunks(data):
             out.append(work(chunk))
@@ -208,7 +201,7 @@ def forked_map(work, count: int, bar=None) -> list:
             if bar is not None:
                 bar.update()
         return out
-    _FORKED = (work, None)
+    _FORKED = work
     out = []
     try:
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
@@ -223,7 +216,7 @@ def forked_map(work, count: int, bar=None) -> list:
 
 def _piece_in_worker(i: int):
     progress.enable(False)  # the caller's bar counts the pieces
-    return _FORKED[0](i)
+    return _FORKED(i)
 
 
 def _on_cluster(address: str, work, chunks, data: LogData):
