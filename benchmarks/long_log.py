@@ -195,7 +195,9 @@ def _one_blas_thread(env: dict) -> dict:
     size (one thread per CPU) their idle threads spin after each call and at start, ~0.15 s of CPU
     on the 41.9-minute log, which a baseline timed only that way would be charged and calbench
     not; the faster of the two is the baseline."""
-    return {**env, **{v: "1" for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}}
+    from components import ONE_BLAS_THREAD
+
+    return {**env, **ONE_BLAS_THREAD}
 
 
 def measure(args: list[str], env: dict | None = None) -> tuple[float, float, float, float]:

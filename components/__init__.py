@@ -23,5 +23,6 @@ import os as _os
 # changes the last bit of covariances between a CLI run, a campaign worker and a test; calbench's
 # matrices are small, so the same bits everywhere cost nothing. (Effective when calbench is
 # imported before numpy, as the CLI and the campaign workers do.)
-for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    _os.environ.setdefault(_v, "1")
+ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+for _v, _n in ONE_BLAS_THREAD.items():
+    _os.environ.setdefault(_v, _n)

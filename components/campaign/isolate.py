@@ -17,10 +17,8 @@ import tempfile
 import threading
 from pathlib import Path
 
+from components import ONE_BLAS_THREAD
 from components.campaign.forkserver import die_with_parent
-
-# one BLAS thread per case: the workers are the parallelism, and results do not depend on it
-_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def signal_name(signum: int) -> str:
@@ -38,7 +36,7 @@ def _use_server() -> bool:
 class _Server:
     def __init__(self):
         self.p = subprocess.Popen([sys.executable, "-m", "components.campaign.forkserver"],
-                                  env={**os.environ, **_ENV}, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                  env={**os.environ, **ONE_BLAS_THREAD}, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                   preexec_fn=die_with_parent)
         if json.loads(self._read(120.0) or "{}").get("status") != "ready":
             self.close()
@@ -96,7 +94,8 @@ def _spawn(tin: Path, tout: Path, terr: Path, timeout: float) -> dict:
     cmd = [sys.executable, "-m", "components.campaign.case", str(tin), str(tout)]
     with open(terr, "wb") as err:
         try:
-            p = subprocess.run(cmd, env={**os.environ, **_ENV}, stdout=err, stderr=err, timeout=timeout,
+            # one BLAS thread per case, whatever the caller's environment: the workers are the parallelism
+            p = subprocess.run(cmd, env={**os.environ, **ONE_BLAS_THREAD}, stdout=err, stderr=err, timeout=timeout,
                                preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
         except subprocess.TimeoutExpired:
             return {"status": "timeout"}
