@@ -152,15 +152,11 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
     for k, (ch, report) in enumerate(slow_fits):
-        sigma = dict(fast[k].sigma)
-        if rows is not None:
-            present = [t for t in fast[k].present if t in ("quantization", "white")]
-            for t in slow_terms[k]:
-                sigma[t] = report[t]["sigma"]
-                if report[t]["present"]:
-                    present.append(t)
-        else:
-            present = list(fast[k].present)
+        sigma, present = dict(fast[k].sigma), list(fast[k].present)
+        if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
+            present = [t for t in present if t in ("quantization", "white")] + \
+                [t for t in slow_terms[k] if report[t]["present"]]
+            sigma.update({t: report[t]["sigma"] for t in slow_terms[k]})
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     sig, iv = {}, {}
     for k, c in enumerate(out_channels):
