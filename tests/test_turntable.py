@@ -21,6 +21,7 @@ from support import Slave
 
 AXES = ("outer", "middle", "inner")
 DEG = math.pi / 180
+ARCSEC = DEG / 3600
 OMEGA_E = 7.2921151467e-5
 T_CTRL = 1.0 / tv.CONTROL_RATE_HZ
 H = 0.005  # communication step used by most tests (10 controller ticks)
@@ -613,15 +614,17 @@ def test_step_multiple_within_rounding_is_accepted(make):
         s.step(0.0005 * 3)
 
 
-def test_the_servo_rests_inside_the_count_past_its_centre_on_the_side_it_came_from(make):
+@pytest.mark.parametrize("reversal_arcsec", [0.0, 2.0, -1.0])
+def test_the_servo_rests_past_the_reading_on_the_side_it_came_from(make, reversal_arcsec):
     """A servo that compares counts (error 0 once the reading is the target count) stops inside
-    that count and coasts past its centre in the direction of the move; the same move stops in
-    the same place. So the true angle at rest differs from the reading by a repeatable, signed
-    fraction of a count, a reversal error in ISO 230-2's terms (an 8-hour 1 kHz run of twelve
-    passes of a schedule shows it to calbench diagnose, which has no such effect yet and names
-    table.encoder)."""
-    s = make()
+    that count and coasts past its centre in the direction of the move, and the same move stops
+    in the same place. The encoder's backlash (``encoder.reversal`` r, a play operator) puts the
+    plate r/2 further on the side it came from (short of it for r < 0). So at rest the true angle
+    is the reading + r/2 × the side of approach + a repeatable fraction of a count on that side:
+    a reversal error (ISO 230-2) of r + that fraction."""
     q = 2 * math.pi / 2**24
+    r = reversal_arcsec * ARCSEC
+    s = make({"middle.encoder.reversal": r})
     seen = {}
     for target in (90, 0, 90, 0, -90, 0):
         before = s.get("middle.angle")[0]
@@ -631,10 +634,10 @@ def test_the_servo_rests_inside_the_count_past_its_centre_on_the_side_it_came_fr
             s.step(H)
         reading, true = s.get("middle.angle", "middle.angle_true")
         assert reading == pytest.approx(cmd, abs=1e-12)
-        offset = (true - reading) / q
-        assert 0 < abs(offset) < 0.5
-        assert np.sign(offset) == np.sign(cmd - before)
-        seen.setdefault((target, np.sign(cmd - before)), []).append(offset)
+        side = np.sign(cmd - before)
+        beyond = (true - reading - 0.5 * r * side) / q  # what the servo adds, in counts
+        assert 0 < beyond * side < 0.5
+        seen.setdefault((target, side), []).append(beyond)
     # the repeated 0 -> 90 and 90 -> 0 moves stop within a tenth of a count of each other
     assert any(len(v) > 1 for v in seen.values())
     for offsets in seen.values():

@@ -23,7 +23,8 @@
      VR_##n##_ctrl_b0, VR_##n##_ctrl_b1, VR_##n##_ctrl_b2, VR_##n##_ctrl_a1, VR_##n##_ctrl_a2,  \
      VR_##n##_encoder_bits,                                                                     \
      VR_##n##_encoder_h1_amp, VR_##n##_encoder_h1_phase, VR_##n##_encoder_h2_amp,               \
-     VR_##n##_encoder_h2_phase, VR_##n##_wobble_amp, VR_##n##_wobble_phase,                     \
+     VR_##n##_encoder_h2_phase, VR_##n##_encoder_reversal, VR_##n##_wobble_amp,                 \
+     VR_##n##_wobble_phase,                                                                     \
      VR_##n##_mode, VR_##n##_angle_cmd, VR_##n##_rate_cmd,                                      \
      VR_##n##_angle, VR_##n##_rate, VR_##n##_angle_true, VR_##n##_angle_ref, VR_##n##_torque}
 
@@ -41,7 +42,7 @@ static void axis_outputs(ModelInstance *m) {
         const AxisVR *vr = &AXVR[k];
         const TTAxis *x = &m->s.p.ax[k];
         int used = k < m->s.p.n_axes;
-        R(vr->angle) = used ? encoder(m, vr, x->th) : 0.0;
+        R(vr->angle) = used ? reading(m, vr, x) : 0.0;
         R(vr->rate) = x->thd;
         R(vr->angle_true) = x->th;
         R(vr->angle_ref) = x->th_ref;

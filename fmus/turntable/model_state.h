@@ -14,6 +14,7 @@ typedef struct {
     double wob_amp, wob_phase;
     /* plant (true motion) */
     double th, thd, thdd; /* angle, rate, acceleration (left limit at the last tick) */
+    double play;          /* plate angle - encoder-side angle, within +-reversal / 2 (servo.c) */
     /* closed-form motion over a tick: beta = B / J and phi1(t), phi2(t) (see servo.c) at the
      * tick length and at the two Gauss nodes, fixed at initialisation */
     double beta, phi1_T, phi2_T, phi1_g[2], phi2_g[2];

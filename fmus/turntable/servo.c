@@ -78,6 +78,16 @@ double encoder(ModelInstance *m, const AxisVR *vr, double th) {
     return round(y / q) * q;
 }
 
+/* What the axis's encoder reads: the plate's angle less the play of a backlash of width
+ * `encoder.reversal` between the plate and the encoder (a play operator: the plate moves the
+ * play until it reaches +-reversal / 2, then takes the encoder with it). After a move longer
+ * than the reversal the servo holds the reading with the plate half the reversal past it, on
+ * the side it came from; the reading does not change while the play is taken up. A negative
+ * reversal puts the plate short of the reading instead (a servo that stops before the count). */
+double reading(ModelInstance *m, const AxisVR *vr, const TTAxis *x) {
+    return encoder(m, vr, R(vr->reversal) < 0.0 ? x->th + x->play : x->th - x->play);
+}
+
 /* Breakaway torque: static_friction, not below the Coulomb torque (a static friction below it
  * would make an axis that reaches zero rate with Fs < |u| < Tc chatter; the default 0 thus
  * means Fs = Tc). */
@@ -186,7 +196,7 @@ void servo_tick(ModelInstance *m, int k, long long j, TickMotion *mo) {
     TTAxis *x = &p->ax[k];
     double T = p->T, amax = R(vr->acc_max), wmax = R(vr->rate_max);
     double J = R(vr->inertia), B = R(vr->viscous), umax = R(vr->torque_max);
-    double th1, w1, acc, e, ufb, uff, u, wm;
+    double th1, w1, acc, e, ufb, uff, u, wm, th_before;
     /* (1) reference over [t_k, t_k + T] */
     if (I(vr->mode) == 0) {
         double p1 = R(vr->angle_cmd) + R(vr->rate_cmd) * ((double)(j + 1) * T);
@@ -195,7 +205,7 @@ void servo_tick(ModelInstance *m, int k, long long j, TickMotion *mo) {
         ref_rate(x, R(vr->rate_cmd), amax, wmax, T, &th1, &w1, &acc);
     }
     /* (2) measurement, (3) control law */
-    e = x->th_ref - encoder(m, vr, x->th);
+    e = x->th_ref - reading(m, vr, x);
     /* A digital servo compares counts: when the reading is the count nearest the reference the
      * error is zero, so a stuck axis holds with a constant integrator instead of winding it up
      * against static friction until it breaks away and hunts between two counts (a reference
@@ -215,7 +225,9 @@ void servo_tick(ModelInstance *m, int k, long long j, TickMotion *mo) {
     x->u1 = u - uff;
     x->torque = u;
     /* (4) plant */
+    th_before = x->th;
     axis_tick(m, vr, x, u, mo);
+    x->play = clamp(x->play + (x->th - th_before), -0.5 * fabs(R(vr->reversal)), 0.5 * fabs(R(vr->reversal)));
     x->th_ref = th1;
     x->w_ref = w1;
     x->a_ref = acc;

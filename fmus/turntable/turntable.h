@@ -17,7 +17,7 @@ typedef struct {
     int inertia, viscous, coulomb, static_friction, torque_max, rate_max, acc_max, angle0;
     int b0, b1, b2, a1, a2;
     int bits; /* Integer */
-    int h1_amp, h1_phase, h2_amp, h2_phase, wob_amp, wob_phase;
+    int h1_amp, h1_phase, h2_amp, h2_phase, reversal, wob_amp, wob_phase;
     int mode; /* Integer */
     int angle_cmd, rate_cmd;
     int angle, rate, angle_true, angle_ref, torque;
@@ -51,6 +51,7 @@ void rest_integrals(const ModelPrivate *p, const double th[], long long n, doubl
 void phi12(double beta, double t, double *p1, double *p2);
 void motion_at(const TTAxis *x, const TickMotion *mo, double t, double *th, double *thd);
 double encoder(ModelInstance *m, const AxisVR *vr, double th);
+double reading(ModelInstance *m, const AxisVR *vr, const TTAxis *x);
 void servo_tick(ModelInstance *m, int k, long long j, TickMotion *mo);
 
 #endif

@@ -61,6 +61,10 @@ def _axis_variables(a: str) -> list:
         real(f"{a}.encoder.h1.phase", "parameter", 0.0, "rad", "its phase"),
         real(f"{a}.encoder.h2.amp", "parameter", 0.0, "rad", "2nd-harmonic encoder error"),
         real(f"{a}.encoder.h2.phase", "parameter", 0.0, "rad", "its phase"),
+        real(f"{a}.encoder.reversal", "parameter", 0.0, "rad",
+             "reversal error (backlash between the plate and the encoder, a play of this width): "
+             "after a move longer than it the plate rests half of it past the reading, on the side "
+             "it came from"),
     ]
     v += [
         real(f"{a}.nonorth.{c}", "parameter", 0.0, "rad",
