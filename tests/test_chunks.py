@@ -107,19 +107,23 @@ def test_compare_in_chunks_equals_the_whole_log(data):
 
 
 def test_attitudes_are_numpys_unique_rows():
-    """interpolate_angles' distinct rest attitudes, made unique over the changes only, are exactly
-    np.unique's rows and inverse over every static sample."""
+    """interpolate_angles' distinct rest attitudes (angles and the sides they were reached from),
+    made unique over the changes only, are exactly np.unique's rows and inverse over every static
+    sample."""
     from components.model.motion import _attitudes
 
     rng = np.random.default_rng(5)
     for _ in range(300):
         n, m = int(rng.integers(1, 80)), int(rng.integers(1, 4))
-        angles = np.repeat(rng.integers(0, 3, size=(n, m)).astype(float), rng.integers(1, 4, size=n), axis=0)
+        repeat = rng.integers(1, 4, size=n)
+        angles = np.repeat(rng.integers(0, 3, size=(n, m)).astype(float), repeat, axis=0)
+        sides = np.repeat(rng.integers(-1, 2, size=(n, m)).astype(np.int8), repeat, axis=0)
         static = rng.random(len(angles)) < 0.7
-        att, inv = _attitudes(angles, static)
+        att, att_sides, inv = _attitudes(angles, static, sides)
         if static.any():
-            ref, ref_inv = np.unique(angles[static], axis=0, return_inverse=True)
-            assert np.array_equal(att, ref) and np.array_equal(inv, ref_inv.ravel())
+            ref, ref_inv = np.unique(np.hstack([angles[static], sides[static]]), axis=0, return_inverse=True)
+            assert np.array_equal(att, ref[:, :m]) and np.array_equal(att_sides, ref[:, m:])
+            assert np.array_equal(inv, ref_inv.ravel())
         else:
             assert len(att) == 0 and len(inv) == 0
 
@@ -265,3 +269,12 @@ def test_cut_candidates_are_the_definitions(seed):
     got = cut_candidates(static, gb, ab, n)
     assert np.array_equal(got, expected), (got, expected)
     assert seed >= 4 or len(expected) > 0  # (both sets overlapping or one empty: no cut may exist)
+
+
+def test_reversal_error_in_chunks_equals_the_whole_log(data):
+    # a chunk's first rest takes the side its stages last moved to from the whole log's history
+    # (LogData.approach_at): cut without it, the chunk's first move would look like a reversal
+    effects = list(DEFAULT_EFFECTS) + ["table.reversal"]
+    whole = calibrate(data, effects)
+    chunked = calibrate(data, effects, chunk_samples=SMALL)
+    _same_fit(whole, chunked)

@@ -70,6 +70,8 @@ CASES = {
     "table.nonorth": ("table.nonorth.middle.v", "5 arcsec"),  # σ 0.030: typical (170 σ)
     "table.wobble": ("table.wobble.outer.c", "3 arcsec"),     # see test_wobble_*
     "table.encoder": ("table.encoder.outer.s1", "2 arcsec"),  # σ 0.085: typical (24 σ)
+    # the FMU's servo adds its own ~0.04 arcsec (it stops 0.24 count past the count): in the 2 %
+    "table.reversal": ("table.reversal.middle", "2 arcsec"),  # σ 0.05: typical x 2 (40 σ)
 }
 # imu.time_offset: at the typical 1 ms the fit's first-order model (increment shifted by δ ≈
 # δ (ω_end − ω_start)) leaves the second-order term δ²/2 Δω̇ at the servo's acceleration steps,

@@ -41,9 +41,13 @@ class LogData:
     # the time drift terms count from [s]; None: the start of the first sample's interval. A
     # stretch of a longer log (LogData.stretch) keeps the whole log's
     time_origin: float | None = None
+    # the side each stage last moved to before the first sample (+1, -1, 0: none); a stretch of a
+    # longer log (LogData.stretch) keeps the whole log's, which a table's reversal error needs
+    approach0: np.ndarray | None = None
     _profiles: dict = field(default_factory=dict, repr=False, compare=False)
     _interval: float | None = field(default=None, repr=False, compare=False)
     _static: np.ndarray | None = field(default=None, repr=False, compare=False)
+    _changes: list | None = field(default=None, repr=False, compare=False)
 
     @property
     def sample_interval(self) -> float:
@@ -85,7 +89,8 @@ class LogData:
     def angle_profile(self, quadrature: int = 3):
         """The interpolated gimbal angles (cached: they do not depend on the geometry)."""
         if quadrature not in self._profiles:
-            self._profiles[quadrature] = interpolate_angles(self.time, self.angles, quadrature, self.dt0)
+            self._profiles[quadrature] = interpolate_angles(self.time, self.angles, quadrature, self.dt0,
+                                                            self.approach0)
         return self._profiles[quadrature]
 
     @property
@@ -140,7 +145,23 @@ class LogData:
         return replace(self, time=self.time[a:b], angles=self.angles[a:b], gyro=self.gyro[a:b],
                        acc=self.acc[a:b], temperature=cut(self.temperature),
                        segment=cut(self.segment), valid=cut(self.valid), _profiles={},
-                       _interval=None, _static=None)
+                       _interval=None, _static=None, approach0=self.approach_at(a), _changes=None)
+
+    def approach_at(self, i: int) -> np.ndarray:
+        """(n_axes,) int8: the sign of each stage's last angle change up to sample *i* (0: none),
+        from this log's own history (and its approach0 before it)."""
+        if self._changes is None:
+            # where each stage's angle changes (a change from sample j to j + 1): moves only, a
+            # small part of a long log, found once
+            self._changes = [np.flatnonzero(self.angles[1:, k] != self.angles[:-1, k])
+                             for k in range(self.angles.shape[1])]
+        out = np.zeros(self.angles.shape[1], np.int8) if self.approach0 is None else \
+            np.array(self.approach0, np.int8, copy=True)
+        for k, ch in enumerate(self._changes):
+            j = np.searchsorted(ch, i, side="left") - 1  # the last change j -> j + 1 with j + 1 <= i
+            if j >= 0:
+                out[k] = np.sign(self.angles[ch[j] + 1, k] - self.angles[ch[j], k])
+        return out
 
     @classmethod
     def from_log(cls, log, exclude: list | None = None) -> "LogData":

@@ -254,6 +254,11 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
                                   for c in ("s1", "c1", "s2", "c2")),
            "rad", 2 * ARCSEC, "table", "encoder harmonic error (sin/cos of 1st and 2nd harmonic)",
            "error periodic in the axis angle", ("arcsec", ARCSEC)),
+    Effect("table.reversal", ("outer", "middle", "inner"), "rad", 1 * ARCSEC, "table",
+           "reversal error (ISO 230-2): at rest the plate is half of it past the reading, on the "
+           "side the stage last moved to (backlash, a servo that stops past the count)",
+           "gyro integral of a move that turns back off by the reversal, none when it goes on; "
+           "rests apart by the side they were reached from", ("arcsec", ARCSEC)),
 ]}
 
 DEFAULT_EFFECTS = ("gyro.bias", "gyro.sf", "gyro.mis", "acc.bias", "acc.sf", "acc.mis")

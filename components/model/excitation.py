@@ -33,6 +33,7 @@ _NEEDS = {
     "table.nonorth": "rotations of each stage with the others at several angles",
     "table.wobble": "rotations of each stage through full turns, the IMU in two mountings",
     "table.encoder": "rests at many angles of each stage over a full turn",
+    "table.reversal": "moves that turn back (each stage reaching rests from both sides)",
 }
 
 

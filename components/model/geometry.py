@@ -111,6 +111,9 @@ class Stage:
     enc_c1: float = 0.0
     enc_s2: float = 0.0
     enc_c2: float = 0.0
+    # reversal error [rad]: at rest the plate is reversal / 2 past the reading on the side the
+    # stage last moved to (a backlash between the plate and the encoder; ISO 230-2's reversal)
+    reversal: float = 0.0
 
     def nominal_axis(self) -> np.ndarray:
         a = np.asarray(self.axis, float)
@@ -173,6 +176,10 @@ class TableGeometry:
     @property
     def names(self) -> list[str]:
         return [s.name for s in self.stages]
+
+    @property
+    def has_reversal(self) -> bool:
+        return any(s.reversal for s in self.stages)
 
     def with_stage(self, name: str, **changes) -> "TableGeometry":
         return replace(self, stages=tuple(replace(s, **changes) if s.name == name else s

@@ -122,6 +122,14 @@ class AngleProfile:
     acc_end: np.ndarray
     attitudes: np.ndarray | None = None  # distinct angles of the static intervals
     attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
+    # the side each stage last moved to (+1, -1; 0 before any move): a rest is an attitude and
+    # the sides it was reached from (a table's reversal error puts it apart by them), and a move
+    # goes from its start rest's sides to its end's (components.model.geometry, Stage.reversal)
+    attitude_sides: np.ndarray | None = None  # (A, n_axes) int8
+    move_side0: np.ndarray | None = None     # (M, n_axes) the sides at each moving interval's start
+    move_side_rate: np.ndarray | None = None  # (M, n_axes) (its end's sides - those) / its length [1/s]
+    move_t0: np.ndarray | None = None        # (M,) its start [s]
+    side0: np.ndarray | None = None          # (n_axes,) the sides before the first sample
     _key: str | None = field(default=None, repr=False, compare=False)
     _static_samples: np.ndarray | None = field(default=None, repr=False, compare=False)
     # geometry -> rest_values, the last few (a chunk's design asks for the same geometry's four
@@ -135,6 +143,8 @@ class AngleProfile:
         if self._key is None:
             h = hashlib.sha256(np.ascontiguousarray(self.time))
             h.update(np.ascontiguousarray(self.th_end))
+            if self.side0 is not None:
+                h.update(np.ascontiguousarray(self.side0, np.int8))
             h.update(bytes([len(self.nodes), self.th_end.shape[1]]))
             self._key = h.hexdigest()
         return self._key
@@ -147,11 +157,12 @@ class AngleProfile:
 
 
 def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
-                       dt0: float | None = None) -> AngleProfile:
+                       dt0: float | None = None, side0: np.ndarray | None = None) -> AngleProfile:
     """Interpolate measured angles (N, n_axes) at t_k over each interval (t_{k-1}, t_k].
 
     The interval before the first sample is taken as static at the first angles; its length is
-    ``dt0`` (default: the first sample spacing)."""
+    ``dt0`` (default: the first sample spacing). ``side0``: the side each stage last moved to
+    before the first sample (+1, -1, 0: none; a stretch of a longer log has the log's)."""
     time = np.asarray(time, float)
     n = len(time)
     measured = np.atleast_2d(np.asarray(angles, float))
@@ -168,6 +179,9 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
     m = len(moving)
     th_q, rate_q, acc_q = (np.empty((m, q, n_ax)) for _ in range(3))
     rate_end, acc_end = np.empty((m, n_ax)), np.empty((m, n_ax))
+    side0 = np.zeros(n_ax, np.int8) if side0 is None else np.asarray(side0, np.int8)
+    sides = approach_sides(measured, side0)
+    move_side0, move_side_rate, move_t0 = np.zeros((0, n_ax)), np.zeros((0, n_ax)), np.zeros(0)
     row = 0  # the run's first row
     for a, b in moving_runs(static):
         # knots: the rest sample before the run (index a-1, or the virtual one) to sample b-1,
@@ -192,28 +206,68 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         rate_end[rows] = spl.at_knots(k + 1, 1)
         acc_end[rows] = spl.at_knots(k + 1, 2)
         row += b - a
-    att, inv = _attitudes(measured, static)
+    # a stage's side changes over the interval of its first sample that moves the other way (the
+    # reading moves once the play is taken up: a backlash of arcseconds takes milliseconds)
+    if m:
+        before = np.vstack([side0[None, :], sides[:-1]])
+        move_side0 = before[moving].astype(float)
+        move_side_rate = (sides[moving] - before[moving]) / dt[moving, None]
+        move_t0 = t_prev[moving]
+    att, att_sides, inv = _attitudes(measured, static, sides)
     return AngleProfile(time, t_prev, dt, static, x, w, moving, th_q, rate_q, acc_q, measured,
-                        rate_end, acc_end, att, inv.ravel())
+                        rate_end, acc_end, att, inv.ravel(), att_sides, move_side0, move_side_rate,
+                        move_t0, side0)
 
 
-def _attitudes(measured: np.ndarray, static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct angle rows of the static samples (sorted, as np.unique gives them) and, per
-    static sample, its row. Consecutive static samples mostly share their angles, so the rows are
-    made unique over the changes only (np.unique over every sample sorted millions of rows: a
-    third of calibrate's time on a 1 kHz log)."""
-    rows = measured[static]
+def approach_sides(measured: np.ndarray, side0: np.ndarray) -> np.ndarray:
+    """(N, n_axes) int8: per sample, the sign of the last change of each stage's angle up to it
+    (its own from the sample before included), *side0* before any."""
+    n, n_ax = measured.shape
+    out = np.empty((n, n_ax), np.int8)
+    for k in range(n_ax):
+        d = np.zeros(n, np.int8)
+        d[1:] = np.sign(measured[1:, k] - measured[:-1, k])
+        last = np.where(d != 0, np.arange(n), 0)
+        np.maximum.accumulate(last, out=last)
+        out[:, k] = np.where(last == 0, side0[k], d[last])
+    return out
+
+
+def _attitudes(measured: np.ndarray, static: np.ndarray, sides: np.ndarray):
+    """The distinct (angles, sides) rows of the static samples (sorted, as np.unique gives them):
+    the angles (A, n_axes), the sides (A, n_axes) and, per static sample, its row. Consecutive
+    static samples mostly share them, so the rows are made unique over the changes only
+    (np.unique over every sample sorted millions of rows: a third of calibrate's time on a 1 kHz
+    log)."""
+    n_ax = measured.shape[1]
+    rows = np.hstack([measured[static], sides[static]])
     if len(rows) == 0:
-        return np.zeros((0, measured.shape[1])), np.zeros(0, int)
+        return np.zeros((0, n_ax)), np.zeros((0, n_ax), np.int8), np.zeros(0, int)
     new = np.ones(len(rows), bool)
     new[1:] = np.any(rows[1:] != rows[:-1], axis=1)
     att, inv_new = np.unique(rows[new], axis=0, return_inverse=True)
-    return att, inv_new.ravel()[np.cumsum(new) - 1]
+    return att[:, :n_ax].copy(), att[:, n_ax:].astype(np.int8), inv_new.ravel()[np.cumsum(new) - 1]
 
 
-def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
+def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray, sides=None):
     """Measured angle derivatives -> true ones through the encoder error e(θ):
-    θ_m = θ + e(θ) gives θ̇ = θ̇_m / (1 + e'), θ̈ = (θ̈_m - e'' θ̇²) / (1 + e')."""
+    θ_m = θ + e(θ) gives θ̇ = θ̇_m / (1 + e'), θ̈ = (θ̈_m - e'' θ̇²) / (1 + e'); then the reversal
+    error r of each stage: the plate r/2 past the reading on the side the stage last moved to.
+    *sides*: a callable giving (side (K, n_axes), d side/dt (K, n_axes)) at these K points: a side
+    changes across the interval where the reading first moves the other way."""
+    t, r, a = _encoder_motion(geometry, th, rate, acc)
+    if sides is None or not geometry.has_reversal:
+        return t, r, a
+    side, side_rate = sides()
+    t, r = np.array(t, float, copy=True), np.array(r, float, copy=True)
+    for k, s in enumerate(geometry.stages):
+        if s.reversal:
+            t[:, k] += 0.5 * s.reversal * side[:, k]
+            r[:, k] += 0.5 * s.reversal * side_rate[:, k]
+    return t, r, a
+
+
+def _encoder_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
     if not any(s.has_encoder_error for s in geometry.stages):
         return th, rate, acc
     t = geometry.true_angles(th)
@@ -305,7 +359,8 @@ def _ends(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray, om_u, f
     if mv.any():
         k = samples[mv]
         r = np.searchsorted(p.moving_index, k)
-        the, re, ae = _true_motion(geometry, p.th_end[k], p.rate_end[r], p.acc_end[r])
+        the, re, ae = _true_motion(geometry, p.th_end[k], p.rate_end[r], p.acc_end[r],
+                                   lambda: _move_sides(p, r, p.time[k][:, None]))
         _, om_e[mv], al_e[mv], f_e[mv] = geometry.kinematics(the, re, ae)
     return om_e, al_e, f_e
 
@@ -339,7 +394,7 @@ class IdealIncrements:
             rest_g = rest_a = np.zeros((0, 3))
         if len(self.moving_index) == 0:
             return rest_g, rest_a, np.zeros((0, 3)), np.zeros((0, 3))
-        th, rate, _ = _true_motion(geometry, *self._nodes)
+        th, rate, _ = _true_motion(geometry, *self._nodes, lambda: _node_sides(p, slice(None)))
         # a finite-difference step changes one stage (or the base): the stages before it are the
         # first geometry's, so the vectors are carried on from there
         if self._first is None:
@@ -377,7 +432,8 @@ def rest_values(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, n
     got = p._rest.get(geometry)
     if got is None:
         att = p.attitudes
-        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att))
+        th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att),
+                                  lambda: (p.attitude_sides, np.zeros_like(att)))
         _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
         for a in (om_u, f_u):
             a.setflags(write=False)
@@ -396,9 +452,26 @@ def _moving_nodes(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray 
     rows = slice(None) if samples is None else np.searchsorted(p.moving_index, samples)
     _, q, n_ax = p.th_q.shape
     th, rate, acc = _true_motion(geometry, p.th_q[rows].reshape(-1, n_ax), p.rate_q[rows].reshape(-1, n_ax),
-                                 p.acc_q[rows].reshape(-1, n_ax))
+                                 p.acc_q[rows].reshape(-1, n_ax), lambda: _node_sides(p, rows))
     _, om_m, al_m, f_m = geometry.kinematics(th, rate, acc)
     return tuple(x.reshape(-1, q, 3) for x in (om_m, al_m, f_m))
+
+
+def _move_sides(p: AngleProfile, rows, t: np.ndarray):
+    """(side, d side/dt) (K, n_axes) of the moving samples' *rows* at times *t* (K, 1) or (K, Q)
+    (flattened row-major with the rows)."""
+    side0, rate = p.move_side0[rows], p.move_side_rate[rows]
+    elapsed = t - p.move_t0[rows][:, None]  # (K, Q)
+    q = elapsed.shape[1]
+    side = side0[:, None, :] + rate[:, None, :] * elapsed[:, :, None]
+    return side.reshape(-1, side0.shape[1]), np.repeat(rate, q, axis=0)
+
+
+def _node_sides(p: AngleProfile, rows):
+    """(side, d side/dt) at the quadrature nodes of the moving samples' *rows* (a slice or
+    indices into the moving samples), node by node as th_q holds them."""
+    mi = p.moving_index[rows]
+    return _move_sides(p, rows, p.t_prev[mi][:, None] + p.dt[mi][:, None] * p.nodes[None, :])
 
 
 def reconstruct(time: np.ndarray, angles: np.ndarray, geometry: TableGeometry,

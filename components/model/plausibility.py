@@ -35,6 +35,7 @@ PLAUSIBLE = {
     "imu.time_offset": 0.1, "acc.time_offset": 0.05,
     "table.base_tilt": math.radians(2.0), "table.nonorth": math.radians(0.5),
     "table.wobble": math.radians(0.5), "table.encoder": math.radians(0.5),
+    "table.reversal": math.radians(0.5),
 }
 NAV_WHITE = {"gyro": 0.002 * DEG_H * 60, "acc": 10 * UG}   # per √s: 0.002 deg/√h, 10 ug/√Hz
 WEAK = 10.0

@@ -57,6 +57,9 @@ def table_fmu_parameters(sc: Scenario, fmu_axis: dict) -> dict:
         if parts[1] == "base_tilt":
             out[f"base.tilt.{parts[2]}"] = v
             continue
+        if parts[1] == "reversal":
+            out[f"{fmu_axis[parts[2]]}.encoder.reversal"] = v
+            continue
         ax, comp = fmu_axis[parts[2]], parts[3]
         if parts[1] == "nonorth":
             nonorth.setdefault(parts[2], {})[comp] = v

@@ -197,11 +197,11 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
     for k, v in _table(tt, "effects", w).items():
         if not k.startswith("table."):
             raise ScenarioError(f"{w}.effects: {k!r}: expected a table effect (table.base_tilt, table.nonorth, "
-                                "table.wobble, table.encoder); IMU effects go in [imu.effects]")
+                                "table.wobble, table.encoder, table.reversal); IMU effects go in [imu.effects]")
         table_effects[k] = _effect_value(k, v, f"{w}.effects")
     for k in table_effects:
         parts = k.split(".")
-        if len(parts) == 4 and parts[2] not in axes:
+        if (len(parts) == 4 or parts[1] == "reversal") and len(parts) > 2 and parts[2] not in axes:
             raise ScenarioError(f"{w}.effects: {k!r}: the table has no axis {parts[2]!r} (axes: {axes})")
     table_params = {k: _param(v, k, f"{w}.parameters") for k, v in _table(tt, "parameters", w).items()}
 
