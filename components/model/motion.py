@@ -123,8 +123,8 @@ class AngleProfile:
     attitudes: np.ndarray | None = None  # distinct angles of the static intervals
     attitude_of: np.ndarray | None = None  # per static interval, its row in `attitudes`
     # the side each stage last moved to (+1, -1; 0 before any move): a rest is an attitude and
-    # the sides it was reached from (a table's reversal error puts it apart by them), and a move
-    # goes from its start rest's sides to its end's (components.model.geometry, Stage.reversal)
+    # the sides it was reached from (a table's reversal error puts it apart by them), and a moving
+    # interval goes from its start's sides to its end's (components.model.geometry, Stage.reversal)
     attitude_sides: np.ndarray | None = None  # (A, n_axes) int8
     move_side0: np.ndarray | None = None     # (M, n_axes) the sides at each moving interval's start
     move_side_rate: np.ndarray | None = None  # (M, n_axes) (its end's sides - those) / its length [1/s]
@@ -268,6 +268,7 @@ def _true_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc:
 
 
 def _encoder_motion(geometry: TableGeometry, th: np.ndarray, rate: np.ndarray, acc: np.ndarray):
+    """The encoder-error part of :func:`_true_motion`."""
     if not any(s.has_encoder_error for s in geometry.stages):
         return th, rate, acc
     t = geometry.true_angles(th)
