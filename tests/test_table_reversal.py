@@ -70,9 +70,23 @@ def test_rests_and_moves_follow_the_definition(side0):
     assert turned == [side0 != 1, True, False, True]
 
 
+def _sides(values, side0, band):
+    a = np.array(values, float)[:, None]
+    static = np.concatenate([[True], a[1:, 0] == a[:-1, 0]])
+    return approach_sides(a, static, np.array([side0], np.int8), np.array([band]))[:, 0].tolist()
+
+
 def test_sides_of_each_sample():
-    angles = np.array([[0.0], [0.0], [1.0], [2.0], [2.0], [1.0], [1.0], [3.0]])
-    assert approach_sides(angles, np.array([-1], np.int8))[:, 0].tolist() == [-1, -1, 1, 1, 1, -1, -1, 1]
+    assert _sides([0, 0, 1, 2, 2, 1, 1, 3], -1, 0.0) == [-1, -1, 1, 1, 1, -1, -1, 1]
+    # a reading that dithers a count at a rest keeps the side the move gave it...
+    dither = [0, 5, 5, 6, 5, 5, 4, 5, 5]
+    assert _sides(dither, 0, 1.5) == [0, 1, 1, 1, 1, 1, 1, 1, 1]
+    # ...which without the band would turn it at every dither
+    assert _sides(dither, 0, 0.0) == [0, 1, 1, -1, -1, -1, 1, 1, 1]
+    # an overshoot taken back beyond the band: the stage ends on the side it came back from (a
+    # move changes a side once, at its start: what a move's gyro sum and the rests see)
+    assert _sides([0, 4, 12, 10, 10], 0, 1.5) == [0, -1, -1, -1, -1]
+    assert _sides([0, 4, 12, 11, 11], 0, 1.5) == [0, 1, 1, 1, 1]
 
 
 def test_rests_at_one_angle_from_two_sides_are_two_attitudes():
@@ -82,3 +96,60 @@ def test_rests_at_one_angle_from_two_sides_are_two_attitudes():
     # 0 at the start (no side yet) and 0 reached from above
     assert sorted(profile.attitude_sides[zero, 1].tolist()) == [-1, 0]
     assert math.isclose(np.degrees(profile.attitudes[:, 1]).max(), 90.0)
+
+
+@pytest.fixture(scope="module")
+def reversal_log():
+    """The demo's scenario (K2 taken out, 2 s dwells) on a table with 2 arcsec of reversal on
+    the middle stage and -1 arcsec on the inner one."""
+    import copy
+    import tomllib
+
+    from components.cli.demo import SCENARIO
+    from components.simulation.run import run_scenario
+    from components.simulation.scenario import scenario_from_dict
+
+    d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
+    d["imu"]["effects"].pop("acc.k2.z")
+    d["schedule"]["overrides"]["dwell"] = 2.0
+    d["turntable"]["effects"] = {"table.reversal.middle": "2 arcsec", "table.reversal.inner": "-1 arcsec"}
+    return run_scenario(scenario_from_dict(d, source="test_table_reversal"), progress=False).log
+
+
+def _dithered(data, seed=3):
+    """The log as a hunting servo's: at rests the readings jump a count for short spells (the
+    plate does not move)."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(seed)
+    q = 2 * np.pi / 2**24
+    a = data.angles
+    rest = np.concatenate([[True], np.all(a[1:] == a[:-1], axis=1)])
+    spell = np.zeros(len(a), bool)
+    for i in np.flatnonzero(rest & (rng.random(len(a)) < 0.003)):
+        spell[i:i + int(rng.integers(5, 40))] = True
+    spell &= rest
+    return replace(data, angles=a + np.where(spell[:, None], q * np.array([1.0, -1.0, 1.0]), 0.0),
+                   _profiles={}, _static=None), int(spell.sum())
+
+
+def test_reversal_is_recovered_and_a_dithering_reading_does_not_move_it(reversal_log):
+    from components.estimation.log_data import LogData
+    from components.estimation.lsq import calibrate
+    from components.model.effects import ARCSEC, DEFAULT_EFFECTS
+
+    effects = list(DEFAULT_EFFECTS) + ["table.reversal"]
+    data = LogData.from_log(reversal_log)
+    clean = calibrate(data, effects)
+    shaky, n = _dithered(data)
+    assert n > 500
+    dithered = calibrate(shaky, effects)
+    for fit in (clean, dithered):
+        v, s = fit.values(), dict(zip(fit.parameters, fit.sigma))
+        # the injected backlash plus the servo's own stop past the count (0.24 count a side: +0.04)
+        for p, truth in (("table.reversal.middle", 2.0), ("table.reversal.inner", -1.0)):
+            assert abs(v[p] / ARCSEC - truth - 0.04) < 5 * s[p] / ARCSEC + 0.03, (p, v[p] / ARCSEC, s[p] / ARCSEC)
+    # the dither spells (a count, a few ms) leave the sides and so the estimate as they were
+    for p in ("table.reversal.middle", "table.reversal.inner"):
+        i = clean.parameters.index(p)
+        assert abs(clean.value[i] - dithered.value[i]) < clean.sigma[i]

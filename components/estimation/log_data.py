@@ -7,9 +7,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from components.estimation import order_statistics
+from components.estimation.rest_angles import encoder_quantum
 from components.logs.spill import pieces, release
 from components.model.geometry import Stage, TableGeometry
-from components.model.motion import Motion, interpolate_angles, motion_from_profile
+from components.model.motion import Motion, interpolate_angles, motion_from_profile, run_sides
 
 
 @dataclass
@@ -44,10 +45,13 @@ class LogData:
     # the side each stage last moved to before the first sample (+1, -1, 0: none); a stretch of a
     # longer log (LogData.stretch) keeps the whole log's, which a table's reversal error needs
     approach0: np.ndarray | None = None
+    # per stage [rad], what a stage must travel for its side to count (two encoder counts: a rest
+    # whose reading dithers a count keeps its side); None: from this log, when first needed
+    side_band: np.ndarray | None = None
     _profiles: dict = field(default_factory=dict, repr=False, compare=False)
     _interval: float | None = field(default=None, repr=False, compare=False)
     _static: np.ndarray | None = field(default=None, repr=False, compare=False)
-    _changes: list | None = field(default=None, repr=False, compare=False)
+    _sides: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def sample_interval(self) -> float:
@@ -90,7 +94,7 @@ class LogData:
         """The interpolated gimbal angles (cached: they do not depend on the geometry)."""
         if quadrature not in self._profiles:
             self._profiles[quadrature] = interpolate_angles(self.time, self.angles, quadrature, self.dt0,
-                                                            self.approach0)
+                                                            self.approach0, self.band())
         return self._profiles[quadrature]
 
     @property
@@ -145,23 +149,29 @@ class LogData:
         return replace(self, time=self.time[a:b], angles=self.angles[a:b], gyro=self.gyro[a:b],
                        acc=self.acc[a:b], temperature=cut(self.temperature),
                        segment=cut(self.segment), valid=cut(self.valid), _profiles={},
-                       _interval=None, _static=None, approach0=self.approach_at(a), _changes=None)
+                       _interval=None, _static=None, approach0=self.approach_at(a), side_band=self.band(),
+                       _sides=None)
+
+    def band(self) -> np.ndarray:
+        """(n_axes,) [rad]: two encoder counts (stated, else the smallest logged step)."""
+        if self.side_band is None:
+            res = self.encoder_resolution
+            count = np.broadcast_to(np.asarray(res, float), (self.angles.shape[1],)) \
+                if res is not None and not isinstance(res, str) else encoder_quantum(self.angles)
+            self.side_band = 2.0 * count
+        return self.side_band
 
     def approach_at(self, i: int) -> np.ndarray:
-        """(n_axes,) int8: the sign of each stage's last angle change up to sample *i* (0: none),
-        from this log's own history (and its approach0 before it)."""
-        if self._changes is None:
-            # where each stage's angle changes (a change from sample j to j + 1): moves only, a
-            # small part of a long log, found once
-            self._changes = [np.flatnonzero(self.angles[1:, k] != self.angles[:-1, k])
-                             for k in range(self.angles.shape[1])]
-        out = np.zeros(self.angles.shape[1], np.int8) if self.approach0 is None else \
-            np.array(self.approach0, np.int8, copy=True)
-        for k, ch in enumerate(self._changes):
-            j = np.searchsorted(ch, i, side="left") - 1  # the last change j -> j + 1 with j + 1 <= i
-            if j >= 0:
-                out[k] = np.sign(self.angles[ch[j] + 1, k] - self.angles[ch[j], k])
-        return out
+        """(n_axes,) int8: the side each stage is on at sample *i* (+1, -1, 0: none), after this
+        log's moves before it (components.model.motion.run_sides)."""
+        if self._sides is None:
+            start = np.zeros(self.angles.shape[1], np.int8) if self.approach0 is None else self.approach0
+            runs, after, _ = run_sides(self.angles, self.static, start, self.band())
+            self._sides = (np.array([b for _, b in runs], np.int64), after, np.asarray(start, np.int8))
+        ends, after, start = self._sides
+        r = np.searchsorted(ends, i, side="right") - 1  # the last run over by sample i
+        return np.array(after[r] if r >= 0 else start, np.int8, copy=True)
+
 
     @classmethod
     def from_log(cls, log, exclude: list | None = None) -> "LogData":

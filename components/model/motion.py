@@ -157,12 +157,14 @@ class AngleProfile:
 
 
 def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
-                       dt0: float | None = None, side0: np.ndarray | None = None) -> AngleProfile:
+                       dt0: float | None = None, side0: np.ndarray | None = None,
+                       band: np.ndarray | None = None) -> AngleProfile:
     """Interpolate measured angles (N, n_axes) at t_k over each interval (t_{k-1}, t_k].
 
     The interval before the first sample is taken as static at the first angles; its length is
     ``dt0`` (default: the first sample spacing). ``side0``: the side each stage last moved to
-    before the first sample (+1, -1, 0: none; a stretch of a longer log has the log's)."""
+    before the first sample (+1, -1, 0: none; a stretch of a longer log has the log's); ``band``
+    (per stage [rad], default 0): what a stage must travel for a side to count (:func:`run_sides`)."""
     time = np.asarray(time, float)
     n = len(time)
     measured = np.atleast_2d(np.asarray(angles, float))
@@ -180,7 +182,8 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
     th_q, rate_q, acc_q = (np.empty((m, q, n_ax)) for _ in range(3))
     rate_end, acc_end = np.empty((m, n_ax)), np.empty((m, n_ax))
     side0 = np.zeros(n_ax, np.int8) if side0 is None else np.asarray(side0, np.int8)
-    sides = approach_sides(measured, side0)
+    band = np.zeros(n_ax) if band is None else np.broadcast_to(np.asarray(band, float), (n_ax,))
+    sides = approach_sides(measured, static, side0, band)
     move_side0, move_side_rate, move_t0 = np.zeros((0, n_ax)), np.zeros((0, n_ax)), np.zeros(0)
     row = 0  # the run's first row
     for a, b in moving_runs(static):
@@ -219,17 +222,51 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
                         move_t0, side0)
 
 
-def approach_sides(measured: np.ndarray, side0: np.ndarray) -> np.ndarray:
-    """(N, n_axes) int8: per sample, the sign of the last change of each stage's angle up to it
-    (its own from the sample before included), *side0* before any."""
+def run_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band: np.ndarray):
+    """The side each stage is on after each moving run: (runs [(a, b)], sides (R, n_axes) int8,
+    the sample where each stage's side changes in each run (R, n_axes), b where it does not).
+
+    A stage's side after a run is the direction it came from onto its final reading, seen from
+    the last reading of the run more than *band* (per stage [rad]) away from it: an overshoot
+    taken back counts, a reading that dithers a count or two at a rest (a hunting servo, the
+    plate held by friction or within a backlash) does not, and a run that moves the stage less
+    than *band* leaves its side. The side changes where the stage's reading first changes in the
+    run (the play is taken up at the start of a move)."""
+    runs = moving_runs(static)
+    n_ax = measured.shape[1]
+    out = np.empty((len(runs), n_ax), np.int8)
+    at = np.empty((len(runs), n_ax), np.int64)
+    side = np.array(side0, np.int8, copy=True)
+    for r, (a, b) in enumerate(runs):
+        lo = max(a - 1, 0)
+        for k in range(n_ax):
+            seg = measured[lo:b, k]
+            far = np.flatnonzero(np.abs(seg - seg[-1]) > band[k])
+            at[r, k] = b
+            if len(far):
+                side[k] = np.sign(seg[-1] - seg[far[-1]])
+                changes = np.flatnonzero(seg[1:] != seg[:-1])
+                at[r, k] = lo + 1 + changes[0]
+        out[r] = side
+    return runs, out, at
+
+
+def approach_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band: np.ndarray) -> np.ndarray:
+    """(N, n_axes) int8: per sample, the side each stage is on (:func:`run_sides`), *side0* before
+    the first run."""
     n, n_ax = measured.shape
     out = np.empty((n, n_ax), np.int8)
-    for k in range(n_ax):
-        d = np.zeros(n, np.int8)
-        d[1:] = np.sign(measured[1:, k] - measured[:-1, k])
-        last = np.where(d != 0, np.arange(n), 0)
-        np.maximum.accumulate(last, out=last)
-        out[:, k] = np.where(last == 0, side0[k], d[last])
+    runs, after, at = run_sides(measured, static, side0, band)
+    side = np.array(side0, np.int8, copy=True)
+    pos = 0
+    for r, (a, b) in enumerate(runs):
+        out[pos:a] = side
+        for k in range(n_ax):
+            out[a:at[r, k], k] = side[k]
+            out[at[r, k]:b, k] = after[r, k]
+        side = after[r]
+        pos = b
+    out[pos:] = side
     return out
 
 
