@@ -233,6 +233,55 @@ encoder_resolution = "exact"
     _same(_fit(back), ref)
 
 
+def test_noisy_angles_rounded_to_the_encoders_count(original, tmp_path):
+    """An interpolating encoder's angles: the counts plus reading noise (0.1 count RMS), so no two
+    samples repeat and no rest survives. Imported with round_to_count they are the counts again
+    (a sample's noise beyond half a count is a 5-sigma event) and calibrate as the original;
+    without it calibrate names the angles and the mapping key, not the noise."""
+    from components.errors import EstimationError
+
+    log, ref = original
+    q = 1e-7  # rad: the independent simulator writes its angles in whole 1e-7 rad
+    assert np.abs(np.round(log.angles / q) * q - log.angles).max() < 1e-14
+    noisy = {a: log.gimbal[a] + RNG.normal(0.0, 0.1 * q, log.n) for a in ("outer", "middle", "inner")}
+    cols = [log.time, *(np.degrees(log.gyro[:, k] / log.dt) for k in range(3)),
+            *(log.acc[:, k] / log.dt / G0 for k in range(3)), *(np.degrees(noisy[a]) for a in noisy)]
+    _write_delimited(tmp_path / "rec.csv", ["t", "gx", "gy", "gz", "ax", "ay", "az", "A1", "A2", "A3"], cols)
+    text = f'''[imu]
+file = "rec.csv"
+sample_rate_hz = {1 / log.dt}
+[imu.time]
+column = "t"
+[imu.gyro]
+output = "rate"
+unit = "deg/s"
+x = "gx"
+y = "gy"
+z = "gz"
+[imu.acc]
+output = "specific_force"
+unit = "g"
+x = "ax"
+y = "ay"
+z = "az"
+[table]
+encoder_resolution = "{q!r} rad"
+ROUND
+{_axes_toml(["A1", "A2", "A3"])}
+{SITE}'''
+    m = _mapping(tmp_path / "map.toml", text.replace("ROUND", "round_to_count = true"))
+    assert main(["import", str(m), "--out", str(tmp_path / "rounded")]) == 0
+    _same(_fit(read_log(tmp_path / "rounded")), ref)
+    m = _mapping(tmp_path / "map.toml", text.replace("ROUND", ""))
+    assert main(["import", str(m), "--out", str(tmp_path / "raw")]) == 0
+    with pytest.raises(EstimationError, match="change at every sample.*round_to_count"):
+        _fit(read_log(tmp_path / "raw"))
+    m = _mapping(tmp_path / "map.toml", text.replace("ROUND", "round_to_count = true").replace(
+        f'encoder_resolution = "{q!r} rad"', 'encoder_resolution = "exact"'))
+    with pytest.raises(MappingError, match="'table.round_to_count' = true needs 'table.encoder_resolution'"):
+        import_log(load_mapping(m))
+
+
 @pytest.mark.parametrize("edit, match", [
     (lambda s: s.replace('sample_rate_hz = 200.0', 'sample_rate_hz = -1'), r"map.toml: key 'imu.sample_rate_hz'"),
     (lambda s: s.replace('unit = "deg/s"', 'unit = "deg/min"'), r"key 'imu.gyro.unit' = 'deg/min': expected one of"),

@@ -22,7 +22,7 @@ from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_des
 from components.estimation.design import noise_floor
 from components.estimation.determinability import Determinability, assess
 from components.estimation.log_data import LogData
-from components.estimation.rest_angles import rest_sigma, rest_variance
+from components.estimation.rest_angles import encoder_quantum, rest_sigma, rest_variance
 from components.estimation.whitening import whiten
 from components.model.effects import TIME_OFFSETS, effect_of, parameters_of
 from components.model.excitation import needs
@@ -125,6 +125,14 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
                        else white_noise_sigma(data.gyro, static & data.usable, quant[:3]), float)
     raw_a = np.asarray(sigma_acc if sigma_acc is not None
                        else white_noise_sigma(data.acc, static & data.usable, quant[3:]), float)
+    if data.has_table and len(static) > 1 and not np.any(static[1:]):
+        step = encoder_quantum(data.angles)
+        raise EstimationError(
+            "the table angles of this log change at every sample, so it has no rest (calbench takes the table "
+            "at rest where the logged angles repeat exactly); the smallest step between logged angles is "
+            + ", ".join(f"{np.degrees(x) * 3600:.3g}\"" for x in step) + ": if the angles carry noise finer than "
+            "the encoder's count, import the log with 'round_to_count = true' and 'encoder_resolution' in the "
+            "mapping's [table] (docs/import.md)")
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
         raise EstimationError("the white-noise level cannot be estimated from this log (it has no two usable "

@@ -123,6 +123,19 @@ def _labels(m: Mapping, cols: Columns, t: np.ndarray):
     return None
 
 
+def _counted(m: Mapping, angle: np.ndarray, notes: list[str]) -> np.ndarray:
+    """*angle* [rad] rounded to whole counts of the encoder when the mapping asks for it: a rest
+    then reads one count (two where its noise crosses a count's edge) instead of a new value at
+    every sample, which no rest survives."""
+    if not m.round_to_count:
+        return angle
+    q = float(m.encoder_resolution)
+    note = f"table angles rounded to whole counts of {np.degrees(q) * 3600:.4g}\" (round_to_count)"
+    if note not in notes:
+        notes.append(note)
+    return np.round(angle / q) * q
+
+
 def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict):
     """(gimbal, command, axis names, axis vectors, samples kept) from the IMU file's own columns
     or a separate table file on its own clock."""
@@ -131,7 +144,8 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict):
     names = [a.name for a in m.axes]
     vectors = [a.vector for a in m.axes]
     if m.table is None:
-        gimbal = {a.name: cols.values(a.channel, f"table.axes.{a.name}") * a.unit_si for a in m.axes}
+        gimbal = {a.name: _counted(m, cols.values(a.channel, f"table.axes.{a.name}") * a.unit_si, notes)
+                  for a in m.axes}
         command = {a.name: cols.values(a.command, f"table.axes.{a.name}.command") * a.unit_si
                    for a in m.axes if a.command is not None}
         return gimbal, command, names, vectors, None
@@ -141,7 +155,8 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict):
         i = int(np.argmax(np.diff(tt) <= 0)) + 1
         raise MappingError(f"{tc.where}: table.time: row {i + 1}: {tt[i]!r} s after {tt[i - 1]!r} s; expected strictly "
                            "increasing times")
-    ang = np.column_stack([tc.values(a.channel, f"table.axes.{a.name}") * a.unit_si for a in m.axes])
+    ang = np.column_stack([_counted(m, tc.values(a.channel, f"table.axes.{a.name}") * a.unit_si, notes)
+                           for a in m.axes])
     cmd = {a.name: tc.values(a.command, f"table.axes.{a.name}.command") * a.unit_si for a in m.axes
            if a.command is not None}
     if m.clock_offset == "estimate":

@@ -91,6 +91,9 @@ class Mapping:
     axes: list[Axis] = field(default_factory=list)
     clock_offset: float | str | None = None  # s (table + offset = IMU time), "estimate", or None (same clock)
     encoder_resolution: object = None
+    # round the logged angles to whole counts of encoder_resolution (readings with noise finer
+    # than the count: an interpolating encoder, a filtered angle)
+    round_to_count: bool = False
     description: str = ""
 
 
@@ -338,3 +341,10 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
     if res is not None:
         m.encoder_resolution = "exact" if res == "exact" else _quantity(res, "table.encoder_resolution", where,
                                                                         ANGLE_UNITS)
+    rounding = tab.get("round_to_count", False)
+    if not isinstance(rounding, bool):
+        raise MappingError(f"{where}: key 'table.round_to_count' = {rounding!r}: expected true or false")
+    if rounding and (m.encoder_resolution is None or m.encoder_resolution == "exact"):
+        raise MappingError(f"{where}: key 'table.round_to_count' = true needs 'table.encoder_resolution' as an "
+                           "angle (one count, e.g. \"0.0001 deg\"): the count to round the angles to")
+    m.round_to_count = rounding
