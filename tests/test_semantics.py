@@ -8,7 +8,7 @@ import pytest
 from components.estimation import semantics
 from components.estimation.log_data import LogData
 from components.logs.logfile import read_log
-from components.model.motion import moving_runs
+from components.model.approach import moving_runs
 
 
 def _ratio(data):

@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
+from components.model.approach import approach_sides
 from components.model.geometry import Stage, TableGeometry
-from components.model.motion import approach_sides, ideal_increments, interpolate_angles
+from components.model.motion import ideal_increments, interpolate_angles
 
 DT = 0.005
 R = 5e-6  # rad (1 arcsec)

@@ -17,7 +17,7 @@ import numpy as np
 from components.estimation import order_statistics
 from components.logs import spill
 from components.logs.spill import is_spilled, pieces, release
-from components.model.motion import moving_runs
+from components.model.approach import moving_runs
 
 
 @dataclass

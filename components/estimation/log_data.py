@@ -9,8 +9,9 @@ import numpy as np
 from components.estimation import order_statistics
 from components.estimation.rest_angles import encoder_quantum
 from components.logs.spill import pieces, release
+from components.model.approach import run_sides
 from components.model.geometry import Stage, TableGeometry
-from components.model.motion import Motion, interpolate_angles, motion_from_profile, run_sides
+from components.model.motion import Motion, interpolate_angles, motion_from_profile
 
 
 @dataclass

@@ -125,7 +125,7 @@ def _move_windows(static: np.ndarray):
     """[a, b) sample ranges covering every moving run: runs close together in one, none longer
     than :data:`WINDOW` (a longer run is cut: its spline then restarts at rest at the cut, a few
     samples' error where the check takes a median over thousands)."""
-    from components.model.motion import moving_runs
+    from components.model.approach import moving_runs
 
     cur = None
     for a, b in moving_runs(static):

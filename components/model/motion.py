@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from components.model.approach import approach_sides, moving_runs
 from components.model.geometry import TableGeometry, cross
 from components.model.spline import RunSpline
 
@@ -90,14 +91,6 @@ class Motion:
         for k, i in enumerate("xyz"):
             out[:, k] = self.integral(self.f_at(i)[:, :, k])
         return out
-
-
-def moving_runs(static: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) index ranges of consecutive non-static intervals."""
-    padded = np.zeros(len(static) + 2, np.int8)  # int8 throughout: a list's 0 made it int64
-    padded[1:-1] = ~np.asarray(static, bool)
-    edges = np.diff(padded)
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
 @dataclass
@@ -220,54 +213,6 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
     return AngleProfile(time, t_prev, dt, static, x, w, moving, th_q, rate_q, acc_q, measured,
                         rate_end, acc_end, att, inv.ravel(), att_sides, move_side0, move_side_rate,
                         move_t0, side0)
-
-
-def run_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band: np.ndarray):
-    """The side each stage is on after each moving run: (runs [(a, b)], sides (R, n_axes) int8,
-    the sample where each stage's side changes in each run (R, n_axes), b where it does not).
-
-    A stage's side after a run is the direction it came from onto its final reading, seen from
-    the last reading of the run more than *band* (per stage [rad]) away from it: an overshoot
-    taken back counts, a reading that dithers a count or two at a rest (a hunting servo, the
-    plate held by friction or within a backlash) does not, and a run that moves the stage less
-    than *band* leaves its side. The side changes where the stage's reading first changes in the
-    run (the play is taken up at the start of a move)."""
-    runs = moving_runs(static)
-    n_ax = measured.shape[1]
-    out = np.empty((len(runs), n_ax), np.int8)
-    at = np.empty((len(runs), n_ax), np.int64)
-    side = np.array(side0, np.int8, copy=True)
-    for r, (a, b) in enumerate(runs):
-        lo = max(a - 1, 0)
-        for k in range(n_ax):
-            seg = measured[lo:b, k]
-            far = np.flatnonzero(np.abs(seg - seg[-1]) > band[k])
-            at[r, k] = b
-            if len(far):
-                side[k] = np.sign(seg[-1] - seg[far[-1]])
-                changes = np.flatnonzero(seg[1:] != seg[:-1])
-                at[r, k] = lo + 1 + changes[0]
-        out[r] = side
-    return runs, out, at
-
-
-def approach_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band: np.ndarray) -> np.ndarray:
-    """(N, n_axes) int8: per sample, the side each stage is on (:func:`run_sides`), *side0* before
-    the first run."""
-    n, n_ax = measured.shape
-    out = np.empty((n, n_ax), np.int8)
-    runs, after, at = run_sides(measured, static, side0, band)
-    side = np.array(side0, np.int8, copy=True)
-    pos = 0
-    for r, (a, b) in enumerate(runs):
-        out[pos:a] = side
-        for k in range(n_ax):
-            out[a:at[r, k], k] = side[k]
-            out[at[r, k]:b, k] = after[r, k]
-        side = after[r]
-        pos = b
-    out[pos:] = side
-    return out
 
 
 def _attitudes(measured: np.ndarray, static: np.ndarray, sides: np.ndarray):
