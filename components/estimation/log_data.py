@@ -164,7 +164,7 @@ class LogData:
 
     def approach_at(self, i: int) -> np.ndarray:
         """(n_axes,) int8: the side each stage is on at sample *i* (+1, -1, 0: none), after this
-        log's moves before it (components.model.motion.run_sides)."""
+        log's moves before it (components.model.approach.run_sides)."""
         if self._sides is None:
             start = np.zeros(self.angles.shape[1], np.int8) if self.approach0 is None else self.approach0
             runs, after, _ = run_sides(self.angles, self.static, start, self.band())
@@ -172,7 +172,6 @@ class LogData:
         ends, after, start = self._sides
         r = np.searchsorted(ends, i, side="right") - 1  # the last run over by sample i
         return np.array(after[r] if r >= 0 else start, np.int8, copy=True)
-
 
     @classmethod
     def from_log(cls, log, exclude: list | None = None) -> "LogData":
