@@ -63,6 +63,28 @@ def _axes_toml(columns: list[str], unit: str = "deg") -> str:
                    for n, c in zip(("outer", "middle", "inner"), columns))
 
 
+def _rec_csv_imu(rate_hz) -> str:
+    """The [imu] of rec.csv: t [s], gx gy gz [deg/s], ax ay az [g]."""
+    return f'''[imu]
+file = "rec.csv"
+sample_rate_hz = {rate_hz}
+[imu.time]
+column = "t"
+[imu.gyro]
+output = "rate"
+unit = "deg/s"
+x = "gx"
+y = "gy"
+z = "gz"
+[imu.acc]
+output = "specific_force"
+unit = "g"
+x = "ax"
+y = "ay"
+z = "az"
+'''
+
+
 def _fit(log) -> object:
     return calibrate(LogData.from_log(log), list(DEFAULT_EFFECTS))
 
@@ -247,24 +269,7 @@ def test_noisy_angles_rounded_to_the_encoders_count(original, tmp_path):
     cols = [log.time, *(np.degrees(log.gyro[:, k] / log.dt) for k in range(3)),
             *(log.acc[:, k] / log.dt / G0 for k in range(3)), *(np.degrees(noisy[a]) for a in noisy)]
     _write_delimited(tmp_path / "rec.csv", ["t", "gx", "gy", "gz", "ax", "ay", "az", "A1", "A2", "A3"], cols)
-    text = f'''[imu]
-file = "rec.csv"
-sample_rate_hz = {1 / log.dt}
-[imu.time]
-column = "t"
-[imu.gyro]
-output = "rate"
-unit = "deg/s"
-x = "gx"
-y = "gy"
-z = "gz"
-[imu.acc]
-output = "specific_force"
-unit = "g"
-x = "ax"
-y = "ay"
-z = "az"
-[table]
+    text = _rec_csv_imu(1 / log.dt) + f'''[table]
 encoder_resolution = "{q!r} rad"
 ROUND
 {_axes_toml(["A1", "A2", "A3"])}
@@ -298,24 +303,7 @@ def test_mapping_mistakes_are_one_clear_error(tmp_path, edit, match):
     t = np.arange(1, 101) * 0.01
     _write_delimited(tmp_path / "rec.csv", ["t", "gx", "gy", "gz", "ax", "ay", "az"],
                      [t] + [np.zeros(100)] * 5 + [np.ones(100)])
-    text = '''[imu]
-file = "rec.csv"
-sample_rate_hz = 200.0
-[imu.time]
-column = "t"
-[imu.gyro]
-output = "rate"
-unit = "deg/s"
-x = "gx"
-y = "gy"
-z = "gz"
-[imu.acc]
-output = "specific_force"
-unit = "g"
-x = "ax"
-y = "ay"
-z = "az"
-''' + SITE
+    text = _rec_csv_imu(200.0) + SITE
     m = _mapping(tmp_path / "map.toml", edit(text))
     with pytest.raises(MappingError, match=match):
         import_log(load_mapping(m))
