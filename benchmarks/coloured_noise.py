@@ -96,12 +96,21 @@ def noise_spec(grade: str) -> dict:
             "acc.noise.bi_tau": 10.0, "acc.noise.bi_tau_max": 3600.0, "acc.noise.rrw": f"{1 * k} ug/sqrt(h)"}
 
 
-def scenario(schedule: str, grade: str):
+def scenario(schedule: str, grade: str, table_effects: dict | None = None):
+    """The demo's scenario without its K2, the grade's noise, *schedule*; *table_effects*
+    (vocabulary name -> SI) in the turntable (benchmarks/table_effects.py)."""
     d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
     d["imu"]["effects"].pop("acc.k2.z")
     d["imu"]["noise"] = noise_spec(grade)
     d["schedule"] = {"name": schedule, "overrides": {"dwell": 8.0} if schedule == "diagnosis" else {}}
+    if table_effects:
+        d["turntable"]["effects"] = {k: float(v) for k, v in table_effects.items()}
     return scenario_from_dict(d, source="coloured_noise")
+
+
+def seed_variants(n: int) -> list:
+    """The null seeds: an IMU instance each, under the heat/cool cycle (CYCLE)."""
+    return [Variant(f"seed{k}", seed=5000 + k, parameters=MODE2, temperature_env=True) for k in range(n)]
 
 
 def as_pulse_counts(log, weights: dict, seed: int):
@@ -209,6 +218,26 @@ def analyse_hidden(job) -> dict:
             "further": d2.verdict}
 
 
+def naming_of(d0, effect: str, param: str):
+    """(detection threshold, naming threshold, look-alike, cosine) of *param* in the diagnosis
+    *d0*: named first needs the naming threshold, the detection threshold or more where a
+    look-alike's columns lie near (detection_thresholds.naming_snr); None where the schedule does
+    not excite it."""
+    cand = next((c for c in d0.ranking if c.effect == effect), None)
+    if cand is None or param not in cand.threshold:
+        return None
+    detect = cand.threshold[param]
+    return (detect, *cand.naming.get(param, (detect, None, 0.0)))
+
+
+def tally(res: list, named) -> tuple[int, int, int]:
+    """(how many *named*(r) holds for, χ²/dof after add in its 99 % band, a further verdict) over
+    analyse_hidden's results."""
+    lo, hi = band99(res[0]["dof_after"])
+    return (sum(bool(named(r)) for r in res), sum(lo <= r["chi2_after"] <= hi for r in res),
+            sum(r["further"] is not None for r in res))
+
+
 def honest_sigma_p(errors, sigmas) -> float:
     """Two-sided p-value of Σ (e/σ)² ~ χ²(n): the errors are drawn with the reported σ."""
     z2 = float(np.sum((np.asarray(errors) / np.asarray(sigmas)) ** 2))
@@ -263,7 +292,7 @@ def main(argv=None) -> int:
     unit = {e: 2e-5 if e == "imu.time_offset" else 20 * EFFECTS[e].typical for e in effects}
     sigs += [Variant(e, effects={PARAM[e]: unit[e]}, parameters={**MODE2, **quiet}, temperature_env=True)
              for e in effects]
-    variants = [Variant(f"seed{k}", seed=5000 + k, parameters=MODE2, temperature_env=True) for k in range(a.seeds)]
+    variants = seed_variants(a.seeds)
     runs = {}
     todo = sigs + variants
     for i in range(0, len(todo), a.batch):
@@ -394,14 +423,11 @@ def main(argv=None) -> int:
         for e in effects:
             t = time.time()
             p = PARAM[e]
-            cand = next((c for c in d0.ranking if c.effect == e), None)
-            if cand is None or p not in cand.threshold:
+            found = naming_of(d0, e, p)
+            if found is None:
                 print(f"  {e:16s} not excited by this schedule")
                 continue
-            # named first needs the naming threshold: the detection threshold, or more where a
-            # look-alike's columns lie near (detection_thresholds.naming_snr)
-            detect = cand.threshold[p]
-            thr, rival, cos = cand.naming.get(p, (detect, None, 0.0))
+            detect, thr, rival, cos = found
             if not math.isfinite(thr):
                 print(f"  {e:16s} never named first on this schedule: its column lies in {rival}'s (cosine {cos:.4f})")
                 rows[e] = {"threshold": detect, "naming_threshold": None, "look_alike": rival, "cosine": cos}
@@ -414,10 +440,7 @@ def main(argv=None) -> int:
                 dd._profiles = d._profiles
                 hidden.append((dd, e, noise))
             res = list(pool.map(analyse_hidden, hidden))
-            named = sum(r["named"] for r in res)
-            lo, hi = band99(res[0]["dof_after"])
-            inband = sum(lo <= r["chi2_after"] <= hi for r in res)
-            further = sum(r["further"] is not None for r in res)
+            named, inband, further = tally(res, lambda r: r["named"])
             uname, scale = EFFECTS[e].display
             rows[e] = {"threshold": detect, "naming_threshold": thr, "look_alike": rival, "cosine": cos,
                        "named": named, "n": len(res), "in_band": inband, "further": further}

@@ -17,28 +17,24 @@ Each log is analysed with the injected noise model (the "true" analysis of that 
 from __future__ import annotations
 
 import argparse
-import copy
 import math
 import multiprocessing as mp
 import sys
 import time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from coloured_noise import BASELINE, CYCLE, MODE2, analyse_hidden, band99, noise_spec, true_noise  # noqa: E402
+from coloured_noise import BASELINE, CYCLE, analyse_hidden, naming_of, scenario, seed_variants, tally, true_noise  # noqa: E402
 
-from components.cli.demo import SCENARIO  # noqa: E402
 from components.diagnosis.diagnose import diagnose  # noqa: E402
 from components.estimation.log_data import LogData  # noqa: E402
 from components.estimation.lsq import calibrate  # noqa: E402
 from components.model.effects import EFFECTS  # noqa: E402
 from components.model.result import result_from_fit  # noqa: E402
-from components.simulation.multi_imu import Variant, run_variants  # noqa: E402
-from components.simulation.scenario import scenario_from_dict  # noqa: E402
+from components.simulation.multi_imu import run_variants  # noqa: E402
 
 PARAM = {  # the hidden parameter per table effect
     "table.base_tilt": "table.base_tilt.x", "table.nonorth": "table.nonorth.middle.v",
@@ -47,19 +43,8 @@ PARAM = {  # the hidden parameter per table effect
 }
 
 
-def scenario(grade: str, table_effects: dict | None = None):
-    d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
-    d["imu"]["effects"].pop("acc.k2.z")
-    d["imu"]["noise"] = noise_spec(grade)
-    d["schedule"] = {"name": "diagnosis", "overrides": {"dwell": 8.0}}
-    if table_effects:
-        d["turntable"]["effects"] = {k: float(v) for k, v in table_effects.items()}
-    return scenario_from_dict(d, source="table_effects")
-
-
 def seeds_on(sc, n: int) -> list:
-    variants = [Variant(f"seed{k}", seed=5000 + k, parameters=MODE2, temperature_env=True) for k in range(n)]
-    runs = run_variants(sc, variants, CYCLE)
+    runs = run_variants(sc, seed_variants(n), CYCLE)
     return [LogData.from_log(runs[f"seed{k}"][0]) for k in range(n)]
 
 
@@ -78,7 +63,7 @@ def main(argv=None) -> int:
           f"workers {a.workers}", flush=True)
     # the thresholds from a log without table effects: they depend on the design and the noise only
     t = time.time()
-    null = seeds_on(scenario(a.grade), 1)[0]
+    null = seeds_on(scenario("diagnosis", a.grade), 1)[0]
     m0 = result_from_fit(calibrate(null, BASELINE, noise=noise), BASELINE, null)
     d0 = diagnose(null, m0, noise=noise, forward=False)
     print(f"thresholds from one null log: {time.time() - t:.0f} s\n")
@@ -88,12 +73,11 @@ def main(argv=None) -> int:
     for e in effects:
         t = time.time()
         p = PARAM[e]
-        cand = next((c for c in d0.ranking if c.effect == e), None)
-        if cand is None or p not in cand.threshold:
+        found = naming_of(d0, e, p)
+        if found is None:
             print(f"  {e:16s} not excited by this schedule")
             continue
-        detect = cand.threshold[p]
-        thr, rival, cos = cand.naming.get(p, (detect, None, 0.0))
+        detect, thr, rival, cos = found
         uname, scale = EFFECTS[e].display
         # a look-alike whose column is this one's on this schedule (cosine 1): neither can be named
         # first; the diagnosis names one of the two and says so, at the detection threshold
@@ -101,12 +85,9 @@ def main(argv=None) -> int:
         if pair:
             thr = detect
         nameable += 1
-        datas = seeds_on(scenario(a.grade, {p: 1.3 * thr}), a.seeds)
+        datas = seeds_on(scenario("diagnosis", a.grade, {p: 1.3 * thr}), a.seeds)
         res = list(pool.map(analyse_hidden, [(d, e, noise) for d in datas]))
-        named = sum(r["named"] or (pair and r["verdict"] == rival) for r in res)
-        lo, hi = band99(res[0]["dof_after"])
-        inband = sum(lo <= r["chi2_after"] <= hi for r in res)
-        further = sum(r["further"] is not None for r in res)
+        named, inband, further = tally(res, lambda r: r["named"] or (pair and r["verdict"] == rival))
         others = sorted({r["verdict"] for r in res if not r["named"]} - {None})
         ok = named >= math.ceil(0.95 * a.seeds) and inband >= math.ceil(0.95 * a.seeds)
         passed += ok
@@ -118,6 +99,7 @@ def main(argv=None) -> int:
               f"{named}/{a.seeds}  χ²/dof in band {inband}/{a.seeds}  further verdict {further}/{a.seeds}"
               + (f"  instead: {', '.join(others)}" if others else "") + f"  ({time.time() - t:.0f} s){own}", flush=True)
     print(f"  {passed}/{nameable} effects that can be named first named in >= 95 % of seeds with χ²/dof in band")
+    pool.shutdown()
     print(f"\ntotal {time.time() - t_all:.0f} s")
     return 0
 
