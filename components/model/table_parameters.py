@@ -1,40 +1,44 @@
 """Table effects of the vocabulary (``table.base_tilt``, ``table.nonorth``, ``table.wobble``,
-``table.encoder``, ``table.reversal``) as fields of a :class:`~components.model.geometry.TableGeometry`: a parameter
-name of the vocabulary set on, or read from, the geometry."""
+``table.encoder``, ``table.reversal``) as fields of a
+:class:`~components.model.geometry.TableGeometry`: a parameter name of the vocabulary set on, or
+read from, the geometry."""
 from __future__ import annotations
 
 from dataclasses import replace
 
 from components.model.geometry import TableGeometry
 
+# effect -> the field of a Stage ({c}: the parameter's last index); base_tilt is the geometry's
+_STAGE_FIELD = {"table.nonorth": "nonorth_{c}", "table.wobble": "wobble_{c}", "table.encoder": "enc_{c}",
+                "table.reversal": "reversal"}
+
+
+def _field(name: str) -> tuple[str | None, str]:
+    """(the stage a parameter belongs to, or None for the base; the field that holds it):
+    ``table.base_tilt.x`` -> (None, "tilt_x"), ``table.encoder.outer.s1`` -> ("outer", "enc_s1"),
+    ``table.reversal.middle`` -> ("middle", "reversal")."""
+    parts = name.split(".")
+    effect = ".".join(parts[:2])
+    if effect == "table.base_tilt":
+        return None, f"tilt_{parts[2]}"
+    return parts[2], _STAGE_FIELD[effect].format(c=parts[-1])
+
 
 def apply_table_parameter(geo: TableGeometry, name: str, value: float) -> TableGeometry:
     """Geometry with one table-effect parameter set (names of components.model.effects)."""
-    parts = name.split(".")
-    if name.startswith("table.base_tilt."):
-        return replace(geo, **{f"tilt_{parts[2]}": value})
-    if name.startswith("table.reversal."):
-        return geo.with_stage(parts[2], reversal=value) if parts[2] in geo.names else geo
-    axis, comp = parts[2], parts[3]
-    if axis not in geo.names:
+    stage, attr = _field(name)
+    if stage is None:
+        return replace(geo, **{attr: value})
+    if stage not in geo.names:
         return geo  # a stage this table does not have: the parameter has no effect
-    field_name = {"table.nonorth": f"nonorth_{comp}", "table.wobble": f"wobble_{comp}",
-                  "table.encoder": f"enc_{comp}"}[".".join(parts[:2])]
-    return geo.with_stage(axis, **{field_name: value})
+    return geo.with_stage(stage, **{attr: value})
 
 
 def table_parameter_value(geo: TableGeometry, name: str) -> float:
     """The value of one table-effect parameter in a geometry (0 for a stage it does not have)."""
-    parts = name.split(".")
-    if name.startswith("table.base_tilt."):
-        return getattr(geo, f"tilt_{parts[2]}")
-    axis = parts[2]
-    if axis not in geo.names:
+    stage, attr = _field(name)
+    if stage is None:
+        return getattr(geo, attr)
+    if stage not in geo.names:
         return 0.0
-    stage = next(s for s in geo.stages if s.name == axis)
-    if name.startswith("table.reversal."):
-        return stage.reversal
-    comp = parts[3]
-    attr = {"table.nonorth": f"nonorth_{comp}", "table.wobble": f"wobble_{comp}",
-            "table.encoder": f"enc_{comp}"}[".".join(parts[:2])]
-    return getattr(stage, attr)
+    return getattr(next(s for s in geo.stages if s.name == stage), attr)

@@ -201,7 +201,7 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
         table_effects[k] = _effect_value(k, v, f"{w}.effects")
     for k in table_effects:
         parts = k.split(".")
-        if (len(parts) == 4 or parts[1] == "reversal") and len(parts) > 2 and parts[2] not in axes:
+        if parts[1] != "base_tilt" and parts[2] not in axes:  # every other table effect names a stage
             raise ScenarioError(f"{w}.effects: {k!r}: the table has no axis {parts[2]!r} (axes: {axes})")
     table_params = {k: _param(v, k, f"{w}.parameters") for k, v in _table(tt, "parameters", w).items()}
 
