@@ -71,7 +71,7 @@ def _crb(data, model, noise: dict) -> dict:
     # from the fit where the truth has none
     injected = from_fmu_parameters({**noise, "gyro.noise.arw": arw, "acc.noise.vrw": vrw})
     try:
-        return cramer_rao(data, effects, injected, rest_angle_sigma=model.noise.get("rest_angle_sigma_rad"))
+        return cramer_rao(data, effects, injected, rest_angle_sigma=model.rest_angle_sigma())
     except Exception:  # noqa: BLE001  (a bound we cannot compute is reported as missing)
         return {}
 

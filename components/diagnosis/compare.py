@@ -143,8 +143,8 @@ def compare(data: LogData, model: CalibrationResult, *, fitted_parameters: int =
     values = np.array([model.values[p] for p in sensor_params])
     layout = BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s), chunk_samples)
     pred, plate = chunked_prediction(data, layout, sensor_params, values, geo, model.temperature_ref)
-    if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
-        rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
+    if rest_angle_sigma is None:
+        rest_angle_sigma = model.rest_angle_sigma()
     if noise is None:
         noise = model.noise_model()
     return assess(data, geo, plate, pred, fitted_parameters=fitted_parameters, chunk_s=chunk_s,

@@ -269,10 +269,10 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     ``chunk_samples``: the rows are built that many samples at a time (components.estimation.chunks)."""
     if noise is None:
         noise = model.noise_model()
-    if rest_angle_sigma is None and "rest_angle_sigma_rad" in model.noise:
+    if rest_angle_sigma is None:
         # how far the table rests from its readings, as the calibration estimated it from the
         # moves (compare takes the same); one count uniform is only that estimate's start
-        rest_angle_sigma = model.noise["rest_angle_sigma_rad"]
+        rest_angle_sigma = model.rest_angle_sigma()
     base_effects = list(model.effects)
     cands = candidates if candidates is not None else default_candidates(base_effects)
     noise_asked = [c for c in cands if c in NOISE_CANDIDATES] if candidates is not None else list(NOISE_CANDIDATES)

@@ -39,6 +39,11 @@ class CalibrationResult:
     def value(self, name: str, default: float = 0.0) -> float:
         return self.values.get(name, default)
 
+    def rest_angle_sigma(self):
+        """σ of the table's true angle at rest around its reading per axis [rad], as the fit
+        estimated it from the moves, or None (not estimated: one count uniform is taken)."""
+        return self.noise.get("rest_angle_sigma_rad")
+
     def noise_model(self):
         """The composite noise model the fit was whitened with (components.model.noise), or None
         (white noise)."""
