@@ -154,3 +154,17 @@ def test_reversal_is_recovered_and_a_dithering_reading_does_not_move_it(reversal
     for p in ("table.reversal.middle", "table.reversal.inner"):
         i = clean.parameters.index(p)
         assert abs(clean.value[i] - dithered.value[i]) < clean.sigma[i]
+
+
+def test_a_profile_whose_sides_differ_has_another_key():
+    """The table columns are cached by the profile's key: the same angles read with another
+    band (another stated encoder count) can give other sides, and must not share columns."""
+    time = np.arange(1, 11) * 0.01
+    angles = np.zeros((10, 1))
+    angles[3:5, 0] = [1e-7, 2e-7]
+    angles[5:, 0] = 1e-7  # comes back by one step: a side of -1 with no band, none with a wider one
+    tight = interpolate_angles(time, angles, 3, None, None, [0.0])
+    wide = interpolate_angles(time, angles, 3, None, None, [1.5e-7])
+    assert tight.attitude_sides.ravel().tolist() != wide.attitude_sides.ravel().tolist()
+    assert tight.key != wide.key
+    assert tight.key == interpolate_angles(time, angles, 3, None, None, [0.0]).key

@@ -123,6 +123,7 @@ class AngleProfile:
     move_side_rate: np.ndarray | None = None  # (M, n_axes) (its end's sides - those) / its length [1/s]
     move_t0: np.ndarray | None = None        # (M,) its start [s]
     side0: np.ndarray | None = None          # (n_axes,) the sides before the first sample
+    side_band: np.ndarray | None = None      # (n_axes,) [rad] the travel a side needs (approach.run_sides)
     _key: str | None = field(default=None, repr=False, compare=False)
     _static_samples: np.ndarray | None = field(default=None, repr=False, compare=False)
     # geometry -> rest_values, the last few (a chunk's design asks for the same geometry's four
@@ -136,8 +137,10 @@ class AngleProfile:
         if self._key is None:
             h = hashlib.sha256(np.ascontiguousarray(self.time))
             h.update(np.ascontiguousarray(self.th_end))
-            if self.side0 is not None:
-                h.update(np.ascontiguousarray(self.side0, np.int8))
+            # the sides are the angles' with these two (the table columns' cache keys on this)
+            for a, t in ((self.side0, np.int8), (self.side_band, float)):
+                if a is not None:
+                    h.update(np.ascontiguousarray(a, t))
             h.update(bytes([len(self.nodes), self.th_end.shape[1]]))
             self._key = h.hexdigest()
         return self._key
@@ -212,7 +215,7 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
     att, att_sides, inv = _attitudes(measured, static, sides)
     return AngleProfile(time, t_prev, dt, static, x, w, moving, th_q, rate_q, acc_q, measured,
                         rate_end, acc_end, att, inv.ravel(), att_sides, move_side0, move_side_rate,
-                        move_t0, side0)
+                        move_t0, side0, np.array(band, float))
 
 
 def _attitudes(measured: np.ndarray, static: np.ndarray, sides: np.ndarray):
