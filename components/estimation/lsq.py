@@ -100,9 +100,18 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
 
     if temperature_ref is None and data.temperature is not None:
         temperature_ref = float(data.temperature[0])
+    static = data.static
+    # refused before any pass over the log's sensors
+    if data.has_table and len(static) > 1 and not np.any(static[1:]):
+        step = encoder_quantum(data.angles)
+        raise EstimationError(
+            "the table angles of this log change at every sample, so it has no rest (calbench takes the table "
+            "at rest where the logged angles repeat exactly); the smallest step between logged angles is "
+            + ", ".join(f"{np.degrees(x) * 3600:.3g}\"" for x in step) + ": if the angles carry noise finer than "
+            "the encoder's count, import the log with 'round_to_count = true' and 'encoder_resolution' in the "
+            "mapping's [table] (docs/import.md)")
     layout = BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s), chunk_samples)
     gb = layout.gyro
-    static = data.static
 
     def rows_at(g: TableGeometry, lin=None):
         return chunked_design(data, layout, params, sg, sa, q, g, table_params, temperature_ref, quadrature, lin)
@@ -125,14 +134,6 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
                        else white_noise_sigma(data.gyro, static & data.usable, quant[:3]), float)
     raw_a = np.asarray(sigma_acc if sigma_acc is not None
                        else white_noise_sigma(data.acc, static & data.usable, quant[3:]), float)
-    if data.has_table and len(static) > 1 and not np.any(static[1:]):
-        step = encoder_quantum(data.angles)
-        raise EstimationError(
-            "the table angles of this log change at every sample, so it has no rest (calbench takes the table "
-            "at rest where the logged angles repeat exactly); the smallest step between logged angles is "
-            + ", ".join(f"{np.degrees(x) * 3600:.3g}\"" for x in step) + ": if the angles carry noise finer than "
-            "the encoder's count, import the log with 'round_to_count = true' and 'encoder_resolution' in the "
-            "mapping's [table] (docs/import.md)")
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
         raise EstimationError("the white-noise level cannot be estimated from this log (it has no two usable "
