@@ -83,6 +83,9 @@ def quantization_known(data) -> dict:
     return out
 
 
+IDENTIFIED = "identified on this log"  # how a noise model identified on the log says so
+
+
 def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, bootstrap: int = 30,
                  base: NoiseModel | None = None):
     """(noise model or None for white, the sentence saying what it is, the identification if one
@@ -129,7 +132,7 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             except ValueError as e:
                 raise UserError(f"--noise identify: {e}") from None
             noise = ident.model
-            said.append(lead + "identified on this log")
+            said.append(lead + IDENTIFIED)
         elif "=" in s:
             name, v = _term(s)
             noise = from_terms({name: v}, noise, "given by hand")
