@@ -102,11 +102,15 @@ class LogData:
     def static(self) -> np.ndarray:
         """(N,) bool: no gimbal angle changed over the sample's interval (the first sample's
         interval is taken at rest), as the angle profile has it, without building the profile.
-        Without a table every sample (a log of rests and turns is mostly at rest). Computed once
+        Without a table the samples of the segments of kind 'static'. Computed once
         (a command asked five times: 0.34 s each on an 8-hour log) and read-only, being shared."""
         if self._static is None:
             if not self.has_table:
-                st = np.ones(len(self.time), bool)
+                # at rest: the samples of the segments described as static; without descriptions
+                # every sample (the turns of such a log are not known apart from its rests)
+                kinds = self.segment_kinds if self.segment is not None else None
+                rests = [lab for lab, d in (kinds or {}).items() if d["kind"] == "static"]
+                st = np.isin(self.segment, rests) if rests else np.ones(len(self.time), bool)
             else:
                 a = self.angles
                 st = np.concatenate([[True], np.all(a[1:] == a[:-1], axis=1)])

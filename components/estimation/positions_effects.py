@@ -19,6 +19,7 @@ from components.estimation.determinability import undetermined_columns
 from components.estimation.log_data import LogData
 from components.estimation.positions import SUPPORTED, angle_deg, calibrate_positions
 from components.estimation.positions_design import PositionsDesign
+from components.estimation.positions_observations import COLOURED_NOT_USED
 from components.estimation.positions_result import PositionResult, PositionsFit, RotationResult
 from components.model.effects import EFFECTS, parameters_of, parse_effects
 from components.model.geometry import rodrigues, skew
@@ -46,8 +47,10 @@ def fit_positions(data: LogData, effects, *, noise=None, chunk_s: float = 1.0,
                                effects=base_effects, valid=data.usable, latitude=lat,
                                gravity=data.geometry.gravity, noise=noise, chunk_s=chunk_s)
     extra = [e for e in effects if e not in base_effects]
-    if not extra and base_effects == effects:
+    if not extra and base_effects == effects and not (noise is not None and noise.coloured):
         return base
+    # (the first fit weights its rows with white noise alone; the refinement whitens them with a
+    # coloured noise model's every term)
     return refine_positions(data, base, effects, noise=noise, chunk_s=chunk_s, temperature_ref=temperature_ref)
 
 
@@ -60,7 +63,7 @@ def refine_positions(data: LogData, base: PositionsFit, effects: list[str], *, n
     if design.segs.names != [p.name for p in base.positions]:
         raise EstimationError("the positions of the refinement differ from the first fit's: "
                               f"{design.segs.names} against {[p.name for p in base.positions]}")
-    notes = list(base.notes)
+    notes = [n for n in base.notes if not (design.noise is not None and n == COLOURED_NOT_USED)]
     requested = [p for p in parameters_of(effects) if p not in base.held]
     # which parameters the rows determine: without the Earth rate's share, so that a gyro scale
     # factor counts as determined only where a turn excites it (as the first fit judges it)
@@ -109,7 +112,7 @@ def refine_positions(data: LogData, base: PositionsFit, effects: list[str], *, n
         sample_interval=design.dt_med, noise_source=design.noise_source, latitude=base.latitude,
         gravity=design.g, iterations=base.iterations + it, excluded=dict(base.excluded), notes=notes,
         schedule=base.schedule, samples=base.samples, duration=base.duration, attitudes=C,
-        temperature_ref=design.T0 if data.temperature is not None else None)
+        temperature_ref=design.T0 if data.temperature is not None else None, noise=design.noise)
 
 
 def _rests(design: PositionsDesign, C: np.ndarray, cov_att: np.ndarray, resid: np.ndarray,

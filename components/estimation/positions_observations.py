@@ -101,6 +101,9 @@ def reduce_turns(segs: Segments, yg: np.ndarray, dt: np.ndarray) -> list[Turn]:
     return rots
 
 
+COLOURED_NOT_USED = "the noise model's coloured terms are not used by the first positions fit (white part only)"
+
+
 def white_sigmas(noise, yg: np.ndarray, ya: np.ndarray, use: np.ndarray, dt_med: float,
                  notes: list[str]) -> tuple[np.ndarray, np.ndarray, str]:
     """Per-sample white σ of the gyros [rad] and accelerometers [m/s] that weight the rows, and
@@ -116,7 +119,7 @@ def white_sigmas(noise, yg: np.ndarray, ya: np.ndarray, use: np.ndarray, dt_med:
                          "the static data")
         source = f"white part of the given noise model ({noise.source or 'given'})"
         if noise.coloured:
-            notes.append("the noise model's coloured terms are not used by the positions method (white part only)")
+            notes.append(COLOURED_NOT_USED)
     else:
         white = white_noise_sigma(np.hstack([yg, ya]), use)
         source = "estimated from the static data"

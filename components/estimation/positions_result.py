@@ -96,6 +96,7 @@ class PositionsFit:
     gauge: str = GAUGE
     attitudes: np.ndarray | None = None  # (P, 3, 3) body -> ENU per rest, in the order of `positions`
     temperature_ref: float | None = None  # °C, T0 of temperature effects (None: no temperature effect)
+    noise: object = None  # the composite NoiseModel the rows were whitened with (None: white only)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -164,6 +165,10 @@ class PositionsFit:
             "gyro_arw_rad_per_sqrt_s": [float(x / math.sqrt(dt)) for x in self.sigma_gyro],
             "acc_vrw_mps_per_sqrt_s": [float(x / math.sqrt(dt)) for x in self.sigma_acc],
         }
+        if self.noise is not None:
+            # as a table log's result: compare, diagnose and add read the model's noise from here
+            noise["model"] = f"composite noise model ({self.noise.source}): rows whitened with it"
+            noise["composite"] = self.noise.to_dict()
         lo, hi = self.chi2_band()
         fit = {"chi2": float(self.chi2), "dof": int(self.dof), "chi2_per_dof": float(self.chi2_per_dof),
                "chi2_per_dof_band_999": [lo, hi], "iterations": int(self.iterations),
