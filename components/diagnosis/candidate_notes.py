@@ -171,13 +171,23 @@ def verdict_lines(d) -> list[str]:
     never contradicts the table above it."""
     found = f"; in turn: {', '.join(d.found)}" if len(d.found) > 1 else ""
     if d.verdict is None:
-        lines = ["verdict: no significant effect is missing and the noise model suffices"]
+        lines = ["verdict: no significant effect is missing and the noise model suffices" if not d.noise_untested
+                 else f"verdict: no significant effect is missing (the noise terms the model lacks were not tested: "
+                      f"{d.noise_untested})"]
     elif d.verdict_kind == "noise":
         lines = [f"verdict: the noise model is too simple: {d.verdict} explains the residual better than any "
                  "effect (a stochastic term, not a missing effect; add it with `calbench add --effect "
                  f"{d.verdict}`){found}"]
     else:
         lines = [f"verdict: {d.verdict} is missing{found}"]
+        top = next((c for c in d.ranking if c.effect == d.verdict), None)
+        twins = [(e, r) for e, r, _ in (top.indistinguishable if top else []) if
+                 any(o.effect == e and o.p_adjusted < d.alpha for o in d.ranking)]
+        if twins:
+            # which of them is first is chance on this log: the verdict must not pretend to know
+            lines[0] = (f"verdict: {d.verdict} or {' or '.join(e for e, _ in twins)} is missing: this log cannot "
+                        f"tell them apart (correlation {max(r for _, r in twins):.3f}), so which comes first is "
+                        f"chance; see the ranking's notes for the motion that separates them{found}")
     others = [c for c in d.ranking if c.p_adjusted < d.alpha and c.status != "verdict"]
     if others:
         by = {}

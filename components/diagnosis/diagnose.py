@@ -117,6 +117,8 @@ class Diagnosis:
     # candidates this log cannot see at any plausible magnitude: effect -> the motion it needs
     unseeable: dict = field(default_factory=dict)
     forward: bool = True  # forward selection ran (each passing candidate was re-tested after the verdict)
+    # why the noise terms the model lacks were not tested ("" when they were, or it lacks none)
+    noise_untested: str = ""
 
     def to_json(self) -> dict:
         return {"verdict": self.verdict, "verdict_kind": self.verdict_kind, "found": self.found,
@@ -326,6 +328,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     base_effects = list(model.effects)
     cands = candidates if candidates is not None else default_candidates(base_effects)
     noise_asked = [c for c in cands if c in NOISE_CANDIDATES] if candidates is not None else list(NOISE_CANDIDATES)
+    untested = "" if noise_asked else "none among --candidates"
     cands = [c for c in cands if c not in base_effects and c not in NOISE_CANDIDATES]
     params = list(dict.fromkeys(parameters_of(base_effects) + parameters_of(cands)))
     # table-effect parameters for stages this table does not have contribute nothing
@@ -337,7 +340,10 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     else:
         held = set(model.extra.get("positions", {}).get("held", {}))
         params = [p for p in params if effect_of(p).target != "table" and p not in held]
-        noise_asked = []  # the noise terms' likelihood needs the table log's rows in time (see docs/positions.md)
+        if noise_asked:
+            # the noise terms' likelihood needs the table log's rows in time (see docs/positions.md)
+            untested = "a log without table angles has no rows in time for their likelihood"
+        noise_asked = []
         design = _Design.on_positions_log(data, model, params, chunk_s, noise)
     available = {c: [p for p in EFFECTS[c].parameters if p in design.index] for c in cands}
     base = [p for p in parameters_of(base_effects) if p in design.index] + design.nuisance
@@ -395,7 +401,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     out = Diagnosis(found[0] if found else None, first_ranking or [], found, steps,
                     chi2_first or float("nan"), design.n, alpha,
                     [{k: v for k, v in n.items() if k != "model"} for n in (first_noise or [])],
-                    kinds[0] if kinds else None, noise_now, unseeable, forward)
+                    kinds[0] if kinds else None, noise_now, unseeable, forward, untested)
     annotate(out)
     return out
 
@@ -437,6 +443,13 @@ def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
             out[effect] = needs(ps[0]) if ps else "parameters this table does not have"
             del available[effect]
     return out
+
+
+# a log without table angles: the rests' attitudes are estimated, so the rows see an effect only
+# through what an attitude cannot take up (at rest the specific force's magnitude)
+POSITIONS_TWINS = ("the rests' attitudes are estimated on a log without table angles, so only what a tilt cannot "
+                   "take up tells effects apart: log the table angles, or rest at more tilts than these; with known "
+                   "attitudes: ")
 
 
 def _rank(design: _Design, base: list[str], available: dict, alpha: float):
@@ -513,8 +526,10 @@ def _rank(design: _Design, base: list[str], available: dict, alpha: float):
                 continue
             s = np.linalg.svd(c._basis.T @ d._basis, compute_uv=False)  # type: ignore[attr-defined]
             if len(s) and s[0] > TWINS:
-                c.indistinguishable.append((d.effect, float(s[0]), separation_advice(
-                    c.effect, d.effect, c.signature["parameter"], d.signature["parameter"])))
+                advice = separation_advice(c.effect, d.effect, c.signature["parameter"], d.signature["parameter"])
+                if design.nuisance:
+                    advice = POSITIONS_TWINS + advice
+                c.indistinguishable.append((d.effect, float(s[0]), advice))
     theoretical_thresholds(out, design, base, available, alpha)
     for c in out:
         del c._basis  # type: ignore[attr-defined]
