@@ -282,9 +282,10 @@ def _condition_masks(data: LogData, plate: PlateAtSamples, rows: dict) -> dict:
             copy[s] = data.temperature[s]
         lo, hi = np.quantile(copy, [1 / 3, 2 / 3], overwrite_input=True)
         del copy
-        cond["temperature low"] = T <= lo
-        cond["temperature mid"] = (T > lo) & (T <= hi)
-        cond["temperature high"] = T > hi
+        if hi > lo:  # a temperature that hardly changes has no low and high thirds to set apart
+            cond["temperature low"] = T <= lo
+            cond["temperature mid"] = (T > lo) & (T <= hi)
+            cond["temperature high"] = T > hi
     return cond
 
 
