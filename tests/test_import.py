@@ -287,6 +287,9 @@ ROUND
         import_log(load_mapping(m))
 
 
+LABELS = '\n[labels]\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n'
+
+
 @pytest.mark.parametrize("edit, match", [
     (lambda s: s.replace('sample_rate_hz = 200.0', 'sample_rate_hz = -1'), r"map.toml: key 'imu.sample_rate_hz'"),
     (lambda s: s.replace('unit = "deg/s"', 'unit = "deg/min"'), r"key 'imu.gyro.unit' = 'deg/min': expected one of"),
@@ -298,9 +301,16 @@ ROUND
     (lambda s: s.replace('[site]\nlatitude_deg = 39.9', '[site]\nlatitude_deg = 99'), r"key 'site.latitude_deg' = 99"),
     (lambda s: s + '\n[labels]\ncolumn = "t"\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n',
      r"give a column or ranges, not both"),
+    # found later, by what they break, before these were checked at the import
+    (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\nunit = "ms"'),
+     r"map.toml: the time stamps' median interval is 5e-06 s .* 0.001 x 1/imu.sample_rate_hz .*imu.time.unit"),
+    (lambda s: s.replace('sample_rate_hz = 200.0', 'sample_rate_hz = 100.0'), r"0.5 x 1/imu.sample_rate_hz"),
+    (lambda s: s + LABELS + '[segments]\na = { kind = "static" }\nb = { kind = "static" }\n',
+     r"map.toml: key 'segments' names label\(s\) 'b' that no sample carries; expected labels of the data \(a\)"),
+    (lambda s: 'exclude = ["b"]\n' + s + LABELS, r"map.toml: key 'exclude' names label\(s\) 'b' that no sample"),
 ])
 def test_mapping_mistakes_are_one_clear_error(tmp_path, edit, match):
-    t = np.arange(1, 101) * 0.01
+    t = np.arange(1, 101) * 0.005
     _write_delimited(tmp_path / "rec.csv", ["t", "gx", "gy", "gz", "ax", "ay", "az"],
                      [t] + [np.zeros(100)] * 5 + [np.ones(100)])
     text = _rec_csv_imu(200.0) + SITE

@@ -51,6 +51,7 @@ def import_log(m: Mapping) -> Imported:
         raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {t[i]!r} s after {t[i - 1]!r} s; expected strictly "
                            "increasing times")
     nominal = 1.0 / m.sample_rate_hz
+    _check_rate(m, t, nominal)
     max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
     timing, fs = "nominal", m.sample_rate_hz
     if m.timing == "regularise":
@@ -80,6 +81,7 @@ def import_log(m: Mapping) -> Imported:
         temp = cols.values(m.temperature, "imu.temperature.column")
         temp = {"degC": temp, "K": temp - 273.15, "degF": (temp - 32.0) * 5.0 / 9.0}[m.temperature_unit]
     seg = _labels(m, cols, t)
+    _check_label_keys(m, seg)
     clock: dict = {}
     gimbal, command, names, vectors, keep = _table(m, cols, t, gyro, gkind, notes, clock)
     if keep is not None:
@@ -100,6 +102,42 @@ def import_log(m: Mapping) -> Imported:
     log.extra_metadata = {"import": {"mapping": m.where, "notes": notes}}
     log.validate(f"the log imported by {m.where}")
     return Imported(log, notes, clock.get("estimate"))
+
+
+# stamps whose median interval is this far from 1/sample_rate_hz (either way) are in another unit
+# than the mapping says, or the rate is wrong: not a clock's drift (ppm) nor a jitter
+RATE_MISMATCH = 1.25
+
+
+def _check_rate(m: Mapping, t: np.ndarray, nominal: float) -> None:
+    """The time stamps against the stated sample rate: a unit or a rate off by a factor (ms read
+    as s: every interval a gap) is named here, with the mapping's keys, not by what it breaks later."""
+    from components.estimation import order_statistics
+
+    med = float(order_statistics.median(np.diff(t)))
+    ratio = med / nominal
+    if not 1 / RATE_MISMATCH < ratio < RATE_MISMATCH:
+        raise MappingError(f"{m.where}: the time stamps' median interval is {med:.6g} s (imu.time.unit: "
+                           f"{m.time_si:g} s a unit), {ratio:.4g} x 1/imu.sample_rate_hz = {nominal:.6g} s; expected the "
+                           "same within 25 %: check imu.time.unit and imu.sample_rate_hz")
+
+
+SHOWN_LABELS = 60  # the data's labels an error lists, to find the intended one
+
+
+def _check_label_keys(m: Mapping, seg) -> None:
+    """The labels the mapping's 'segments' and 'exclude' name against those the data carry: a typo
+    would otherwise fail (or silently drop a position) in every command after the import."""
+    have = set() if seg is None else set(map(str, seg))
+    for key, names in (("segments", [lab for lab, d in (m.segments or {}).items()
+                                     if not (isinstance(d, dict) and d.get("kind") == "excluded")]),
+                       ("exclude", [x for x in m.exclude if isinstance(x, str)])):
+        missing = [lab for lab in names if lab not in have]
+        if missing:
+            shown = sorted(have)[:SHOWN_LABELS]
+            more = f" and {len(have) - len(shown)} more" if len(have) > len(shown) else ""
+            raise MappingError(f"{m.where}: key '{key}' names label(s) {', '.join(map(repr, missing))} that no sample "
+                               f"carries; expected labels of the data ({', '.join(shown) or 'none'}{more})")
 
 
 def describe(m: Mapping, notes: list[str]) -> str:
