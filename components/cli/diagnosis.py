@@ -44,6 +44,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from components.model.result import fitted_on
 
     log, data = log_option.read(args, commands=args.servo is not None or args.model.endswith((".toml", ".ssp")))
+    if args.report and (not data.has_table or args.model.endswith((".toml", ".ssp"))):
+        # said before the comparison, not after printing it all
+        raise UserError("compare --report: the page needs a calibration result and a log with table angles")
     if not data.has_table:
         from components.diagnosis.compare_positions import compare_positions
 
@@ -86,8 +89,6 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if args.block_residuals:
         write_block_residuals(args.block_residuals, c)
     if args.report:
-        if not data.has_table or args.model.endswith((".toml", ".ssp")):
-            raise UserError("compare --report: the page needs a calibration result and a log with table angles")
         report_option.write(args.report, log, data, model, args.model, noise, diagnose_models="none")
     return _fail_above(args, c.chi2_per_dof)
 
@@ -122,6 +123,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from components.model.effects import parse_effects
 
     log, data = log_option.read(args)
+    if args.report and not data.has_table:  # said before the diagnosis, not after printing it all
+        raise UserError("diagnose --report: the page needs a log with table angles")
     model = _load_model(args.model)
     cands = None
     if args.candidates:
@@ -154,8 +157,6 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         print(line)
     json_option.record(args, **d.to_json(), refit=refit)
     if args.report:
-        if not data.has_table:
-            raise UserError("diagnose --report: the page needs a log with table angles")
         report_option.write(args.report, log, data, model, args.model, noise,
                             diagnoses={_name(model): d})
     status = _fail_above(args, d.base_chi2_per_dof)

@@ -14,7 +14,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
     from components.diagnosis.noise_choice import choose_noise
     from components.errors import UserError
-    from components.estimation.crb import cramer_rao
+    from components.estimation.crb import cramer_rao, positions_cramer_rao
     from components.estimation.log_data import LogData
     from components.logs.logfile import read_log
     from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of, parse_effects
@@ -43,15 +43,19 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         Path(target).with_suffix(".csv").exists() or Path(target).with_suffix(".parquet").exists())
     if is_log:
         log = read_log(target)
-        if not log.has_table:
-            raise UserError(f"plan: {target} has no table angles: the bound is computed on a schedule's motion or a "
-                            "table log's; for a session without a table, plan it as the schedule of rests and turns "
-                            "it is meant to be")
     else:
         print(f"simulating schedule {target} (noise- and error-free) for its motion ...")
         log = schedule_motion_log(target, args.dwell)
     data = LogData.from_log(log)
-    crb = cramer_rao(data, effects, noise)
+    held: dict = {}
+    if log.has_table:
+        crb = cramer_rao(data, effects, noise)
+    else:
+        # the rests' attitudes are unknowns of their own: a table schedule's bound would be
+        # several times too optimistic for such a session
+        print(f"{target} has no table angles: the bound of the positions method (each rest's attitude estimated), "
+              "at the attitudes this log's fit finds")
+        crb, held = positions_cramer_rao(data, effects, noise)
     hours = (log.time[-1] - log.time[0] + log.dt) / 3600
     print(f"Cramér–Rao bound for {target}: {hours * 60:.1f} min, noise ({noise.source}): {describe(noise)}")
     print(f"{'parameter':22s} {'sigma':>12s}  unit       {'sigma x sqrt(hours)':>20s}")
@@ -65,8 +69,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
             print(f"{p:22s} {'not determined':>12s}  (the schedule needs {needs(p)})")
             continue
         print(f"{p:22s} {s / scale:12.4g}  {unit:10s} {s / scale * hours ** 0.5:20.4g}")
+    for p, why in held.items():
+        print(f"{p:22s} {'held':>12s}  ({why})")
     json_option.record(args, target=str(target), duration_s=float(hours * 3600), noise=describe(noise),
-                       effects=effects, crb=bounds)
+                       effects=effects, crb=bounds, held=held)
     if args.observability:
         from components.navigation.observability import plan_observability
 

@@ -48,3 +48,21 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     out = dict.fromkeys(params, float("inf"))
     out.update(zip([params[k] for k in keep], np.sqrt(np.clip(np.diag(cov), 0, None))))
     return out
+
+
+def positions_cramer_rao(data: LogData, effects: list[str], noise: NoiseModel) -> tuple[dict[str, float], dict]:
+    """σ bound per parameter of *effects* on a log without table angles (the positions method:
+    each rest's attitude a nuisance, components.estimation.positions_effects), for *noise*,
+    at the attitudes the log's own fit finds (the information depends on them, not on what the
+    sensors read); and the parameters the method holds, with why (its gauge, or not determined)."""
+    from components.estimation.positions_effects import fit_positions
+
+    fit = fit_positions(data, effects, noise=noise)
+    sig = np.sqrt(np.clip(np.diag(fit.covariance), 0, None))
+    out = dict.fromkeys(parameters_of(effects), float("inf"))
+    out.update(zip(fit.parameters, sig.tolist()))
+    held = dict(fit.held)
+    held.update({p: "not determined by this log" for p in fit.undetermined if p not in held})
+    for p in held:
+        out.pop(p, None)
+    return out, held

@@ -77,7 +77,65 @@ def check_semantics(data, log) -> list[str]:
                                    f"the table angles give (the angles span {span:.4g} rad = {math.degrees(span):.4g}° "
                                    f"as declared): {what}?")
                         break
+    elif static.any():
+        out += _handedness(data, log)
     return out
+
+
+# the handedness check (a log without table angles): a reversed axis is named when the rests'
+# f·ω misfit a constant plus the gyro bias along f beyond chance (p below HANDED_P), one axis
+# reversed fits them (χ²/dof below HANDED_FIT) and better by HANDED_GAIN in χ² (a likelihood
+# ratio of e^25): a gyro that cannot see the Earth's rate against its noise (MEMS) fits every
+# hypothesis alike and is never named
+HANDED_P = 1e-6
+HANDED_FIT = 3.0
+HANDED_GAIN = 50.0
+MIN_RESTS = 8
+
+
+def _handedness(data, log) -> list[str]:
+    """At rest the unit specific force u (up) and the Earth rate ω have u·ω = Ω sin(latitude) in
+    any frame and attitude; the gyros read ω + b, so u·(ω + b) is a constant plus u·b, linear in
+    the bias. With one axis of one triad reversed (a left-handed pair: a sign in the logger or the
+    import mapping) it is not, and the positions method converges all the same (each rest's
+    attitude is free) to a χ²/dof of thousands and a 'missing' g-sensitivity."""
+    from components.estimation.allan import static_runs
+    from components.estimation.blocks import white_noise_sigma
+
+    use = data.static & data.usable
+    rests = static_runs(use, 10)
+    if len(rests) < MIN_RESTS:
+        return []
+    f = np.array([np.sum(data.acc[a:b], axis=0) for a, b in rests])
+    w = np.array([np.sum(data.gyro[a:b], axis=0) for a, b in rests])
+    n = np.array([b - a for a, b in rests], float)
+    u = f / np.linalg.norm(f, axis=1)[:, None]
+    sg = float(np.median(white_noise_sigma(data.gyro, use)))
+    if not np.isfinite(sg) or sg <= 0:
+        return []
+    sigma = sg * np.sqrt(n)  # of u·(gyro sum): white per sample along a unit vector
+
+    def misfit(v: np.ndarray) -> float:
+        """χ² of u·(gyro sum) against (c + u·b) n (the rests' lengths differ)."""
+        X = np.column_stack([n, v * n[:, None]]) / sigma[:, None]
+        y = np.einsum("ij,ij->i", v, w) / sigma
+        r = y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
+        return float(r @ r)
+
+    from scipy.stats import chi2
+
+    dof = len(rests) - 4
+    plain = misfit(u)
+    reversed_ = [misfit(u * np.where(np.arange(3) == i, -1.0, 1.0)) for i in range(3)]
+    i = int(np.argmin(reversed_))
+    if chi2.sf(plain, dof) >= HANDED_P or reversed_[i] > HANDED_FIT * dof or plain - reversed_[i] < HANDED_GAIN:
+        return []
+    axis = "xyz"[i]
+    return [f"{log.source or 'log'}: at its {len(rests)} rests the gyros' rate along the accelerometers' specific "
+            f"force is not the Earth's rate along the vertical plus a bias (χ²/dof {plain / dof:.3g}); with axis "
+            f"{axis} of one sensor reversed it is (χ²/dof {reversed_[i] / dof:.3g}): the accelerometer's or the "
+            f"gyro's {axis} axis is reversed against the other triad (a left-handed pair: check the logger's or the "
+            f"import mapping's sign of acc_{axis} and gyro_{axis})?"]
 
 
 def _norms(x: np.ndarray, which: np.ndarray) -> np.ndarray:
