@@ -180,6 +180,9 @@ unit = "s"
     sig = float(line.split("±")[1].split("ms")[0]) * 1e-3
     assert abs(got - CLOCK) < 4 * sig and sig < 1e-5, line
     assert "regularised" in out
+    # every conversion said: the units and the reversed axis
+    assert "gyro: rate in deg/s" in out and "y = -wy" in out and "(sign reversed: y)" in out, out
+    assert "accelerometer: specific_force in g (x 9.80665 to SI)" in out
     back = read_log(tmp_path / "merged")
     assert back.version == "calbench-log/2" and back.encoder_resolution == "exact"
     _same(_fit(back), ref)

@@ -74,12 +74,13 @@ def import_log(m: Mapping) -> Imported:
         notes.append(f"{n_gaps} gap(s) longer than {max_int * 1e3:g} ms: the sample after each is left out")
     gyro, gkind = _sensor_values(cols, m.gyro, "gyro", ("rate",))
     acc, akind = _sensor_values(cols, m.acc, "acc", ("specific_force",))
-    notes.append(f"gyro: {m.gyro.output} ({'count ' + format(m.gyro.count_weight, 'g') + ' rad' if gkind == 'counts' else 'converted to SI'}); "
-                 f"accelerometer: {m.acc.output} ({'count ' + format(m.acc.count_weight, 'g') + ' m/s' if akind == 'counts' else 'converted to SI'})")
+    notes.append(f"gyro: {_conversion(m.gyro, gkind, 'rad')}; accelerometer: {_conversion(m.acc, akind, 'm/s')}")
     temp = None
     if m.temperature is not None:
         temp = cols.values(m.temperature, "imu.temperature.column")
         temp = {"degC": temp, "K": temp - 273.15, "degF": (temp - 32.0) * 5.0 / 9.0}[m.temperature_unit]
+        if m.temperature_unit != "degC":
+            notes.append(f"temperature: {m.temperature_unit} converted to degC")
     seg = _labels(m, cols, t)
     _check_label_keys(m, seg)
     clock: dict = {}
@@ -107,6 +108,23 @@ def import_log(m: Mapping) -> Imported:
 # stamps whose median interval is this far from 1/sample_rate_hz (either way) are in another unit
 # than the mapping says, or the rate is wrong: not a clock's drift (ppm) nor a jitter
 RATE_MISMATCH = 1.25
+
+
+def _conversion(sensor, kind: str, si: str) -> str:
+    """What the import did to a sensor's values: its unit (or count weight) and each axis's column,
+    with a reversed sign and an ADC map said."""
+    if kind == "counts":
+        what = f"{sensor.output} of {sensor.count_weight:g} {si}"
+    else:
+        what = f"{sensor.output} in {sensor.unit} (x {sensor.unit_si:.6g} to SI)"
+    cols = []
+    for a, ch in zip(AX, sensor.axes):
+        c = f"{a} = {'-' if ch.sign < 0 else ''}{ch.column}"
+        if ch.scale != 1.0 or ch.offset != 0.0:
+            c += f" (raw - {ch.offset:g}) x {ch.scale:g}"
+        cols.append(c)
+    reversed_ = [a for a, ch in zip(AX, sensor.axes) if ch.sign < 0]
+    return f"{what}; {', '.join(cols)}" + (f" (sign reversed: {', '.join(reversed_)})" if reversed_ else "")
 
 
 def _check_rate(m: Mapping, t: np.ndarray, nominal: float) -> None:

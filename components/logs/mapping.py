@@ -56,6 +56,7 @@ class Sensor:
     unit_si: float              # SI per unit of the values after (raw − offset) × scale
     count_weight: float | None  # counts: one count [rad] or [m/s]
     axes: list[Channel] = field(default_factory=list)
+    unit: str = ""              # the unit as the mapping names it ("" for counts)
 
 
 @dataclass
@@ -188,7 +189,7 @@ def _sensor(d: dict, key: str, where: str, kinds: dict, weight_units: dict) -> S
     if not isinstance(d, dict):
         raise MappingError(f"{where}: key {key!r}: expected a table with output, unit, x, y, z")
     out = _unit(_get(d, "output", f"{where} [{key}]", f"one of {', '.join(kinds)}"), f"{key}.output", where, kinds)
-    weight = None
+    weight, unit = None, ""
     if out == "counts":
         weight = _quantity(_get(d, "count", f"{where} [{key}]", "the weight of one count, e.g. '1e-6 rad'"),
                            f"{key}.count", where, weight_units)
@@ -199,7 +200,7 @@ def _sensor(d: dict, key: str, where: str, kinds: dict, weight_units: dict) -> S
         unit = _unit(_get(d, "unit", f"{where} [{key}]", f"one of {', '.join(kinds[out])}"), f"{key}.unit", where,
                      kinds[out])
         unit_si = kinds[out][unit]
-    s = Sensor(out, unit_si, weight)
+    s = Sensor(out, unit_si, weight, unit=unit)
     for a in AX:
         s.axes.append(_channel(_get(d, a, f"{where} [{key}]", f"the column of the {a} axis"), f"{key}.{a}", where, d))
     return s
