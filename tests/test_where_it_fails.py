@@ -7,6 +7,7 @@ missing (flagged: the test can fail), and the demo's run before and after adding
 from __future__ import annotations
 
 import copy
+import dataclasses
 import tomllib
 
 import numpy as np
@@ -123,3 +124,14 @@ def test_demo_run_flags_the_missing_effect_and_nothing_after_add(simulated):
     assert any(ch == "acc_z" for _, ch in before["segment"]), before
     after = _flagged(_comparison(simulated["k2"], BASELINE + ["acc.k2"]))
     assert all(not v for v in after.values()), after
+
+
+def test_a_constant_temperature_has_no_temperature_conditions(conformance):
+    """Thirds of a temperature that never changes are no conditions (every row fell in 'low', which
+    a misfit was then said to belong to); a ramp has all three, a third of the rows each."""
+    log = read_log(conformance / "example")
+    flat = dataclasses.replace(log, temperature=np.full(log.n, 25.0))
+    assert not [k for k in _comparison(flat, BASELINE).conditions if k.startswith("temperature")]
+    ramp = dataclasses.replace(log, temperature=np.linspace(20.0, 40.0, log.n))
+    got = _comparison(ramp, BASELINE).conditions
+    assert {"temperature low", "temperature mid", "temperature high"} <= set(got)
