@@ -7,7 +7,10 @@ to a scale factor of −99.5 % or a χ²/dof of 10⁹, and says nothing of why).
   g/dt the reverse, 1/g or g² (in m/s²) that g and m/s² were confused;
 - during the table's moves the gyros turn as the table angles do: the ratio of the gyros'
   rotation to the rotation the angles give is 1; dt or 1/dt says rates and increments were
-  confused, 57.3 or 1/57.3 degrees and radians (in the gyro or in the table angles).
+  confused, 57.3 or 1/57.3 degrees and radians (in the gyro or in the table angles);
+- a log without table angles: at rest the gyros' rate along the specific force is the Earth's
+  rate along the vertical plus the gyro bias along it, in every attitude; one axis of a triad
+  reversed (a left-handed pair) breaks that, and the axis that mends it is named.
 
 Each finding is one line naming the evidence; the caller prints it as a warning (the estimate's
 own plausibility check, components.model.plausibility, flags the result too).
@@ -110,7 +113,7 @@ def _handedness(data, log) -> list[str]:
     w = np.array([np.sum(data.gyro[a:b], axis=0) for a, b in rests])
     n = np.array([b - a for a, b in rests], float)
     u = f / np.linalg.norm(f, axis=1)[:, None]
-    sg = float(np.median(white_noise_sigma(data.gyro, use)))
+    sg = float(np.median(white_noise_sigma(data.gyro, use, data.quantization_floor()[:3])))
     if not np.isfinite(sg) or sg <= 0:
         return []
     sigma = sg * np.sqrt(n)  # of u·(gyro sum): white per sample along a unit vector
