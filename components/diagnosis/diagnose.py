@@ -448,8 +448,8 @@ def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
 # a log without table angles: the rests' attitudes are estimated, so the rows see an effect only
 # through what an attitude cannot take up (at rest the specific force's magnitude)
 POSITIONS_TWINS = ("the rests' attitudes are estimated on a log without table angles, so only what a tilt cannot "
-                   "take up tells effects apart: log the table angles, or rest at more tilts than these; with known "
-                   "attitudes: ")
+                   "take up (at rest the specific force's magnitude) tells effects apart, and more tilts may not: "
+                   "log the table angles; with known attitudes: ")
 
 
 def _rank(design: _Design, base: list[str], available: dict, alpha: float):
