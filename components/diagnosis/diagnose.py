@@ -1,8 +1,9 @@
 """Which physical effect is missing from a model: refit the model with each candidate effect of
 the vocabulary added and rank the candidates by a proper test.
 
-All refits share one linearised design (components.estimation.lsq: block rows, the model's geometry), so
-each candidate costs a small weighted least-squares solve. For candidate c with k new columns
+All refits share one linearised design (components.diagnosis.candidate_design: the least squares'
+block rows at the model's geometry, whitened, compressed to R of their QR), so each candidate costs
+a small weighted least-squares solve. For candidate c with k new columns
 (the rank they add after projecting out the model's own columns):
 
     F = (Δχ² / k) / (χ²_c / (n − p_c)),   p = P(F_{k, n−p_c} > F)
@@ -35,19 +36,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from components.diagnosis.candidate_design import CandidateDesign
 from components.diagnosis.candidate_notes import annotate, separation_advice
 from components.diagnosis.detection_thresholds import theoretical_thresholds
 from components.diagnosis.noise_terms import NOISE_CANDIDATES, has_term, noise_candidates
-from components.estimation.blocks import samples_per_block, white_noise_sigma
-from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
-from components.estimation.design import noise_floor
+from components.estimation.chunks import CHUNK_SAMPLES
 from components.estimation.distributions import f_logsf
 from components.estimation.log_data import LogData
-from components.estimation.rest_angles import rest_sigma
-from components.estimation.whitening import whiten
 from components.model.effects import EFFECTS, effect_of, parameters_of
 from components.model.noise import NoiseModel
-from components.model.plausibility import expected_magnitude, grade_factor, plausible_limit
+from components.model.plausibility import expected_magnitude, plausible_limit
 from components.model.result import CalibrationResult
 
 # candidates whose new columns have a canonical correlation above this cannot be told apart on
@@ -127,185 +125,6 @@ class Diagnosis:
                 "base_chi2_per_dof": self.base_chi2_per_dof, "rows": self.rows, "alpha": self.alpha}
 
 
-class _Design:
-    """Whitened block design of all parameters of the model and of every candidate (and, on a
-    log without table angles, of the rests' attitudes, always in the base)."""
-
-    def __init__(self, y, H, params: list[str], raw, noise: NoiseModel | None, dt: float, span: float,
-                 t_lo: float, white_sigma: np.ndarray, rows: dict, nuisance: list[str] | None = None):
-        self.params = params
-        self.index = {p: k for k, p in enumerate(params)}
-        self.y, self.H, self.raw, self.noise = y, H, raw, noise
-        self.dt, self.span, self.t_lo = dt, span, t_lo
-        self.white_sigma = white_sigma
-        # how many times noisier than navigation grade (per sensor; plausibility.grade_factor)
-        self.grade = grade_factor({"gyro": float(np.median(white_sigma[:3])) / math.sqrt(dt),
-                                   "acc": float(np.median(white_sigma[3:])) / math.sqrt(dt)})
-        self.rows = rows
-        self.n = len(y)
-        self.nuisance = list(nuisance or [])
-        self._bases: dict = {}  # base parameters -> orthonormal basis of their columns
-        self._compressed: np.ndarray | None = None
-        self._before: tuple | None = None  # the whitening rewhiten replaced, to go back to it
-
-    @classmethod
-    def on_table_log(cls, data: LogData, model: CalibrationResult, params: list[str],
-                     chunk_s: float, rest_angle_sigma, noise: NoiseModel | None = None,
-                     chunk_samples: int = CHUNK_SAMPLES) -> "_Design":
-        """The block rows of a log with table angles at the model's geometry."""
-        from components.diagnosis.compare import model_geometry
-
-        geo = model_geometry(data, model)
-        table_params = [p for p in params if effect_of(p).target == "table"]
-        T0 = model.temperature_ref
-        dt = data.sample_interval
-        layout = BlockLayout.of(data, samples_per_block(dt, chunk_s), chunk_samples)
-        static = data.static
-        # noise from the high-frequency content of the data (differences remove the model)
-        q = data.quantization_floor(noise)
-        sg = white_noise_sigma(data.gyro, static & data.usable, q[:3])
-        sa = white_noise_sigma(data.acc, static & data.usable, q[3:])
-        if noise is not None and noise.coloured:
-            white = noise.white_sigma(dt)
-            sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
-        sg, sa = noise_floor(sg, 7.3e-5 * dt), noise_floor(sa, 9.8 * dt)
-        rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
-        y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0)
-        span = float(data.time[-1] - data.time[0] + dt)
-        yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
-        # table columns are derivatives at the model's geometry: the model's table values are
-        # already in the motion, so their unknowns here are corrections (start at 0)
-        return cls(yw, Hw, params, (y, H, w, rows), noise, dt, span, chunk_s, np.concatenate([sg, sa]), rows)
-
-    @classmethod
-    def on_positions_log(cls, data: LogData, model: CalibrationResult, params: list[str], chunk_s: float,
-                         noise: NoiseModel | None = None) -> "_Design":
-        """The rows of a log without table angles (components.estimation.positions_design),
-        linearised at the attitudes that fit it best with the model's parameters refitted on it;
-        the attitudes' columns join the parameters as nuisances."""
-        from components.estimation.positions_design import PositionsDesign
-        from components.estimation.positions_effects import fit_positions
-
-        base = [p for p in params if p in model.values or effect_of(p).name in model.effects]
-        refit = fit_positions(data, list(model.effects), noise=noise, chunk_s=chunk_s,
-                              temperature_ref=model.temperature_ref)
-        values = refit.values()
-        theta = np.array([values.get(p, 0.0) if p in base else 0.0 for p in params])
-        pd = PositionsDesign(data, chunk_s=chunk_s, noise=noise, temperature_ref=model.temperature_ref)
-        r = pd.rows(refit.attitudes, params, theta)
-        names = pd.attitude_names
-        info = dict(r.info)
-        dt = pd.dt_med
-        span = float(data.time[-1] - data.time[0] + dt)
-        return cls(r.y, np.hstack([r.H, r.A]), params + names, None, noise, dt, span, chunk_s,
-                   np.concatenate([pd.sg, pd.sa]), info, nuisance=names)
-
-    def rewhiten(self, noise: NoiseModel | None) -> None:
-        """Whiten the same rows with another noise model (a noise term added); back to the
-        whitening before it without whitening again (a noise term tried and dropped)."""
-        state = (self.y, self.H, self.noise, self._compressed)
-        if self._before is not None and self._before[2] is noise:
-            self.y, self.H, self.noise, self._compressed = self._before
-        else:
-            y, H, w, rows = self.raw
-            self.y, self.H, _ = whiten(y, H, rows, 1.0 / w**2, noise, self.dt, self.span, self.t_lo)
-            self.noise, self._compressed = noise, None
-        self._before = state
-        self._bases = {}
-
-    @property
-    def compressed(self) -> np.ndarray:
-        """R of the QR of [H | y], (min(n, p+1), p+1): H = Q R[:, :p] and y = Q R[:, p] + what lies
-        outside every column's span, whose length is R[p, p]. Any least squares on a subset of
-        the columns has on these few rows the same solution, χ² and singular values as on the
-        n whitened rows (Q is orthonormal), so every candidate's refit, projection and rank is a
-        solve of p+1 rows, not of the log's block rows (on an 8-hour log 180 000, each refit
-        ~0.1 s: most of a diagnose's ranking). Householder QR is backward stable column by
-        column, so columns of any scale keep their accuracy."""
-        if self._compressed is None:
-            self._compressed = _qr_r(self.H, self.y)
-        return self._compressed
-
-    def _columns(self, names: list[str]) -> np.ndarray:
-        """The compressed rows of the columns of *names*."""
-        return self.compressed[:, [self.index[p] for p in names]]
-
-    @property
-    def _rows_y(self) -> np.ndarray:
-        return self.compressed[:, -1]
-
-    def fit(self, subset: list[str]) -> tuple[float, np.ndarray, np.ndarray, int]:
-        """χ², values, covariance and rank of the WLS fit on *subset* of the parameters."""
-        y = self._rows_y
-        if not subset:
-            return float(y @ y), np.zeros(0), np.zeros((0, 0)), 0
-        A = self._columns(subset)
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        As = A / scale
-        sol, _, rank, sv = np.linalg.lstsq(As, y, rcond=1e-10)
-        r = y - As @ sol
-        cov = np.linalg.pinv(As.T @ As, rcond=1e-12) / np.outer(scale, scale)
-        return float(r @ r), sol / scale, cov, int(rank)
-
-    def residual(self, subset: list[str]) -> np.ndarray:
-        if not subset:
-            return self.y.copy()
-        idx = [self.index[p] for p in subset]
-        sol = np.linalg.lstsq(self.compressed[:, idx], self._rows_y, rcond=1e-10)[0]
-        return self.y - self.H[:, idx] @ sol
-
-    def projected_column(self, base: list[str], p: str) -> np.ndarray:
-        """Column of *p* with the span of *base* projected out, in the compressed rows (its
-        inner products with other such columns, and with :meth:`projected`'s, are the whitened
-        rows')."""
-        c = self.compressed[:, self.index[p]].copy()
-        if base:
-            Q = self._basis_of(base)
-            c = c - Q @ (Q.T @ c)
-        return c
-
-    def _basis_of(self, base: list[str]) -> np.ndarray:
-        """Q of the QR of *base*'s scaled columns (compressed rows), once per base (every
-        candidate of a ranking projects out the same base)."""
-        key = tuple(base)
-        if key not in self._bases:
-            B = self._columns(base)
-            self._bases = {key: np.linalg.qr(B / np.maximum(np.linalg.norm(B, axis=0), 1e-300))[0]}
-        return self._bases[key]
-
-    def projected(self, base: list[str], extra: list[str]) -> np.ndarray:
-        """Columns of *extra* with the span of *base* projected out (orthonormal basis, in the
-        compressed rows)."""
-        C = self._columns(extra)
-        if base:
-            Q = self._basis_of(base)
-            C = C - Q @ (Q.T @ C)
-        norms = np.linalg.norm(C, axis=0)
-        C = C[:, norms > 1e-9 * max(norms.max(initial=0.0), 1e-300)]
-        if C.shape[1] == 0:
-            return C
-        U, s, _ = np.linalg.svd(C, full_matrices=False)
-        return U[:, s > 1e-8 * s[0]]
-
-
-def _qr_r(H: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """R of the QR of [H | y] (Householder, LAPACK geqrf): [H | y] copied once, in the order
-    LAPACK works in, and factored in place (numpy's qr copies it twice more: on an 8-hour log
-    with every candidate 170 MB each)."""
-    from scipy.linalg import lapack
-
-    n, p = H.shape
-    M = np.empty((n, p + 1), order="F")
-    M[:, :p], M[:, p] = H, y
-    geqrf = lapack.get_lapack_funcs("geqrf", (M,))
-    lwork = int(geqrf(M, lwork=-1)[2][0].real)
-    qr, _, _, info = geqrf(M, lwork=max(lwork, 1), overwrite_a=True)
-    if info != 0:
-        raise ArithmeticError(f"LAPACK geqrf failed (info {info}) on the {n} x {p + 1} design")
-    return np.triu(qr[:min(n, p + 1)])
-
-
 def default_candidates(model_effects: list[str]) -> list[str]:
     """Every effect of the vocabulary the model does not have."""
     return [name for name in EFFECTS if name not in model_effects]
@@ -336,7 +155,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     params = [p for p in params if not (effect_of(p).target == "table" and p.split(".")[2] not in
                                         stage_names and not p.startswith("table.base_tilt"))]
     if data.has_table:
-        design = _Design.on_table_log(data, model, params, chunk_s, rest_angle_sigma, noise, chunk_samples)
+        design = CandidateDesign.on_table_log(data, model, params, chunk_s, rest_angle_sigma, noise, chunk_samples)
     else:
         held = set(model.extra.get("positions", {}).get("held", {}))
         params = [p for p in params if effect_of(p).target != "table" and p not in held]
@@ -344,7 +163,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
             # the noise terms' likelihood needs the table log's rows in time (see docs/positions.md)
             untested = "a log without table angles has no rows in time for their likelihood"
         noise_asked = []
-        design = _Design.on_positions_log(data, model, params, chunk_s, noise)
+        design = CandidateDesign.on_positions_log(data, model, params, chunk_s, noise)
     available = {c: [p for p in EFFECTS[c].parameters if p in design.index] for c in cands}
     base = [p for p in parameters_of(base_effects) if p in design.index] + design.nuisance
     unseeable = _unseeable(design, base, available)
@@ -406,7 +225,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     return out
 
 
-def _surviving_effects(design: _Design, base: list[str], available: dict, alpha: float,
+def _surviving_effects(design: CandidateDesign, base: list[str], available: dict, alpha: float,
                        with_term: NoiseModel, current: NoiseModel | None) -> list[str]:
     """The effects still significant (Holm), best first, when the rows are whitened with
     *with_term*, the noise model with the candidate noise term; the design is left whitened with
@@ -419,7 +238,7 @@ def _surviving_effects(design: _Design, base: list[str], available: dict, alpha:
     return [c.effect for c in ranking if c.passes]
 
 
-def _unseeable(design: _Design, base: list[str], available: dict) -> dict:
+def _unseeable(design: CandidateDesign, base: list[str], available: dict) -> dict:
     """Each candidate keeps the parameters this log determines beyond the model's own columns
     (components.estimation.determinability, in the vocabulary's order: one the log cannot tell
     from the model's and the candidate's earlier ones, or whose σ would exceed anything a real IMU
@@ -452,7 +271,7 @@ POSITIONS_TWINS = ("the rests' attitudes are estimated on a log without table an
                    "log the table angles; with known attitudes: ")
 
 
-def _rank(design: _Design, base: list[str], available: dict, alpha: float):
+def _rank(design: CandidateDesign, base: list[str], available: dict, alpha: float):
     chi2_b, _, _, rank_b = design.fit(base)
     dof_b = max(design.n - rank_b, 1)
     resid_b = design.residual(base)
