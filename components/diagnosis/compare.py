@@ -87,6 +87,15 @@ class Comparison:
     conditions: dict = field(default_factory=dict)
     coloured: bool = False         # the block residuals are whitened with a coloured noise model
     misfits: Misfits | None = None  # which segments / conditions / channels misfit beyond noise
+    # (N,) the samples that enter estimates (LogData.usable): the sample after a gap, a masked or
+    # excluded one, has a residual here but enters no statistic (None: every sample)
+    usable: np.ndarray | None = None
+
+    @property
+    def static_usable(self) -> np.ndarray:
+        """(N,) at rest and usable: the samples a per-sample noise statistic may read."""
+        st = np.asarray(self.static, bool)
+        return st if self.usable is None else st & self.usable
 
     @property
     def chi2_per_dof(self) -> float:
@@ -178,7 +187,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     chi2 = float(np.sum(rows["z"] ** 2))
     dof = max(len(rows["z"]) - fitted_parameters, 1)
     channels = {}
-    sums = _sample_sums(data, resid, plate.static)
+    sums = _sample_sums(data, resid, plate.static, data.usable)
     floor = np.sqrt(sigma**2 + 2 * _model_quantization(noise) ** 2)
     for k, ch in enumerate(CHANNELS):
         sel = rows["channel"] == k
@@ -194,7 +203,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
             "whiteness_p": ljung_box(zk[order]),
         }
     comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
-                      dof, rows)
+                      dof, rows, usable=data.usable)
     comp.coloured = noise is not None and noise.coloured
     locate(comp, data, plate, rows)
     return comp
@@ -205,27 +214,30 @@ def _model_quantization(noise: NoiseModel | None) -> np.ndarray:
     return np.zeros(6) if noise is None else np.array([c.quantization for c in noise.channels])
 
 
-def _sample_sums(data: LogData, resid: np.ndarray, static: np.ndarray) -> list[tuple]:
-    """Per channel, over the samples: Σ r² and count where the model predicts sample by sample
-    (every accelerometer sample, the gyros at rest), the same for the rest, Σ r² over all, and
-    Σ (y − ȳ)² of the measurement; a piece of the log at a time (two passes: ȳ first)."""
+def _sample_sums(data: LogData, resid: np.ndarray, static: np.ndarray, usable: np.ndarray) -> list[tuple]:
+    """Per channel, over the *usable* samples: Σ r² and count where the model predicts sample by
+    sample (every accelerometer sample, the gyros at rest), the same for the rest, Σ r² over all,
+    and Σ (y − ȳ)² of the measurement; a piece of the log at a time (two passes: ȳ first). A left-
+    out sample never counts: the one after a gap spans it, a residual of the gap's length."""
     n = len(resid)
     mean = np.zeros(6)
     for s in pieces(n, data.gyro, data.acc):
-        mean[:3] += data.gyro[s].sum(axis=0)
-        mean[3:] += data.acc[s].sum(axis=0)
-    mean /= max(n, 1)
+        u = usable[s]
+        mean[:3] += data.gyro[s][u].sum(axis=0)
+        mean[3:] += data.acc[s][u].sum(axis=0)
+    mean /= max(int(np.count_nonzero(usable)), 1)
     tot = np.zeros((6, 6))  # channel x (sq_ok, n_ok, sq_moving, n_moving, sq_all, sq_dev)
     for s in pieces(n, resid, data.gyro, data.acc):
-        r2 = resid[s] ** 2
+        u = usable[s, None]
+        r2 = np.where(u, resid[s] ** 2, 0.0)
         ok = np.ones(r2.shape, bool)
         ok[:, :3] = static[s, None]
         tot[:, 0] += np.where(ok, r2, 0.0).sum(axis=0)
-        tot[:, 1] += ok.sum(axis=0)
+        tot[:, 1] += (ok & u).sum(axis=0)
         tot[:, 2] += np.where(ok, 0.0, r2).sum(axis=0)
-        tot[:, 3] += (~ok).sum(axis=0)
+        tot[:, 3] += (~ok & u).sum(axis=0)
         tot[:, 4] += r2.sum(axis=0)
-        dev = np.hstack([data.gyro[s], data.acc[s]]) - mean
+        dev = np.where(u, np.hstack([data.gyro[s], data.acc[s]]) - mean, 0.0)
         tot[:, 5] += (dev**2).sum(axis=0)
     return [tuple(row) for row in tot]
 

@@ -95,7 +95,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     known = known or {}
     comp = compare(data, model, noise=None)
     dt = data.sample_interval
-    runs = static_runs(comp.static)
+    runs = static_runs(comp.static_usable)  # a left-out sample ends a run (it may span a gap)
     if not runs:
         raise ValueError("no static run of 8 samples or more: the noise cannot be identified from this "
                          "log (give it with --noise NAME=VALUE)")

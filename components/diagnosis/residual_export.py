@@ -5,7 +5,9 @@ Two files, because two different things are measured:
 - per sample (``--residuals``), in the log's own output units, with a column
   ``encoder_limited``: 1 inside moves, where the gyro prediction is the motion rebuilt from
   encoder counts (differentiated quantised angles: on a correct model its 1-s sums there are
-  several times the noise); only the rest-to-rest sum of a move is exact (docs/compare.md).
+  several times the noise); only the rest-to-rest sum of a move is exact (docs/compare.md); and
+  ``left_out``: 1 for a sample no statistic uses (the one after a gap, which spans it; masked or
+  excluded samples).
 - per block (``--block-residuals``): the normalised block residuals z the statistics use
   (N(0, 1) under a correct model, whatever the motion), with the misfit test of their
   segment × channel cell.
@@ -29,11 +31,12 @@ def write_residuals(path: str, log, comparison) -> None:
             r[:, s] /= w
     seg = np.asarray(log.segment).astype(str) if log.segment is not None else np.full(log.n, "")
     limited = ~np.asarray(comparison.static, dtype=bool)
+    left_out = (np.zeros(log.n, bool) if comparison.usable is None else ~np.asarray(comparison.usable, bool))
     with open(path, "w") as f:
-        f.write("time,segment,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z,encoder_limited\n")
+        f.write("time,segment,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z,encoder_limited,left_out\n")
         for k in range(log.n):
             f.write(f"{float(log.time[k])!r},{seg[k]}," + ",".join(repr(float(x)) for x in r[k])
-                    + f",{int(limited[k])}\n")
+                    + f",{int(limited[k])},{int(left_out[k])}\n")
 
 
 def write_block_residuals(path: str, comparison) -> None:
