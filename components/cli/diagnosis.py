@@ -31,6 +31,14 @@ def _print_comparison(c, coloured: bool = False) -> None:
     for k, v in c.channels.items():
         print(f"{k:8s} {v['rms']:11.4g} {v['noise_floor']:11.4g} {v['rms'] / v['noise_floor']:9.3f} "
               f"{v['chi2_per_dof']:9.3f} {v['fit_percent']:9.4f} {v['whiteness_p']:8.3f}")
+    from scipy.stats import chi2
+
+    low = chi2.ppf(0.0005, max(c.dof, 1)) / max(c.dof, 1)
+    if c.chi2_per_dof < low:
+        # too good to be true: the noise model, not the model, is what is wrong
+        print(f"chi2/dof {c.chi2_per_dof:.3f} is below what a correct model gives (99.9 % band from {low:.3f}): the "
+              "noise model states more noise than the residual has, so every σ from it is too wide; identify the "
+              "noise on this log (calbench noise, --noise identify) or check the noise given")
     if c.misfits is not None:
         # only what is significant given how many cells were looked at (components.diagnosis.misfit)
         print("where it fails: " + "\n                ".join(c.misfits.lines()))
