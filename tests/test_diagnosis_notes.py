@@ -95,3 +95,18 @@ def test_console_shows_statuses_not_nonsense(incomplete, conformance, capsys):
             assert "implausible: " in out
     assert "other candidate(s) with p < α" in out or all(
         c.status == "verdict" for c in d.ranking if c.p_adjusted < d.alpha)
+
+
+def test_effects_ranked_before_a_noise_term_are_said_to_need_ranking_again(incomplete):
+    """A forward selection that names an effect and then a noise term made the effect's pick under
+    the noise model it then found too simple: the verdict says so and how to rank again; a
+    selection of effects alone (the example's) does not."""
+    import dataclasses
+
+    d, _ = incomplete
+    assert not any("ranked under a noise model" in line for line in verdict_lines(d))
+    late = dataclasses.replace(d, found=d.found[:1] + ["acc.noise.bi"],
+                               steps=d.steps[:1] + [{"noise_term": "acc.noise.bi", "chi2_per_dof_before": 1.5,
+                                                     "chi2_per_dof_after": 1.0, "loglik_gain": 600.0}])
+    said = [line for line in verdict_lines(late) if "ranked under a noise model" in line]
+    assert len(said) == 1 and "acc.noise.bi found after them" in said[0] and "--noise identify" in said[0]
