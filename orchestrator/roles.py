@@ -6,6 +6,7 @@ The orchestrator knows roles only as data; the domain registers its roles (see
 """
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -28,6 +29,9 @@ class RoleVariable:
     aggregate: str = "sample"
     # a Real the unit may also give as an Integer (a pulse count): read as a number all the same
     accepts_integer: bool = False
+    # what a unit whose unit does not convert may mean instead (the role's options that would
+    # take it), said with the problem
+    unit_hint: str = ""
 
 
 @dataclass
@@ -130,7 +134,11 @@ def check_unit(unit: Unit, role: Role, mapping: dict[str, str] | None = None) ->
         if v is None:
             if rv.required:
                 via = f" (mapped to {name!r})" if name != rv.name else ""
-                res.problems.append(f"missing {rv.causality} {rv.name}{via} [{rv.unit or '-'}, {rv.type}]")
+                # a name's case first (AngularRate_x for AngularRate_X), then its spelling
+                near = [v for v in unit.variables if v.lower() == name.lower()] or \
+                    difflib.get_close_matches(name, list(unit.variables), n=1, cutoff=0.8)
+                res.problems.append(f"missing {rv.causality} {rv.name}{via} [{rv.unit or '-'}, {rv.type}]"
+                                    + (f"; did you mean {near[0]!r}?" if near else ""))
             else:
                 res.notes.append(f"optional {rv.causality} {rv.name} not offered")
             continue
@@ -142,7 +150,7 @@ def check_unit(unit: Unit, role: Role, mapping: dict[str, str] | None = None) ->
             res.problems.append(f"{name}: type {v.type}, role {role.name} needs {rv.type}")
         conv = _conversion(rv, v)
         if isinstance(conv, str):
-            res.problems.append(conv)
+            res.problems.append(conv + (f" ({rv.unit_hint})" if rv.unit_hint else ""))
             continue
         if rv.unit and rv.type == "Real" and not v.unit:
             res.notes.append(f"{name}: no unit declared, taken as {rv.unit}")

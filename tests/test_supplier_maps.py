@@ -158,3 +158,19 @@ def test_criteria_that_need_noise_are_not_applicable_on_a_noise_free_imu():
     task["not_injected"] = {"effects": [], "noise": [], "seed": False, "noise_free": False}
     rec = record(task, copy.deepcopy(numbers))
     assert {r["id"]: r["passed"] for r in rec["criteria"]}["FIT"] is False and rec["verdict"] == "fail"
+
+
+@pytest.mark.parametrize("change, match", [
+    # rates without role_options: the role's default kind and the option that takes rates are said
+    ({"role_options": {}}, r"GyroRate_X: unit 'deg/s' cannot be converted to rad \(the role takes gyro_output = "
+                           r"'increment' \[rad\] here; for an output of another kind set gyro_output in the unit's "
+                           r"role_options: 'rate' \[rad/s\]"),
+    # a mapped name in another case: the unit's own spelling is proposed
+    ({"mapping": {**MAPPING, "omega.x": "AngularRate_x"}},
+     r"missing input omega.x \(mapped to 'AngularRate_x'\) .*; did you mean 'AngularRate_X'\?"),
+])
+def test_role_mistakes_say_how_to_mend_them(change, match):
+    from orchestrator.errors import RoleError
+
+    with pytest.raises(RoleError, match=match):
+        run_scenario(scenario_from_dict(_scenario(**change), source="test"), progress=False)

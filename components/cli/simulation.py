@@ -14,7 +14,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     sc = load_scenario(args.scenario, overrides)
     if args.seed is not None:
         sc.seed = args.seed
-    result = run_scenario(sc)
+    from components.errors import UserError
+    from orchestrator.errors import RoleError
+
+    try:
+        result = run_scenario(sc)
+    except RoleError as e:
+        # the scenario's units against their roles: said with the file, whose [imu]/[turntable]
+        # tables (fmu, mapping, role_options) are where a user mends it
+        raise UserError(f"{args.scenario}: the units of its [imu] and [turntable] tables against their roles:\n{e}") from None
     paths = write_outputs(result, args.out, args.format)
     log = result.log
     print(f"{sc.name}: schedule {sc.schedule.name}, {log.n} samples over {log.time[-1]:.1f} s, "

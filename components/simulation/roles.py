@@ -62,10 +62,18 @@ def imu_role(gyro_output: str = "increment", acc_output: str = "increment") -> R
     v += [RoleVariable(f"f_int.{c}", "input", "Real", "m/s", False) for c in "xyz"]
     v.append(RoleVariable("temperature_env", "input", "Real", "degC", False))
     agg = {"increment": "sum", "counts": "sum", "rate": "mean", "specific_force": "mean"}
+
+    def hint(key: str, kind: str, kinds: dict) -> str:
+        others = ", ".join(f"{k!r} [{u}]" for k, u in kinds.items() if k != kind)
+        return (f"the role takes {key} = {kind!r} [{kinds[kind]}] here; for an output of another kind set "
+                f"{key} in the unit's role_options: {others}")
+
     v += [RoleVariable(f"gyro.{c}", "output", "Real", GYRO_KINDS[gyro_output], aggregate=agg[gyro_output],
-                       accepts_integer=gyro_output == "counts") for c in "xyz"]
+                       accepts_integer=gyro_output == "counts", unit_hint=hint("gyro_output", gyro_output, GYRO_KINDS))
+          for c in "xyz"]
     v += [RoleVariable(f"acc.{c}", "output", "Real", ACC_KINDS[acc_output], aggregate=agg[acc_output],
-                       accepts_integer=acc_output == "counts") for c in "xyz"]
+                       accepts_integer=acc_output == "counts", unit_hint=hint("acc_output", acc_output, ACC_KINDS))
+          for c in "xyz"]
     v.append(RoleVariable("temperature", "output", "Real", "degC", False))
     # our IMU FMU picks its output kind by parameter; a supplier's without them is left alone
     settings = {"gyro.output": OUTPUT_CODES[gyro_output], "acc.output": OUTPUT_CODES[acc_output]}
