@@ -135,3 +135,13 @@ def test_a_constant_temperature_has_no_temperature_conditions(conformance):
     ramp = dataclasses.replace(log, temperature=np.linspace(20.0, 40.0, log.n))
     got = _comparison(ramp, BASELINE).conditions
     assert {"temperature low", "temperature mid", "temperature high"} <= set(got)
+
+
+def test_a_noise_free_log_is_said_to_be_noise_free(conformance):
+    """The spec's ideal vector carries no noise (its residual's differences are rounding): every
+    channel is marked noise-free, so its χ² is not read as a misfit; the example, with noise,
+    has none marked."""
+    ideal = _comparison(read_log(conformance / "ideal"), list(DEFAULT_EFFECTS))
+    assert all(v["noise_free"] for v in ideal.channels.values()), ideal.channels
+    example = _comparison(read_log(conformance / "example"), BASELINE)
+    assert not any(v["noise_free"] for v in example.channels.values())

@@ -31,6 +31,10 @@ def _print_comparison(c, coloured: bool = False) -> None:
     for k, v in c.channels.items():
         print(f"{k:8s} {v['rms']:11.4g} {v['noise_floor']:11.4g} {v['rms'] / v['noise_floor']:9.3f} "
               f"{v['chi2_per_dof']:9.3f} {v['fit_percent']:9.4f} {v['whiteness_p']:8.3f}")
+    free = [k for k, v in c.channels.items() if v.get("noise_free")]
+    if free:
+        print(f"{', '.join(free)}: no noise in these data (the residual's sample differences are rounding): their χ² "
+              "weighs rounding against a numerical floor, not a misfit against noise; read their rms")
     from scipy.stats import chi2
 
     low = chi2.ppf(0.0005, max(c.dof, 1)) / max(c.dof, 1)

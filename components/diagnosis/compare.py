@@ -178,7 +178,12 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
     dt = order_statistics.median(plate.dt)
     release(plate.dt)  # a spilled log's: its pages back (the plate's columns, 56 bytes a sample)
-    sigma = noise_floor(sigma, np.array([7.3e-5] * 3 + [9.8] * 3) * dt)
+    # a channel without noise (a simulation that injected none, a conformance vector): its
+    # residual's differences are rounding, below a billionth of Earth's rate or gravity a sample
+    # (the best IMU's noise is ~1e-4 of it), and its χ² weighs them against a numerical floor
+    scale = np.array([7.3e-5] * 3 + [9.8] * 3) * dt
+    noise_free = ~(np.isfinite(sigma) & (sigma > 1e-9 * scale))
+    sigma = noise_floor(sigma, scale)
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if noise is not None and noise.coloured:
         white = noise.white_sigma(dt)
@@ -201,6 +206,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
             "chi2_per_dof": float(np.sum(zk**2) / max(len(zk) - fitted_parameters * len(zk) / max(len(rows["z"]), 1), 1)),
             "fit_percent": float(100 * (1 - np.sqrt(sq_all) / np.sqrt(sq_dev))) if sq_dev > 0 else float("nan"),
             "whiteness_p": ljung_box(zk[order]),
+            "noise_free": bool(noise_free[k]) and not (noise is not None and noise.coloured),
         }
     comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
                       dof, rows, usable=data.usable)

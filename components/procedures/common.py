@@ -103,15 +103,19 @@ def linear_covariance(func, x: np.ndarray, var_x: np.ndarray) -> np.ndarray:
 
 
 def errors_against_truth(result, truth: dict) -> list[dict]:
-    """Per estimated parameter: value, truth (0 if not injected), error, σ, in display units."""
+    """Per estimated parameter: value, truth (0 if not injected), error, σ, in display units;
+    ``noise_free``: the truth injected no noise into the parameter's sensor, whose σ is then the
+    numerical floor's and the error against it says nothing."""
     injected = dict(truth.get("effects", {}))
+    noisy = {k.split(".")[0] for k, v in (truth.get("noise") or {}).items() if v}
     rows = []
     for p, v in result.values.items():
         e = effect_of(p)
         unit, scale = e.display
         t = injected.get(p, 0.0)
         rows.append({"parameter": p, "value": v / scale, "truth": t / scale, "error": (v - t) / scale,
-                     "sigma": result.sigmas.get(p, float("nan")) / scale, "unit": unit})
+                     "sigma": result.sigmas.get(p, float("nan")) / scale, "unit": unit,
+                     "noise_free": "noise" in truth and e.target in ("gyro", "acc") and e.target not in noisy})
     return rows
 
 
@@ -121,5 +125,7 @@ def print_errors(rows: list[dict]) -> None:
     print(f"{'parameter':22s} {'estimate':>13s} {'truth':>13s} {'error':>12s} {'sigma':>10s} {'err/sigma':>9s}  unit")
     for r in rows:
         z = r["error"] / r["sigma"] if r["sigma"] and r["sigma"] == r["sigma"] else float("nan")
+        flag = ("  noise-free sensor: no noise was injected, σ is the numerical floor's" if r.get("noise_free")
+                else "  OFF BY MORE THAN 3 SIGMA" if abs(z) > 3 else "")
         print(f"{r['parameter']:22s} {r['value']:+13.6g} {r['truth']:+13.6g} {r['error']:+12.4g} "
-              f"{r['sigma']:10.3g} {z:+9.2f}  {r['unit']}" + ("  OFF BY MORE THAN 3 SIGMA" if abs(z) > 3 else ""))
+              f"{r['sigma']:10.3g} {z:+9.2f}  {r['unit']}" + flag)
