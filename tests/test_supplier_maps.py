@@ -174,3 +174,31 @@ def test_role_mistakes_say_how_to_mend_them(change, match):
 
     with pytest.raises(RoleError, match=match):
         run_scenario(scenario_from_dict(_scenario(**change), source="test"), progress=False)
+
+
+def test_a_case_with_no_applicable_criterion_is_skipped_in_junit():
+    """JUnit: a case whose every criterion is not applicable (a noise-free IMU against criteria on
+    σ and χ²) is <skipped>, not a pass a CI would count; one with a criterion judged is a testcase
+    as before."""
+    import xml.etree.ElementTree as ET
+    from types import SimpleNamespace
+
+    from components.campaign.case import record
+    from components.campaign.junit import junit_xml
+
+    crits = [{"id": "CRB", "requirement": "R2", "kind": "estimate", "parameters": ["gyro.bias.*"], "crb_sigmas": 5},
+             {"id": "FIT", "requirement": "R3", "kind": "chi2", "max": 1.2}]
+    numbers = {"estimates": {"gyro.bias.x": {"value": 0.0, "sigma": 1e-15, "truth": 0.0, "error": 1e-16, "crb": 1e-15}},
+               "chi2_per_dof": 5.1e17, "diagnosis": None}
+    lost = {"effects": [], "noise": ["gyro.noise.arw"], "seed": True, "noise_free": True}
+    recs = {}
+    for cid, cs in (("free", crits), ("judged", crits + [{"id": "TOL", "requirement": "R1", "kind": "estimate",
+                                                          "parameters": ["gyro.bias.*"], "tolerance": "1 deg/h"}])):
+        recs[cid] = record({"case": {"id": cid}, "truth": {}, "criteria": cs, "not_injected": lost},
+                           copy.deepcopy(numbers))
+    cases = [SimpleNamespace(id=c, procedure="lsq", system="acme", seed=0, variation={}) for c in recs]
+    root = ET.fromstring(junit_xml(SimpleNamespace(name="c", cases=cases), recs).split("\n", 1)[1])
+    tcs = {tc.get("name"): tc for tc in root.iter("testcase")}
+    assert tcs["free"].find("skipped") is not None and "not applicable" in tcs["free"].find("skipped").get("message")
+    assert tcs["judged"].find("skipped") is None and tcs["judged"].find("failure") is None
+    assert root.get("skipped") == "1"
