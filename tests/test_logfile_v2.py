@@ -106,7 +106,7 @@ def test_blocks_leave_out_what_is_not_usable():
 
 def test_encoder_resolution_is_stated_or_refused():
     angles = np.repeat(np.array([[0.0], [math.pi / 2]]), 5, axis=0)  # nominal attitudes only
-    with pytest.raises(EstimationError, match=r"smallest step between logged angles of axis 1 is 90°.*"
+    with pytest.raises(EstimationError, match=r"steps between logged angles of axis 1 are whole numbers of 90°.*"
                                               r"table.encoder_resolution_rad"):
         rest_sigma(angles)
     assert rest_sigma(angles, resolution="exact").tolist() == [0.0]
@@ -188,3 +188,18 @@ def test_metadata_size_is_bounded(tmp_path, monkeypatch):
     monkeypatch.setattr(lf, "MAX_METADATA_BYTES", 100)
     with pytest.raises(LogFormatError, match=r"m.json: \d+ bytes of metadata; expected at most 100"):
         read_log(tmp_path / "m")
+
+
+def test_the_count_is_the_step_every_logged_step_is_a_whole_number_of():
+    """A table that moves several counts a sample never logs a one-count step: the count is still
+    the one every step between distinct angles is a whole number of; an axis that never moves
+    has none (0); steps with no common count (reading noise) give the smallest step."""
+    from components.estimation.rest_angles import encoder_quantum
+
+    q = 3.7e-7
+    moving = np.array([0, 13, 26, 40, 53, 66, 66, 66, 79, 92, 106, 119, 119]) * q  # 13-14 counts a sample
+    still = np.zeros_like(moving)
+    got = encoder_quantum(np.column_stack([moving, still]))
+    assert got[0] == pytest.approx(q, rel=1e-9) and got[1] == 0.0
+    noisy = moving + np.random.default_rng(1).normal(0.0, 0.05 * q, len(moving))  # reading noise: no common count
+    assert encoder_quantum(noisy[:, None])[0] == pytest.approx(np.diff(np.unique(noisy)).min())

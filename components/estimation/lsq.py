@@ -83,7 +83,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     ``sigma_acc`` are given. Without one, white noise of the σ estimated from the static data.
     ``rest_angle_sigma`` [rad, per axis]: uncertainty of the true angle at rest around the
     encoder reading, which bounds a rest-to-rest gyro block; default: one count uniform
-    (q/√12, q = the smallest logged angle step), 0 for logs whose rest angles are exact.
+    (q/√12, q the count the logged angles' steps show: rest_angles.encoder_quantum), 0 for logs
+    whose rest angles are exact.
     ``undetermined``: what to do with requested parameters the log does not determine
     (components.estimation.determinability): "hold" them (at 0, or their fixed value, and name
     them in ``Fit.determinability``) or "refuse" the fit (EstimationError naming them).
@@ -106,7 +107,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         step = encoder_quantum(data.angles)
         raise EstimationError(
             "the table angles of this log change at every sample, so it has no rest (calbench takes the table "
-            "at rest where the logged angles repeat exactly); the smallest step between logged angles is "
+            "at rest where the logged angles repeat exactly); their finest step is "
             + ", ".join(f"{np.degrees(x) * 3600:.3g}\"" for x in step) + ": if the angles carry noise finer than "
             "the encoder's count, import the log with 'round_to_count = true' and 'encoder_resolution' in the "
             "mapping's [table] (docs/import.md)")

@@ -43,8 +43,8 @@ GUESSED_COUNT_LIMIT = 1e-3  # rad (0.057°)
 
 def rest_sigma(angles: np.ndarray, given=None, resolution=None) -> np.ndarray:
     """Per-axis σ of the true angle at rest: *given*; else one count uniform (q/√12) with q the
-    log's stated encoder *resolution* (per axis [rad], or "exact": 0); else q the smallest logged
-    step, refused where that cannot be an encoder count."""
+    log's stated encoder *resolution* (per axis [rad], or "exact": 0); else q the count the logged
+    angles show (:func:`encoder_quantum`), refused where that cannot be an encoder count."""
     n_ax = angles.shape[1]
     if given is not None:
         return np.broadcast_to(np.asarray(given, float), (n_ax,)).copy()
@@ -56,8 +56,8 @@ def rest_sigma(angles: np.ndarray, given=None, resolution=None) -> np.ndarray:
     if np.any(q > GUESSED_COUNT_LIMIT):
         k = int(np.argmax(q))
         raise EstimationError(
-            f"the table's encoder resolution is not stated and the smallest step between logged angles of axis "
-            f"{k + 1} is {np.degrees(q[k]):.4g}°, which is not an encoder count: state it as "
+            f"the table's encoder resolution is not stated and the steps between logged angles of axis "
+            f"{k + 1} are whole numbers of {np.degrees(q[k]):.4g}°, which is not an encoder count: state it as "
             "'table.encoder_resolution_rad' in the log's metadata (a number [rad], one per axis, or \"exact\" "
             "when the logged angles at rest are the true ones; calbench-log/2)")
     return q / np.sqrt(12.0)
@@ -71,12 +71,24 @@ def resolution_note(angles: np.ndarray, resolution) -> str:
         return "encoder: one count = " + ", ".join(f"{np.degrees(x) * 3600:.4g}\"" for x in
                                                    np.atleast_1d(resolution)) + " (log metadata)"
     q = encoder_quantum(angles)
-    return ("encoder: resolution not stated, assumed one count = the smallest logged angle step ("
-            + ", ".join(f"{np.degrees(x) * 3600:.4g}\"" for x in q) + ")")
+    return ("encoder: resolution not stated, one count taken as the largest step every logged angle step is a whole "
+            "number of (" + ", ".join(f"{np.degrees(x) * 3600:.4g}\"" if x > 0 else "- (never moves)" for x in q)
+            + ")")
+
+
+# the count is sought as the smallest step divided by 1 ... COUNT_DIVISORS: every step between
+# distinct logged angles must then be a whole number of counts to COUNT_TOLERANCE of one
+COUNT_DIVISORS = 256
+COUNT_TOLERANCE = 1e-3
+COUNT_STEPS = 20_000  # distinct steps the whole-number test reads, at most
 
 
 def encoder_quantum(angles: np.ndarray) -> np.ndarray:
-    """Per axis, the smallest step between distinct logged angles (the count), or 0."""
+    """Per axis, the count: the largest q of which every step between distinct logged angles is a
+    whole multiple (a table that moves several counts a sample never logs a one-count step: a
+    six-position log's smallest step was 13 counts); the smallest step where none of its first
+    COUNT_DIVISORS fractions is such (angles rounded to decimals, reading noise); 0 for an axis
+    that never moves."""
     out = []
     for k in range(angles.shape[1]):
         x = angles[:, k]
@@ -85,5 +97,12 @@ def encoder_quantum(angles: np.ndarray) -> np.ndarray:
         u = np.unique(x[np.concatenate([[True], x[1:] != x[:-1]])]) if len(x) else x
         d = np.diff(u)
         d = d[d > 0]
-        out.append(float(d.min()) if len(d) else 0.0)
+        if not len(d):
+            out.append(0.0)
+            continue
+        q0 = float(d.min())
+        steps = np.unique(d)[:COUNT_STEPS]
+        q = next((q0 / m for m in range(1, COUNT_DIVISORS + 1)
+                  if np.max(np.abs(steps * m / q0 - np.round(steps * m / q0))) < COUNT_TOLERANCE), q0)
+        out.append(q)
     return np.array(out)

@@ -181,7 +181,7 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
         data_d["left_out_samples"] = dict(data.left_out)
     res = getattr(data, "encoder_resolution", None)
     data_d["encoder_resolution_rad"] = ("exact" if isinstance(res, str) else [float(x) for x in res]) \
-        if res is not None else "not stated: one count taken as the smallest logged angle step"
+        if res is not None else "not stated: one count taken from the logged angles' steps"
     if log is not None and log.source:
         src = Path(log.source)
         stem = src.with_suffix("")
