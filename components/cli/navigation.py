@@ -72,12 +72,12 @@ def _cmd_kf(args: argparse.Namespace) -> int:
 def _print_truth(args, res, truth: dict) -> None:
     """Errors against the simulation's truth, in the frame the configuration estimates in
     (components.navigation.truth_frame), with the injected parameters it has no state for."""
-    from components.navigation.truth_frame import estimation_frame, not_estimated, truth_in_frame
+    from components.navigation.truth_frame import estimation_frame, not_estimated, truth_of_result
     from components.procedures.common import errors_against_truth, print_errors
 
     frame = estimation_frame(list(res.values))
     injected = truth.get("effects", {})
-    rows = errors_against_truth(res, {**truth, "effects": truth_in_frame(injected, frame)})
+    rows = errors_against_truth(res, {**truth, "effects": truth_of_result(injected, list(res.values), frame)})
     missing = not_estimated(injected, list(res.values), frame)
     res.extra["errors_against_truth"] = rows
     res.extra["truth_frame"] = frame

@@ -50,3 +50,14 @@ def not_estimated(injected: dict, parameters: list[str], frame: str) -> list[str
     them."""
     seen = truth_in_frame(injected, frame)
     return [p for p, v in seen.items() if v != 0.0 and p not in parameters]
+
+
+def truth_of_result(injected: dict, parameters: list[str], frame: str) -> dict:
+    """The truth a system-level result's *parameters* are judged against: the injected effects
+    in *frame*; and the table stage's ``imu.time_offset`` as both offsets' sum, which is what its
+    rows measure (the accelerometers at each index cannot tell a late IMU from a late
+    accelerometer; docs/system-level.md)."""
+    seen = truth_in_frame(injected, frame)
+    if "imu.time_offset" in parameters:
+        seen["imu.time_offset"] = float(injected.get("imu.time_offset", 0.0)) + float(injected.get("acc.time_offset", 0.0))
+    return seen
