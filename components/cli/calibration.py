@@ -116,7 +116,18 @@ def _cmd_apply(args: argparse.Namespace) -> int:
     from components.model.correct import correct_log
     from components.model.result import CalibrationResult
 
+    from components.errors import UserError
+
     res = CalibrationResult.load(args.result)
+    # a system-level result whose filter found itself inconsistent said "do not use these
+    # estimates": a correction with them is refused unless asked for
+    failed = [p for st in (res.fit or {}).get("stages", []) if isinstance(st, dict)
+              for p in (st.get("consistency") or {}).get("problems", [])
+              if not (st.get("consistency") or {}).get("ok", True)]
+    if failed and not args.accept_inconsistent:
+        raise UserError(f"{args.result}: the filter that made it found itself inconsistent ({failed[0]}"
+                        + (f"; and {len(failed) - 1} more" if len(failed) > 1 else "") + "); its estimates are not "
+                        "to be used: mend the run, or apply it anyway with --accept-inconsistent")
     log = read_log(args.log)
     out = correct_log(log, res)
     paths = write_log(args.out, out)
@@ -163,4 +174,6 @@ def register(sub) -> None:
     a.add_argument("log", help="the raw log (either file or the stem)")
     a.add_argument("--result", required=True, help="calibration result (JSON)")
     a.add_argument("--out", required=True, help="stem of the corrected log pair")
+    a.add_argument("--accept-inconsistent", action="store_true",
+                   help="apply a system-level result whose filter failed its consistency checks")
     a.set_defaults(func=_cmd_apply)
