@@ -112,11 +112,10 @@ def _calibrate_positions(args, log, data, effects, noise) -> int:
 
 
 def _cmd_apply(args: argparse.Namespace) -> int:
+    from components.errors import UserError
     from components.logs.logfile import read_log, write_log
     from components.model.correct import correct_log
     from components.model.result import CalibrationResult
-
-    from components.errors import UserError
 
     res = CalibrationResult.load(args.result)
     # a system-level result whose filter found itself inconsistent said "do not use these
