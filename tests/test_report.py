@@ -177,6 +177,24 @@ def test_report_command_and_a_bad_truth_file(conformance, tmp_path, capsys):
                  "--truth", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(bad) in err[0] and '"effects"' in err[0], err
+    # a truth of another run (other segments, another length) is refused: its errors would read
+    # as hundreds of σ; the log's own segments, or its length, are accepted
+    from components.logs.logfile import read_log
+
+    log = read_log(conformance / "example")
+    lab = [str(x) for i, x in enumerate(log.segment) if i == 0 or x != log.segment[i - 1]]
+    length = float(log.time[-1] - log.time[0] + log.dt)
+    for segments, stopped, code in (([{"label": "az000"}, {"label": "az090"}], 2 * length, 2),
+                                    ([{"label": x} for x in lab], 2 * length, 0),
+                                    ([{"label": "az000"}], length, 0)):
+        other = tmp_path / "other.truth.json"
+        other.write_text(json.dumps({"scenario": {"name": "seed000"}, "effects": {}, "segments": segments,
+                                     "run": {"stopped_at_s": stopped}}))
+        capsys.readouterr()
+        assert main(["report", str(conformance / "example"), "--model", str(model), "--out", str(page),
+                     "--diagnose", "none", "--no-noise", "--truth", str(other)]) == code
+        if code:
+            assert "the truth of scenario 'seed000', whose segments and length are not those" in capsys.readouterr().err
 
 
 def test_demo_page_shows_before_after_and_the_truth(tmp_path, capsys):

@@ -15,8 +15,10 @@ def add_option(parser) -> None:
                                                               "(as `calbench report`)")
 
 
-def load_truth(path: str) -> dict:
-    """parameter -> SI value from a truth file written by `calbench simulate` (its "effects")."""
+def load_truth(path: str, log=None) -> dict:
+    """parameter -> SI value from a truth file written by `calbench simulate` (its "effects");
+    with *log*, the truth must be of its run: most of the log's segment labels among the truth's
+    schedule (a truth of another scenario gave errors of hundreds of σ without a word)."""
     from components.errors import UserError
 
     try:
@@ -26,7 +28,32 @@ def load_truth(path: str) -> dict:
     if not isinstance(d, dict) or not isinstance(d.get("effects"), dict):
         raise UserError(f"--truth {path}: no \"effects\" object (parameter -> SI value), expected the "
                         "STEM.truth.json `calbench simulate` writes")
+    if log is not None and not _of_this_run(d, log):
+        sc = d.get("scenario")
+        name = sc.get("name", "?") if isinstance(sc, dict) else "?"
+        raise UserError(f"--truth {path}: the truth of scenario {name!r}, whose segments and length are not those "
+                        f"of {log.source or 'the log'}; expected the STEM.truth.json `calbench simulate` wrote beside "
+                        "this log")
     return {str(k): float(v) for k, v in d["effects"].items()}
+
+
+def _of_this_run(truth: dict, log) -> bool:
+    """Is *truth* the run of *log*: the log's segment labels, run by run, the truth's schedule's,
+    or else the same length within 1 % (a log cut or relabelled after the run)? Without segments
+    in either, nothing to tell by: yes."""
+    import numpy as np
+
+    segs = [str(s.get("label")) for s in truth.get("segments", []) if isinstance(s, dict)]
+    if not segs or log.segment is None or not log.n:
+        return True
+    lab = np.asarray(log.segment)
+    runs = [str(x) for x in lab[np.concatenate([[True], lab[1:] != lab[:-1]])]]
+    sched = [x for i, x in enumerate(segs) if i == 0 or x != segs[i - 1]]
+    if runs == sched[:len(runs)]:
+        return True
+    stopped = (truth.get("run") or {}).get("stopped_at_s")
+    length = float(log.time[-1] - log.time[0] + log.dt)
+    return isinstance(stopped, (int, float)) and abs(stopped - length) <= 0.01 * max(stopped, length)
 
 
 def write(page: str, log, data, model, model_path: str | None, noise, **kw) -> None:
@@ -49,7 +76,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     baseline = CalibrationResult.load(args.baseline) if args.baseline else None
     noise, said, _ = choose_noise(args.noise, data, model)
     print(f"noise: {said}")
-    truth = load_truth(args.truth) if args.truth else None
+    truth = load_truth(args.truth, log) if args.truth else None
     write(args.out, log, data, model, args.model, noise, diagnose_models=args.diagnose,
           identify=not args.no_noise, truth=truth, baseline=baseline)
     return 0
