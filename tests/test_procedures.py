@@ -212,3 +212,17 @@ def test_seed002_iterates_until_flat():
     vs = [x for x in decisions if x["step"].startswith("vertical spin")]
     assert vs[-1]["flat"] and len(vs) <= 5
     assert err["iterations"] == len(vs) - 1
+
+
+def test_procedure_mistakes_are_said_before_the_work(conformance, capsys):
+    """A LOG without --out, and a scenario given as the LOG: one error each, before any estimate
+    is computed or printed (it printed the whole result, then exited 2)."""
+    from components.cli import main
+
+    for argv, said in ((["procedure", "cwccw", str(conformance / "example")], "--out RESULT.json is required"),
+                       (["procedure", "cwccw", "examples/scenarios/seed001.toml", "--out", "x.json"],
+                        "a scenario, not a log; simulate it with --simulate")):
+        capsys.readouterr()
+        assert main(argv) == 2
+        out, err = capsys.readouterr()
+        assert said in err and "parameter" not in out, (out, err)

@@ -37,6 +37,10 @@ def _cmd_procedure(args: argparse.Namespace) -> int:
         raise UserError(f"unknown procedure {name!r}; expected one of {', '.join(PROCEDURES)}")
     if (args.log is None) == (args.simulate is None):
         raise UserError("give either a LOG or --simulate SCENARIO")
+    if args.log is not None and args.out is None:
+        raise UserError("--out RESULT.json is required with a LOG")  # said before the work, not after it
+    if args.log is not None and str(args.log).endswith(".toml"):
+        raise UserError(f"{args.log}: a scenario, not a log; simulate it with --simulate {args.log}")
     opts = {}
     if args.beta is not None:
         if name != "cwccw":
@@ -75,6 +79,11 @@ def _cmd_procedure(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise UserError(f"procedure {name}: {e}") from None
     _print_values(res)
+    if name != "latitude":
+        # the closed forms weigh every sample alike: under bias instability or random walk their
+        # σ are too small (calibrate's least squares whitens with the identified noise)
+        print("sigma: white noise per sample (the closed forms' own); under bias instability or random walk it is "
+              "too small: calbench calibrate LOG --noise identify gives σ under the coloured noise")
     for note in res.extra.get("notes", []):
         print(f"note: {note}")
     if name == "latitude":
@@ -100,8 +109,6 @@ def _cmd_procedure(args: argparse.Namespace) -> int:
     if args.out:
         res.save(args.out)
         print(f"-> {args.out}")
-    elif not args.simulate:
-        raise UserError("--out RESULT.json is required with a LOG")
     return 0
 
 
