@@ -226,3 +226,16 @@ def test_procedure_mistakes_are_said_before_the_work(conformance, capsys):
         assert main(argv) == 2
         out, err = capsys.readouterr()
         assert said in err and "parameter" not in out, (out, err)
+
+
+@pytest.mark.parametrize("tilted", [False, True])
+def test_cwccw_says_when_its_pairs_disagree(tilted):
+    """seed 001's ± static pairs leave 6 numbers to check the one-bias model of the closed form:
+    a level base passes (χ² of 6 dof), a base tilted 1′ / −0.7′ (which the closed form does not
+    model: hundreds of σ of accelerometer error) is said in a note naming the tilt procedure."""
+    d = tomllib.loads((ROOT / "examples" / "scenarios" / "seed001.toml").read_text())
+    if tilted:
+        d["turntable"]["effects"] = {"table.base_tilt.x": "1 arcmin", "table.base_tilt.y": "-0.7 arcmin"}
+    res = cwccw.run(run_scenario(scenario_from_dict(d, "test", ROOT / "examples" / "scenarios"), progress=False).log)
+    said = [n for n in res.extra.get("notes", []) if "pairs do not agree" in n]
+    assert bool(said) == tilted, res.extra.get("notes")

@@ -225,7 +225,20 @@ def acc_plus_minus(data, positions, sigma_a, beta: float):
 
     value = params(fbar.ravel())
     cov = linear_covariance(params, fbar.ravel(), var.ravel())
-    return value, cov, [l for k in keys for l in groups[k]["labels"]]
+    return value, cov, [l for k in keys for l in groups[k]["labels"]], _pair_consistency(fbar, u, var, value)
+
+
+def _pair_consistency(fbar: np.ndarray, u: np.ndarray, var: np.ndarray, value: np.ndarray) -> tuple[float, int]:
+    """(χ², dof) of the three ± pairs against one bias: each pair's mean is b + K ū_pair, and the
+    closed form takes b from the three together, so 6 numbers are left to check it (a tilted base
+    or a table error the closed form does not model shows here, not in its σ)."""
+    b = value[:3]
+    K = np.eye(3) + np.diag(value[3:6])
+    for ij, m in zip(("xy", "xz", "yx", "yz", "zx", "zy"), value[6:12]):
+        K[AX.index(ij[0]), AX.index(ij[1])] = m
+    r = np.array([(fbar[2 * k] + fbar[2 * k + 1]) / 2 - K @ ((u[2 * k] + u[2 * k + 1]) / 2) - b for k in range(3)])
+    v = np.array([(var[2 * k] + var[2 * k + 1]) / 4 for k in range(3)])
+    return float(np.sum(r**2 / np.where(v > 0, v, np.inf))), 6
 
 
 # --------------------------------------------------------------------------- procedure
@@ -255,7 +268,14 @@ def run(log_or_data, *, beta: float | None = None, static_labels: str | None = N
             used["rotations"] = labels
     if acc:
         pos = find_static_positions(data, static_labels)
-        v, c, labels = acc_plus_minus(data, pos, sigma_a, beta)
+        v, c, labels, (chi2_pairs, dof_pairs) = acc_plus_minus(data, pos, sigma_a, beta)
+        from scipy.stats import chi2 as chi2_dist
+
+        if chi2_dist.sf(chi2_pairs, dof_pairs) < 1e-6:
+            notes.append(f"the ± static pairs do not agree on one accelerometer bias (χ² {chi2_pairs:.3g} on "
+                         f"{dof_pairs} dof, p < 1e-6): the table is not level or not the closed form's (a base tilt, "
+                         "a table error), and the accelerometer estimates are off by it, far beyond their σ: run "
+                         "procedure tilt, or calbench calibrate with table.base_tilt")
         names += [f"acc.bias.{i}" for i in AX] + _sf_mis_names("acc")
         values.append(v)
         blocks.append(c)
