@@ -2,6 +2,7 @@
 server, its plots are in the rendered DOM, and the browser logs no console message. A page with
 a script error is the control that shows the console check can fail."""
 import json
+import math
 import re
 import shutil
 import subprocess
@@ -242,3 +243,28 @@ def test_a_long_logs_residual_plot_stays_a_page_not_a_megabyte_per_thousand_poin
     assert few.count("<use") >= 6 * (DENSE_POINTS // 4) and "<image" not in few
     assert many.count("<image") == 6 and many.count("<use") < 100
     assert len(more) < 1.25 * len(many) and len(more) < 2_000_000, (len(many), len(more))
+
+
+def test_report_truth_in_the_frame_the_result_estimates_in(conformance, tmp_path, capsys):
+    """A result with the accelerometers' lower-triangular misalignments only (a system-level or
+    positions result: the accelerometer-defined frame) is judged against the truth turned into
+    that frame (docs: components.navigation.truth_frame): an injected acc.mis.xy of 20″ becomes a
+    gyro.mis.yx of +20″ and an acc.mis.yx of +20″, and is not listed as 'not in the model'."""
+    from components.cli import main
+
+    model = tmp_path / "m.json"
+    assert main(["calibrate", str(conformance / "example"), "--out", str(model)]) == 0
+    doc = json.loads(model.read_text())
+    for p in ("acc.mis.xy", "acc.mis.xz", "acc.mis.yz"):
+        doc["parameters"].pop(p, None)
+    model.write_text(json.dumps(doc))
+    arcsec = math.pi / 180 / 3600
+    (tmp_path / "t.truth.json").write_text(json.dumps({"effects": {"acc.mis.xy": 20 * arcsec}}))
+    capsys.readouterr()
+    assert main(["report", str(conformance / "example"), "--model", str(model), "--out", str(tmp_path / "p.html"),
+                 "--diagnose", "none", "--no-noise", "--truth", str(tmp_path / "t.truth.json")]) == 0
+    assert "accelerometer-defined frame" in capsys.readouterr().out
+    lines = json.loads((tmp_path / "p.json").read_text())["truth"]
+    assert any(x.startswith("gyro.mis.yx: truth +20 arcsec") for x in lines), lines
+    assert any(x.startswith("acc.mis.yx: truth +20 arcsec") for x in lines), lines
+    assert not any(x.startswith("acc.mis.xy") for x in lines), lines

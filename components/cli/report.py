@@ -77,6 +77,15 @@ def _cmd_report(args: argparse.Namespace) -> int:
     noise, said, _ = choose_noise(args.noise, data, model)
     print(f"noise: {said}")
     truth = load_truth(args.truth, log) if args.truth else None
+    if truth is not None:
+        # in the frame the result's misalignments are estimated in (a system-level or positions
+        # result works in the accelerometer-defined frame: the injected truth turned into it)
+        from components.navigation.truth_frame import estimation_frame, truth_of_result
+
+        frame = model.extra.get("truth_frame") or estimation_frame(list(model.values))
+        truth = truth_of_result(truth, list(model.values), frame)
+        if frame != "table":
+            print("truth: turned into the accelerometer-defined frame the result's misalignments are estimated in")
     write(args.out, log, data, model, args.model, noise, diagnose_models=args.diagnose,
           identify=not args.no_noise, truth=truth, baseline=baseline)
     return 0
