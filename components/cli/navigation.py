@@ -66,6 +66,15 @@ def _cmd_kf(args: argparse.Namespace) -> int:
             print(f"  {p}")
         json_option.record(args, problems=problems)
         return 1
+    for st in res.fit.get("stages", []):
+        c = st.get("consistency")
+        if c and c.get("innovation_windows"):
+            # what the checks found, said on success too: a user sees how close to the limits it ran
+            wp = c.get("whiteness_p")
+            print(f"consistent: stage {st['name']!r}: {c['innovation_windows'] - c['windows_out']} of "
+                  f"{c['innovation_windows']} innovation windows within bounds, normalised innovation RMS "
+                  f"{st.get('normalised_innovation_rms', float('nan')):.3g}"
+                  + (f", whiteness p {wp:.2g} (lags 3-60)" if wp is not None else ""))
     return 0
 
 

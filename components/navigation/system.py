@@ -349,7 +349,7 @@ def _result(log, data, config, values, sigmas, outputs) -> CalibrationResult:
                       "final_nav_sigma": [float(x) for x in f.sigma_nav],
                       "normalised_innovation_rms": float(np.sqrt(np.mean(nu ** 2))) if len(nu) else None,
                       "consistency": {"ok": c.ok, "problems": c.problems, "innovation_windows": c.windows,
-                                      "windows_out": c.windows_out}})
+                                      "windows_out": c.windows_out, "whiteness_p": c.whiteness_p}})
         stages.append(d)
     dt = float(log.dt)
     noise = {"model": "white noise per sample (estimated from static data)", "sample_interval_s": dt}
