@@ -21,9 +21,11 @@ def _print_values(res) -> None:
 
 def _print_latitude(res) -> None:
     lp = res.extra["latitude_procedure"]
+    arcmin = math.pi / 180 / 60
+    az_sigma = f" (sigma {lp['sigma_azimuth_rad'] / arcmin:.3f} arcmin)" if "sigma_azimuth_rad" in lp else ""
     print(f"latitude = {math.degrees(lp['latitude_rad']):.6f} deg "
-          f"(sigma {lp['sigma_latitude_rad'] / (math.pi / 180 / 60):.3f} arcmin), azimuth = "
-          f"{math.degrees(lp['azimuth_rad']):.5f} deg, vertical corrections: {lp['iterations']}")
+          f"(sigma {lp['sigma_latitude_rad'] / arcmin:.3f} arcmin), azimuth = "
+          f"{math.degrees(lp['azimuth_rad']):.5f} deg{az_sigma}, vertical corrections: {lp['iterations']}")
 
 
 def _cmd_procedure(args: argparse.Namespace) -> int:
@@ -95,7 +97,8 @@ def _cmd_procedure(args: argparse.Namespace) -> int:
 
             err = latitude.errors(res, truth_lat)
             for k, v in err.items():
-                print(f"  {k:18s} {v:+.4f}")
+                if k != "iterations":  # a count, not an error: the latitude line says it
+                    print(f"  {k:18s} {v:+.4f}")
             res.extra["errors_against_truth"] = err
         else:
             rows = errors_against_truth(res, truth)

@@ -152,7 +152,7 @@ def gyro_cwccw(data, rotations, sigma_g, q):
         if rotations:
             # turns in one direction only: the bias and Earth rate do not cancel, so the closed
             # form cannot be used; a silent skip would look like a calibration without gyro errors
-            seen = ", ".join(f"{r['label']} ({'+' if r['angle'] > 0 else '-'}{abs(r['angle']) / TWO_PI:g} turn "
+            seen = ", ".join(f"{r['label']} ({'+' if r['angle'] > 0 else '-'}{abs(r['angle']) / TWO_PI:g} turn{'s' if abs(r['angle']) > 1.5 * TWO_PI else ''} "
                              f"about plate {np.round(r['axis'], 3).tolist()})" for r in rotations[:6])
             raise ValueError(f"the log's whole-turn rotations are one-directional ({seen}): the CW/CCW gyro part "
                              "needs turns in both directions about each axis; the general least squares "
