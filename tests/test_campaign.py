@@ -293,6 +293,9 @@ def test_a_record_interrupted_while_written_leaves_no_file(tmp_path, monkeypatch
     (('systems = ["ours"]\n\n[[criteria]]\nid = "OBS"', 'systems = ["theirs"]\n\n[[criteria]]\nid = "OBS"'),
      ["systems", "ours, acme, segv, hang"]),
     (("replicates = 10", "replicates = 0"), ["[campaign] replicates", "integer >= 1"]),
+    # a parameter the least squares does not estimate: refused here, not failed in every case
+    (('parameters = ["acc.bias.*"]', 'parameters = ["acc.k3.*"]'),
+     ["parameters = ['acc.k3.*']: procedure 'lsq' estimates none of them", "[procedures.lsq] effects"]),
 ])
 def test_bad_campaign_files_name_file_key_and_expectation(tmp_path, campaign_file, change, words):
     text = campaign_file.read_text()

@@ -296,7 +296,7 @@ def _variations(d, src) -> list:
 
 
 def _criteria(lst, src, systems, procedures) -> list:
-    from components.model.effects import EFFECTS
+    from components.model.effects import EFFECTS, parameters_of
 
     _expect(isinstance(lst, list), src, "criteria", lst, "an array of tables [[criteria]]")
     out, ids = [], set()
@@ -331,6 +331,16 @@ def _criteria(lst, src, systems, procedures) -> list:
             if not names:
                 raise CampaignError(f"{src}: {w} parameters = {pats!r}: expected names or patterns of parameters "
                                     "of the effect vocabulary (e.g. acc.bias.x, acc.bias.*)")
+            # a least-squares procedure estimates its effects' parameters only: a criterion on none of
+            # them would fail every case at run time ("no estimated parameter matches")
+            for pname, proc in procedures.items():
+                if proc.method != "lsq" or (crit.procedures is not None and pname not in crit.procedures):
+                    continue
+                fitted = set(parameters_of(proc.effects))
+                if not any(q in fitted for q in names):
+                    raise CampaignError(f"{src}: {w} parameters = {pats!r}: procedure {pname!r} estimates none of "
+                                        f"them (its effects: {', '.join(proc.effects)}); add the effect to "
+                                        f"[procedures.{pname}] effects, or name the criterion's procedures")
             for key in ("tolerance", "max"):
                 if key in d and not (kind == "chi2"):
                     for q in names:  # the limit must have each parameter's dimension
