@@ -34,7 +34,7 @@ def mems(tmp_path_factory):
     labels = sorted(set(np.asarray(run.log.segment).astype(str)))
     kinds = {lab: {"kind": "static"} for lab in labels if lab.startswith("pos")}
     kinds.update({lab: {"kind": "excluded"} for lab in labels if not lab.startswith("pos")})
-    bare = dataclasses.replace(run.log, gimbal={}, command={}, axis_names=[], axis_vectors=np.zeros((0, 3)),
+    bare = dataclasses.replace(run.log, gimbal={}, command={}, axis_names=[], axis_vectors=np.zeros((0, 3)), encoder_resolution=None,
                                segments=kinds)
     write_log(out / "bare", bare)
     truth = {p: effect_value(p, v, "scenario") for p, v in d["imu"]["effects"].items()}

@@ -51,7 +51,7 @@ def handheld(tmp_path_factory):
     kinds = {lab: {"kind": "excluded"} for lab in sorted(set(labels)) if lab.startswith("move-")}
     kinds.update({lab: {"kind": "static"} for lab in sorted(set(labels)) if lab.startswith("pos")})
     kinds.update({rl: {"kind": "rotation", "axis": ax, "angle_deg": ang} for _, _, rl, ax, ang in TURNS.values()})
-    no_angles = dataclasses.replace(log, gimbal={}, command={}, axis_names=[], axis_vectors=np.zeros((0, 3)),
+    no_angles = dataclasses.replace(log, gimbal={}, command={}, axis_names=[], axis_vectors=np.zeros((0, 3)), encoder_resolution=None,
                                     segments=kinds)
     d = tmp_path_factory.mktemp("handheld")
     write_log(d / "hh", no_angles, "parquet")

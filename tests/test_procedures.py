@@ -255,3 +255,16 @@ def test_tilt_sigmas_carry_the_tilts_uncertainty():
     bound = dict(zip(joint.parameters, joint.sigma))
     for p in res.values:
         assert res.sigmas[p] >= 0.99 * bound[p], (p, res.sigmas[p], bound[p])
+
+
+def test_a_simulated_log_states_its_tables_encoder_count(seed003_run, tmp_path):
+    """The built-in table's encoder is known to the simulation: its log states the count (the
+    angles alone may not show it: the latitude procedure's spins log whole quarter degrees a
+    sample), written as calbench-log/2 and read back the same."""
+    log = seed003_run.log
+    cpr = seed003_run.truth["turntable"]["counts_per_rev"]
+    np.testing.assert_allclose(log.encoder_resolution, 2 * np.pi / cpr, rtol=0)
+    write_log(tmp_path / "s", log)
+    back = read_log(tmp_path / "s")
+    assert back.version == "calbench-log/2"
+    np.testing.assert_array_equal(back.encoder_resolution, log.encoder_resolution)

@@ -254,6 +254,11 @@ def run_scenario(sc: Scenario, record: list[str] | None = None, progress: bool |
     desc = sc.description or f"simulated run of scenario {sc.name}"
     log = log_from_recording(rec, metadata=meta, table="table", imu="imu", axes=sc.table_axes,
                              segment_signal="ctrl.segment", segment_labels=ctrl.labels, description=desc)
+    cpr = info["counts_per_rev"]
+    if sc.table_fmu.startswith("builtin:turntable") and cpr:
+        # the built-in table's encoder is known: the log states its count, which the logged angles
+        # alone may not show (a spin of whole quarter degrees a sample never logs one count)
+        log.encoder_resolution = np.full(len(sc.table_axes), 2 * np.pi / cpr)
     for a in sc.table_axes:
         # kept as extra columns (the spec keeps unknown columns): the servo replay of
         # components.simulation.replay drives a turntable FMU with the same mode and rate commands
