@@ -219,6 +219,10 @@ def test_demo_page_shows_before_after_and_the_truth(tmp_path, capsys):
     assert twin["views"][1]["diagnosis"]["verdict"] is None
     assert "Recovered against the truth: + acc.k2" in html_text
     assert twin["truth"] and twin["truth"][0].startswith("acc.k2.z: truth +40 ug/g2, recovered")
+    # and as numbers for scripts: the truth in SI (40 ug/g2 = 40e-6 / 9.80665 s2/m) and the error in σ
+    k2 = twin["truth_values"][0]
+    assert k2["parameter"] == "acc.k2.z" and k2["truth"] == pytest.approx(40e-6 / 9.80665)
+    assert k2["error_sigmas"] == pytest.approx((k2["value"] - k2["truth"]) / k2["sigma"]) and abs(k2["error_sigmas"]) < 3
 
 
 def test_a_long_logs_residual_plot_stays_a_page_not_a_megabyte_per_thousand_points():

@@ -127,7 +127,8 @@ def _diagnosis(view: ModelView, k: int) -> list[str]:
 def build_report(path: str | Path, *, title: str, comparison=None, diagnosis=None, ladder=None,
                  provenance: dict | None = None, noise=None, model_name: str = "the model",
                  views: list[ModelView] | None = None, truth: list[str] | None = None,
-                 truth_model: str | None = None, noise_model: str | None = None) -> tuple[Path, Path]:
+                 truth_model: str | None = None, noise_model: str | None = None,
+                 truth_values: list | None = None) -> tuple[Path, Path]:
     """Write <path>.html and <path>.json (path without suffix or with .html). ``views``: the models
     shown, before first (default: *comparison* and *diagnosis* as one view named *model_name*);
     ``truth``: lines of recovered values against a known truth (of *truth_model*); ``noise``: a
@@ -177,6 +178,7 @@ def build_report(path: str | Path, *, title: str, comparison=None, diagnosis=Non
             "comparison": views[-1].comparison.summary(),
             "diagnosis": diagnosed[-1].diagnosis.to_json() if diagnosed else None,
             "truth": list(truth or []),
+            "truth_values": list(truth_values or []),  # the same as numbers (SI): parameter, truth, value, σ
             "noise": noise.model.to_dict() if noise is not None else None,
             "provenance": provenance or {}}
     json_path = path.with_suffix(".json")

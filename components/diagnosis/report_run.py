@@ -34,6 +34,19 @@ def truth_lines(truth_effects: dict, model) -> list[str]:
     return out
 
 
+def truth_values(truth_effects: dict, model) -> list[dict]:
+    """The same as numbers (SI), for scripts reading the page's JSON twin: per parameter its
+    truth, the model's value and σ (None when not in the model) and the error in σ."""
+    out = []
+    for p, v in truth_effects.items():
+        val = model.values.get(p)
+        s = model.sigmas.get(p) if val is not None else None
+        z = (val - v) / s if val is not None and s else None
+        out.append({"parameter": p, "truth": float(v), "value": None if val is None else float(val),
+                    "sigma": None if s is None else float(s), "error_sigmas": None if z is None else float(z)})
+    return out
+
+
 def _provenance(log, models: dict) -> dict:
     from components.model.result import file_sha256
 
@@ -106,4 +119,5 @@ def write_model_report(page: str | Path, log, data, model, *, model_path=None, n
     prov.update(extra_provenance or {})
     return build_report(page, title=title or f"calbench report: {log.source or 'log'}", views=views,
                         ladder=ladder, provenance=prov, noise=ident, noise_model=after_name,
-                        truth=truth_lines(truth, model) if truth else None, truth_model=after_name)
+                        truth=truth_lines(truth, model) if truth else None, truth_model=after_name,
+                        truth_values=truth_values(truth, model) if truth else None)
