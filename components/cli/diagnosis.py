@@ -35,9 +35,9 @@ def _print_comparison(c, coloured: bool = False) -> None:
     if free:
         print(f"{', '.join(free)}: no noise in these data (the residual's sample differences are rounding): their χ² "
               "weighs rounding against a numerical floor, not a misfit against noise; read their rms")
-    from scipy.stats import chi2
+    from components.estimation.distributions import chi2_isf
 
-    low = chi2.ppf(0.0005, max(c.dof, 1)) / max(c.dof, 1)
+    low = chi2_isf(0.9995, max(c.dof, 1)) / max(c.dof, 1)
     if c.chi2_per_dof < low:
         # too good to be true: the noise model, not the model, is what is wrong
         print(f"chi2/dof {c.chi2_per_dof:.3f} is below what a correct model gives (99.9 % band from {low:.3f}): the "

@@ -125,13 +125,13 @@ def _handedness(data, log) -> list[str]:
         r = y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
         return float(r @ r)
 
-    from scipy.stats import chi2
+    from components.estimation.distributions import chi2_sf
 
     dof = len(rests) - 4
     plain = misfit(u)
     reversed_ = [misfit(u * np.where(np.arange(3) == i, -1.0, 1.0)) for i in range(3)]
     i = int(np.argmin(reversed_))
-    if chi2.sf(plain, dof) >= HANDED_P or reversed_[i] > HANDED_FIT * dof or plain - reversed_[i] < HANDED_GAIN:
+    if chi2_sf(plain, dof) >= HANDED_P or reversed_[i] > HANDED_FIT * dof or plain - reversed_[i] < HANDED_GAIN:
         return []
     axis = "xyz"[i]
     return [f"{log.source or 'log'}: at its {len(rests)} rests the gyros' rate along the accelerometers' specific "

@@ -269,9 +269,9 @@ def run(log_or_data, *, beta: float | None = None, static_labels: str | None = N
     if acc:
         pos = find_static_positions(data, static_labels)
         v, c, labels, (chi2_pairs, dof_pairs) = acc_plus_minus(data, pos, sigma_a, beta)
-        from scipy.stats import chi2 as chi2_dist
+        from components.estimation.distributions import chi2_sf
 
-        if chi2_dist.sf(chi2_pairs, dof_pairs) < 1e-6:
+        if chi2_sf(chi2_pairs, dof_pairs) < 1e-6:
             notes.append(f"the ± static pairs do not agree on one accelerometer bias (χ² {chi2_pairs:.3g} on "
                          f"{dof_pairs} dof, p < 1e-6): the table is not level or not the closed form's (a base tilt, "
                          "a table error), and the accelerometer estimates are off by it, far beyond their σ: run "
