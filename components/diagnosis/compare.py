@@ -37,7 +37,7 @@ from components.estimation import order_statistics
 from components.estimation.blocks import observation_blocks, samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
 from components.estimation.design import noise_floor
-from components.estimation.distributions import chi2_sf
+from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
@@ -55,20 +55,6 @@ def model_geometry(data: LogData, model: CalibrationResult):
         if effect_of(p).target == "table":
             geo = apply_table_parameter(geo, p, v)
     return geo
-
-
-def ljung_box(z: np.ndarray, lags: int = 10) -> float:
-    """p-value of the Ljung–Box portmanteau test of a normalised series."""
-    n = len(z)
-    if n < lags + 5:
-        return float("nan")
-    z = z - z.mean()
-    d = float(np.dot(z, z))
-    if d == 0:
-        return 1.0
-    r = np.array([np.dot(z[:-k], z[k:]) / d for k in range(1, lags + 1)])
-    q = n * (n + 2) * np.sum(r**2 / (n - np.arange(1, lags + 1)))
-    return float(chi2_sf(q, lags))
 
 
 @dataclass

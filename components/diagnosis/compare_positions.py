@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.diagnosis.compare import CHANNELS, Comparison, ljung_box, locate
+from components.diagnosis.compare import CHANNELS, Comparison, locate
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.chunks import PlateAtSamples
+from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
 from components.estimation.positions import SUPPORTED, calibrate_positions
 from components.estimation.positions_design import PositionsDesign

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from components.estimation.distributions import autocorrelation, ljung_box
 from components.model.effects import effect_of
 from components.model.plausibility import implausible
 
@@ -119,14 +120,8 @@ def _whiteness(c: Consistency, stage: str, z: np.ndarray) -> None:
         return
     worst, flagged = None, []
     for k in range(z.shape[1]):
-        x = z[:, k] - z[:, k].mean()
-        d = float(x @ x)
-        if d <= 0:
-            continue
-        r = np.array([x[:-j] @ x[j:] / d for j in range(lo, hi + 1)])
-        q = n * (n + 2) * float(np.sum(r**2 / (n - np.arange(lo, hi + 1))))
-        p = float(stats.chi2.sf(q, hi - lo + 1))
-        got = (p, k, float(r[: 8].mean()))
+        p = ljung_box(z[:, k], hi - lo + 1, first=lo)
+        got = (p, k, float(autocorrelation(z[:, k], lo, lo + 7).mean()))
         worst = got if worst is None or p < worst[0] else worst
         if p * z.shape[1] < LEVEL and got[2] >= WHITE_MIN_CORRELATION:
             flagged.append(got)
