@@ -215,30 +215,27 @@ def acc_plus_minus(data, positions, sigma_a, beta: float):
     u = np.array([groups[k]["u"] / groups[k]["n"] for k in keys])                # (6, 3)
     var = np.array([np.nan_to_num(sigma_a) ** 2 / (groups[k]["n"] * dt**2) for k in keys])
 
-    def params(fflat):
-        f = fflat.reshape(6, 3)
+    def solve(f):
+        """(b, K) of the closed form from the six groups' mean specific forces f (6, 3)."""
         d = np.array([f[2 * k] - f[2 * k + 1] for k in range(3)]).T      # columns d_k
         du = np.array([u[2 * k] - u[2 * k + 1] for k in range(3)]).T
         Kp = d @ np.linalg.inv(du)
-        b = f.mean(0) - Kp @ u.mean(0)
+        return f.mean(0) - Kp @ u.mean(0), Kp
+
+    def params(fflat):
+        b, Kp = solve(fflat.reshape(6, 3))
         return np.concatenate([b, _sf_mis_vector(Kp - np.eye(3))])
 
     value = params(fbar.ravel())
     cov = linear_covariance(params, fbar.ravel(), var.ravel())
-    return value, cov, [l for k in keys for l in groups[k]["labels"]], _pair_consistency(fbar, u, var, value)
-
-
-def _pair_consistency(fbar: np.ndarray, u: np.ndarray, var: np.ndarray, value: np.ndarray) -> tuple[float, int]:
-    """(χ², dof) of the three ± pairs against one bias: each pair's mean is b + K ū_pair, and the
-    closed form takes b from the three together, so 6 numbers are left to check it (a tilted base
-    or a table error the closed form does not model shows here, not in its σ)."""
-    b = value[:3]
-    K = np.eye(3) + np.diag(value[3:6])
-    for ij, m in zip(("xy", "xz", "yx", "yz", "zx", "zy"), value[6:12]):
-        K[AX.index(ij[0]), AX.index(ij[1])] = m
-    r = np.array([(fbar[2 * k] + fbar[2 * k + 1]) / 2 - K @ ((u[2 * k] + u[2 * k + 1]) / 2) - b for k in range(3)])
+    # the check of the closed form: each ± pair's mean is b + K ū_pair, and b is taken from the
+    # three together, so 6 numbers are left to test it (a tilted base or a table error the closed
+    # form does not model shows here, not in its σ)
+    b, Kp = solve(fbar)
+    r = np.array([(fbar[2 * k] + fbar[2 * k + 1]) / 2 - Kp @ ((u[2 * k] + u[2 * k + 1]) / 2) - b for k in range(3)])
     v = np.array([(var[2 * k] + var[2 * k + 1]) / 4 for k in range(3)])
-    return float(np.sum(r**2 / np.where(v > 0, v, np.inf))), 6
+    pairs = (float(np.sum(r**2 / np.where(v > 0, v, np.inf))), 6)
+    return value, cov, [l for k in keys for l in groups[k]["labels"]], pairs
 
 
 # --------------------------------------------------------------------------- procedure
