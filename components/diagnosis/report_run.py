@@ -17,33 +17,33 @@ def model_name(model) -> str:
     return ladder[-1]["model"] if ladder else "+".join(model.effects)
 
 
-def truth_lines(truth_effects: dict, model) -> list[str]:
-    """Each effect of a known truth (parameter -> SI value) against the model's estimate."""
-    from components.model.effects import effect_of
-
-    out = []
-    for p, v in truth_effects.items():
-        unit, scale = effect_of(p).display
-        if p in model.values:
-            s = model.sigmas.get(p, float("nan"))
-            z = (model.values[p] - v) / s if s and s > 0 else float("nan")
-            out.append(f"{p}: truth {v / scale:+.4g} {unit}, recovered {model.values[p] / scale:+.4g} ± "
-                       f"{s / scale:.2g} {unit} ({z:+.1f} σ)")
-        else:
-            out.append(f"{p}: truth {v / scale:+.4g} {unit}, not in the model")
-    return out
-
-
 def truth_values(truth_effects: dict, model) -> list[dict]:
-    """The same as numbers (SI), for scripts reading the page's JSON twin: per parameter its
-    truth, the model's value and σ (None when not in the model) and the error in σ."""
+    """Each effect of a known truth (parameter -> SI value) against the model's estimate, as
+    numbers (SI), for the page and for scripts reading its JSON twin: the truth, the model's value
+    and σ (None when not in the model) and the error in σ."""
     out = []
     for p, v in truth_effects.items():
         val = model.values.get(p)
-        s = model.sigmas.get(p) if val is not None else None
-        z = (val - v) / s if val is not None and s else None
+        s = model.sigmas.get(p, float("nan")) if val is not None else None
+        z = (val - v) / s if val is not None and s and s > 0 else (float("nan") if val is not None else None)
         out.append({"parameter": p, "truth": float(v), "value": None if val is None else float(val),
                     "sigma": None if s is None else float(s), "error_sigmas": None if z is None else float(z)})
+    return out
+
+
+def truth_lines(values: list[dict]) -> list[str]:
+    """The rows of :func:`truth_values` as the page's lines, in display units."""
+    from components.model.effects import effect_of
+
+    out = []
+    for r in values:
+        unit, scale = effect_of(r["parameter"]).display
+        head = f"{r['parameter']}: truth {r['truth'] / scale:+.4g} {unit}"
+        if r["value"] is None:
+            out.append(f"{head}, not in the model")
+        else:
+            out.append(f"{head}, recovered {r['value'] / scale:+.4g} ± {r['sigma'] / scale:.2g} {unit} "
+                       f"({r['error_sigmas']:+.1f} σ)")
     return out
 
 
@@ -115,9 +115,10 @@ def write_model_report(page: str | Path, log, data, model, *, model_path=None, n
             ident = identify_noise(data, model, known=quantization_known(data), bootstrap=0)
         except ValueError:
             ident = None  # too few static runs to identify: the page says nothing about noise
+    numbers = truth_values(truth, model) if truth else None
     prov = _provenance(log, models)
     prov.update(extra_provenance or {})
     return build_report(page, title=title or f"calbench report: {log.source or 'log'}", views=views,
                         ladder=ladder, provenance=prov, noise=ident, noise_model=after_name,
-                        truth=truth_lines(truth, model) if truth else None, truth_model=after_name,
-                        truth_values=truth_values(truth, model) if truth else None)
+                        truth=truth_lines(numbers) if numbers else None, truth_model=after_name,
+                        truth_values=numbers)
