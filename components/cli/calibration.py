@@ -120,9 +120,7 @@ def _cmd_apply(args: argparse.Namespace) -> int:
     res = CalibrationResult.load(args.result)
     # a system-level result whose filter found itself inconsistent said "do not use these
     # estimates": a correction with them is refused unless asked for
-    failed = [p for st in (res.fit or {}).get("stages", []) if isinstance(st, dict)
-              for p in (st.get("consistency") or {}).get("problems", [])
-              if not (st.get("consistency") or {}).get("ok", True)]
+    failed = res.consistency_problems()
     if failed and not args.accept_inconsistent:
         raise UserError(f"{args.result}: the filter that made it found itself inconsistent ({failed[0]}"
                         + (f"; and {len(failed) - 1} more" if len(failed) > 1 else "") + "); its estimates are not "

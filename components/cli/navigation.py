@@ -61,7 +61,7 @@ def _cmd_kf(args: argparse.Namespace) -> int:
     for note in res.fit.get("notes", []):
         print(f"note: {note}")
     print(f"wrote {args.out} ({res.method}, config {cfg.name})")
-    problems = [p for st in res.fit.get("stages", []) for p in st.get("consistency", {}).get("problems", [])]
+    problems = res.consistency_problems()
     if problems:
         print("the filter is not consistent with the data; do not use these estimates:")
         for p in problems:

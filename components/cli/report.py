@@ -17,8 +17,8 @@ def add_option(parser) -> None:
 
 def load_truth(path: str, log=None) -> dict:
     """parameter -> SI value from a truth file written by `calbench simulate` (its "effects");
-    with *log*, the truth must be of its run: most of the log's segment labels among the truth's
-    schedule (a truth of another scenario gave errors of hundreds of σ without a word)."""
+    with *log*, the truth must be of its run (:func:`_of_this_run`: a truth of another scenario
+    gave errors of hundreds of σ without a word)."""
     from components.errors import UserError
 
     try:

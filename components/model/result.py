@@ -44,6 +44,12 @@ class CalibrationResult:
         estimated it from the moves, or None (not estimated: one count uniform is taken)."""
         return self.noise.get("rest_angle_sigma_rad")
 
+    def consistency_problems(self) -> list[str]:
+        """What the checks of a system-level result's filter stages found (empty: consistent, or
+        not a filter's result): the filter's own word that its estimates are not to be used."""
+        return [p for st in (self.fit or {}).get("stages", []) if isinstance(st, dict)
+                for p in (st.get("consistency") or {}).get("problems", [])]
+
     def noise_model(self):
         """The composite noise model the fit was whitened with (components.model.noise), or None
         (white noise)."""
