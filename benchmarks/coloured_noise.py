@@ -230,6 +230,14 @@ def naming_of(d0, effect: str, param: str):
     return (detect, *cand.naming.get(param, (detect, None, 0.0)))
 
 
+def excited_naming(d0, effect: str, param: str):
+    """:func:`naming_of`, saying so in the table where the schedule does not excite the effect."""
+    found = naming_of(d0, effect, param)
+    if found is None:
+        print(f"  {effect:16s} not excited by this schedule")
+    return found
+
+
 def tally(res: list, named) -> tuple[int, int, int]:
     """(how many *named*(r) holds for, χ²/dof after add in its 99 % band, a further verdict) over
     analyse_hidden's results."""
@@ -423,9 +431,8 @@ def main(argv=None) -> int:
         for e in effects:
             t = time.time()
             p = PARAM[e]
-            found = naming_of(d0, e, p)
+            found = excited_naming(d0, e, p)
             if found is None:
-                print(f"  {e:16s} not excited by this schedule")
                 continue
             detect, thr, rival, cos = found
             if not math.isfinite(thr):

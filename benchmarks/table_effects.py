@@ -27,7 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from coloured_noise import BASELINE, CYCLE, analyse_hidden, naming_of, scenario, seed_variants, tally, true_noise  # noqa: E402
+from coloured_noise import BASELINE, CYCLE, analyse_hidden, excited_naming, scenario, seed_variants, tally, true_noise  # noqa: E402
 
 from components.diagnosis.diagnose import diagnose  # noqa: E402
 from components.estimation.log_data import LogData  # noqa: E402
@@ -73,9 +73,8 @@ def main(argv=None) -> int:
     for e in effects:
         t = time.time()
         p = PARAM[e]
-        found = naming_of(d0, e, p)
+        found = excited_naming(d0, e, p)
         if found is None:
-            print(f"  {e:16s} not excited by this schedule")
             continue
         detect, thr, rival, cos = found
         uname, scale = EFFECTS[e].display
