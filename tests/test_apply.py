@@ -28,3 +28,28 @@ def test_an_inconsistent_filters_result_is_not_applied_unless_asked(conformance,
     assert main(["calibrate", str(tmp_path / "ok"), "--out", str(tmp_path / "r2.json")]) == 0
     again = CalibrationResult.load(tmp_path / "r2.json")
     assert all(abs(again.values[p]) < 0.05 * again.sigmas[p] for p in again.values), again.values
+
+
+def test_the_corrected_log_keeps_the_raw_logs_format_unless_told(conformance, tmp_path, capsys):
+    import numpy as np
+
+    from components.logs.logfile import read_log, write_log
+
+    raw = read_log(conformance / "example")
+    write_log(tmp_path / "raw", raw, fmt="parquet")
+    assert main(["calibrate", str(tmp_path / "raw"), "--out", str(tmp_path / "r.json")]) == 0
+    # a Parquet log gives a Parquet log; a .csv --out or --format csv gives CSV
+    assert main(["apply", str(tmp_path / "raw"), "--result", str(tmp_path / "r.json"), "--out", str(tmp_path / "p")]) == 0
+    assert (tmp_path / "p.parquet").exists() and not (tmp_path / "p.csv").exists()
+    assert main(["apply", str(tmp_path / "raw.parquet"), "--result", str(tmp_path / "r.json"),
+                 "--out", str(tmp_path / "c.csv")]) == 0
+    assert (tmp_path / "c.csv").exists() and not (tmp_path / "c.parquet").exists()
+    # the same corrected numbers either way (each format round-trips doubles exactly)
+    p, c = read_log(tmp_path / "p"), read_log(tmp_path / "c")
+    assert np.array_equal(p.gyro, c.gyro) and np.array_equal(p.acc, c.acc)
+    # and not the raw ones: the correction was applied
+    assert not np.array_equal(p.acc, raw.acc)
+    capsys.readouterr()
+    assert main(["apply", str(tmp_path / "raw"), "--result", str(tmp_path / "r.json"), "--out", str(tmp_path / "x.csv"),
+                 "--format", "parquet"]) == 2
+    assert "--out" in capsys.readouterr().err and not (tmp_path / "x.json").exists()

@@ -125,12 +125,32 @@ def _cmd_apply(args: argparse.Namespace) -> int:
         raise UserError(f"{args.result}: the filter that made it found itself inconsistent ({failed[0]}"
                         + (f"; and {len(failed) - 1} more" if len(failed) > 1 else "") + "); its estimates are not "
                         "to be used: mend the run, or apply it anyway with --accept-inconsistent")
+    _corrected_format(args, None)  # a contradiction in the options, before the log is read
     log = read_log(args.log)
+    fmt = _corrected_format(args, log.source)
     out = correct_log(log, res)
-    paths = write_log(args.out, out)
+    paths = write_log(args.out, out, fmt=fmt)
     print(f"corrected {log.n} samples with {args.result} -> {', '.join(map(str, paths))}")
     json_option.record(args, samples=int(log.n), result=args.result, out=[str(p) for p in paths])
     return 0
+
+
+def _corrected_format(args, raw_source: str | None) -> str:
+    """The corrected log's sample format: ``--format``, else the suffix of ``--out`` (.csv or
+    .parquet), else the raw log's own (an hours-long Parquet log written back as CSV is ten times
+    the file and a slower read)."""
+    from pathlib import Path
+
+    from components.errors import UserError
+
+    suffix = Path(args.out).suffix.lower()
+    if args.format:
+        if suffix in (".csv", ".parquet") and suffix[1:] != args.format:
+            raise UserError(f"--out {args.out}: a {suffix} file, but --format {args.format}; give one of them")
+        return args.format
+    if suffix in (".csv", ".parquet"):
+        return suffix[1:]
+    return "parquet" if raw_source and raw_source.lower().endswith(".parquet") else "csv"
 
 
 def result_json(res) -> dict:
@@ -170,7 +190,10 @@ def register(sub) -> None:
     a = sub.add_parser("apply", help="correct a raw log with a calibration result")
     a.add_argument("log", help="the raw log (either file or the stem)")
     a.add_argument("--result", required=True, help="calibration result (JSON)")
-    a.add_argument("--out", required=True, help="stem of the corrected log pair")
+    a.add_argument("--out", required=True, help="stem of the corrected log pair (STEM.json and STEM.csv or "
+                                                "STEM.parquet)")
+    a.add_argument("--format", choices=("csv", "parquet", "both"),
+                   help="the samples' file (default: the suffix of --out, else the raw log's own format)")
     a.add_argument("--accept-inconsistent", action="store_true",
                    help="apply a system-level result whose filter failed its consistency checks")
     a.set_defaults(func=_cmd_apply)
