@@ -268,3 +268,23 @@ def test_a_simulated_log_states_its_tables_encoder_count(seed003_run, tmp_path):
     back = read_log(tmp_path / "s")
     assert back.version == "calbench-log/2"
     np.testing.assert_array_equal(back.encoder_resolution, log.encoder_resolution)
+
+
+def test_the_procedures_count_is_the_encoders_not_the_smallest_step():
+    """A table that moves 13 counts a sample between rests logs no one-count step: the count the
+    procedures judge rests and quantization by is the one every step is a whole number of (or the
+    stated one), not the smallest step (which made a reading's quantization variance 169x)."""
+    from components.estimation.log_data import LogData
+    from components.procedures.common import angle_quantum
+
+    q = 0.3 * ARCSEC
+    steps = np.concatenate([np.zeros(50), np.tile([13.0, 14.0], 20), np.zeros(50)])  # one move, 13-14 counts a sample
+    counts = np.cumsum(steps)
+    angles = np.column_stack([counts * q, np.zeros_like(counts), 7 * counts * q])
+    data = LogData(time=np.arange(len(counts)) * 0.01, angles=angles, gyro=np.zeros((len(counts), 3)),
+                   acc=np.zeros((len(counts), 3)), geometry=None)
+    assert angle_quantum(data) == pytest.approx(q, rel=1e-9)
+    data.encoder_resolution = [2 * q, 2 * q, 2 * q]   # a stated count wins
+    assert angle_quantum(data) == pytest.approx(2 * q, rel=1e-12)
+    data.encoder_resolution = "exact"                  # exact angles: the smallest step
+    assert angle_quantum(data) == pytest.approx(13 * q, rel=1e-9)

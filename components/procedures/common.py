@@ -7,6 +7,7 @@ import numpy as np
 
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.log_data import LogData
+from components.estimation.rest_angles import encoder_quantum
 from components.model.effects import effect_of
 
 
@@ -44,13 +45,19 @@ def segments(data: LogData) -> list[Segment]:
 
 
 def angle_quantum(data: LogData) -> float:
-    """The smallest step between distinct logged angles (the encoder count), at least 1e-12."""
-    q = []
-    for k in range(data.angles.shape[1]):
-        d = np.diff(np.unique(data.angles[:, k]))
-        d = d[d > 0]
-        if len(d):
-            q.append(d.min())
+    """The encoder count [rad], the smallest over the axes that move, at least 1e-12: the log's
+    stated resolution, else the count every logged step is a whole number of (the estimators'
+    :func:`~components.estimation.rest_angles.encoder_quantum`: a table that moves 13 counts a
+    sample logs no one-count step, and the smallest step then overstated a reading's
+    quantization 13-fold); for angles stated exact, the smallest logged step."""
+    res = data.encoder_resolution
+    if isinstance(res, str) or data.angles.shape[1] == 0:
+        steps = [np.diff(np.unique(data.angles[:, k])) for k in range(data.angles.shape[1])]
+        q = [float(d[d > 0].min()) for d in steps if np.any(d > 0)]
+    else:
+        counts = np.broadcast_to(np.asarray(res, float), (data.angles.shape[1],)) if res is not None \
+            else encoder_quantum(data.angles)
+        q = [float(c) for c in counts if c > 0]
     return max(min(q) if q else 0.0, 1e-12)
 
 
