@@ -10,7 +10,7 @@ import numpy as np
 
 from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
-from components.estimation.design import noise_floor
+from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import whiten
@@ -61,7 +61,7 @@ class CandidateDesign:
         if noise is not None and noise.coloured:
             white = noise.white_sigma(dt)
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
-        sg, sa = noise_floor(sg, 7.3e-5 * dt), noise_floor(sa, 9.8 * dt)
+        sg, sa = noise_floor(sg, GYRO_SCALE * dt), noise_floor(sa, ACC_SCALE * dt)
         rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
         y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0)
         span = float(data.time[-1] - data.time[0] + dt)

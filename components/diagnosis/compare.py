@@ -36,7 +36,7 @@ from components.diagnosis.misfit import CHANNELS, Misfits, misfits
 from components.estimation import order_statistics
 from components.estimation.blocks import observation_blocks, samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
-from components.estimation.design import noise_floor
+from components.estimation.design import SIGNAL_SCALE, noise_floor
 from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
@@ -167,7 +167,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     # a channel without noise (a simulation that injected none, a conformance vector): its
     # residual's differences are rounding, below a billionth of Earth's rate or gravity a sample
     # (the best IMU's noise is ~1e-4 of it), and its χ² weighs them against a numerical floor
-    scale = np.array([7.3e-5] * 3 + [9.8] * 3) * dt
+    scale = SIGNAL_SCALE * dt
     noise_free = ~(np.isfinite(sigma) & (sigma > 1e-9 * scale))
     sigma = noise_floor(sigma, scale)
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)

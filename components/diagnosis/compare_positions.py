@@ -14,6 +14,7 @@ import numpy as np
 from components.diagnosis.compare import CHANNELS, Comparison, locate
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.chunks import PlateAtSamples
+from components.estimation.design import SIGNAL_SCALE, noise_floor
 from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
 from components.estimation.positions import SUPPORTED, calibrate_positions
@@ -80,7 +81,7 @@ def compare_positions(data: LogData, model: CalibrationResult, *, fitted_paramet
     motion = per.motion(C)
     rest = motion.static & modelled
     sigma = white_noise_sigma(np.nan_to_num(resid), rest)
-    sigma = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 0.0) + 1e-13 * np.array([7.3e-5] * 3 + [9.8] * 3)
+    sigma = noise_floor(sigma, SIGNAL_SCALE)
     # a pulse output's sample differences collapse where its counts are coarser than the noise:
     # a sample's residual still carries the two remainders of its count
     sigma = np.maximum(sigma, np.sqrt(2.0) * data.quantization_floor())

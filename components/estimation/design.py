@@ -30,6 +30,13 @@ def predict(motion: Motion, params: list[str], values: np.ndarray) -> tuple[np.n
     return gyro, acc
 
 
+# the size of what each channel measures, per second, gyro x y z then accelerometer x y z: the
+# Earth's rate [rad/s] and gravity [m/s²]. Numerical floors are fractions of it (a noise-free
+# channel's σ, rounding), never fractions of a noise that may be zero.
+SIGNAL_SCALE = np.array([7.3e-5] * 3 + [9.8] * 3)
+GYRO_SCALE, ACC_SCALE = SIGNAL_SCALE[0], SIGNAL_SCALE[3]
+
+
 def noise_floor(sig: np.ndarray, scale: float) -> np.ndarray:
     # a noise-free log (a conformance vector) still needs finite weights
     return np.where(np.isfinite(sig) & (sig > 0), sig, 0.0) + 1e-13 * scale

@@ -19,7 +19,7 @@ from components.errors import EstimationError
 from components.estimation import order_statistics
 from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
-from components.estimation.design import noise_floor
+from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.determinability import Determinability, assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import encoder_quantum, rest_sigma, rest_variance
@@ -140,8 +140,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         raise EstimationError("the white-noise level cannot be estimated from this log (it has no two usable "
                               "samples in a row at rest): give the noise (--noise: a grade, a noise file or "
                               "NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
-    sg = noise_floor(raw_g, 7.3e-5 * dt_mean)
-    sa = noise_floor(raw_a, 9.8 * dt_mean)
+    sg = noise_floor(raw_g, GYRO_SCALE * dt_mean)
+    sa = noise_floor(raw_a, ACC_SCALE * dt_mean)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if rest_angle_sigma is None and np.any(q):
         q = _estimate_rest_sigma(data, gb, params, sg, sa, q, geo, rows_at(geo))

@@ -10,7 +10,7 @@ import numpy as np
 
 from components.errors import EstimationError
 from components.estimation.blocks import white_noise_sigma
-from components.estimation.design import noise_floor
+from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.positions_input import Segments
 from components.model.geometry import rodrigues
 
@@ -123,6 +123,6 @@ def white_sigmas(noise, yg: np.ndarray, ya: np.ndarray, use: np.ndarray, dt_med:
     else:
         white = white_noise_sigma(np.hstack([yg, ya]), use)
         source = "estimated from the static data"
-    sg = noise_floor(white[:3], 7.3e-5 * dt_med)
-    sa = noise_floor(white[3:], 9.8 * dt_med)
+    sg = noise_floor(white[:3], GYRO_SCALE * dt_med)
+    sa = noise_floor(white[3:], ACC_SCALE * dt_med)
     return sg, sa, source
