@@ -60,15 +60,12 @@ def test_a_log_of_fewer_positions_than_the_configurations_schedule_is_said():
     """kf psins19 on a six-position log: the configuration's states are excited by its schedule's
     19 positions, and on six some stay near their prior; said before the run. A log with the
     schedule's own labels is not."""
-    from types import SimpleNamespace
-
-    from components.cli.navigation import _schedule_mismatch
     from components.control.schedule import load_schedule
     from components.navigation.configs import load_config
 
     cfg = load_config("psins19")
-    six = SimpleNamespace(segment=np.array([f"pos0{k}" for k in range(1, 7)] + ["move-pos01"]))
-    said = _schedule_mismatch(cfg, six, "six")
+    six = np.array([f"pos0{k}" for k in range(1, 7)] + ["move-pos01"])
+    said = cfg.schedule_mismatch(six, "six")
     assert len(said) == 1 and "6 segment label(s)" in said[0] and "has 19" in said[0], said
-    own = SimpleNamespace(segment=np.array(load_schedule("psins19").labels))
-    assert _schedule_mismatch(cfg, own, "psins19") == []
+    own = np.array(load_schedule("psins19").labels)
+    assert cfg.schedule_mismatch(own, "psins19") == []

@@ -33,7 +33,7 @@ def _cmd_kf(args: argparse.Namespace) -> int:
         source, truth = args.log, None
     else:
         raise UserError("kf: give a LOG or --simulate SCENARIO")
-    for line in _schedule_mismatch(cfg, log, source):
+    for line in cfg.schedule_mismatch(log.segment, source):
         print(f"calbench: warning: {line}", file=sys.stderr)
     bar = _progress_bar(cfg, args.quiet)
     try:
@@ -78,27 +78,6 @@ def _cmd_kf(args: argparse.Namespace) -> int:
                   f"{st.get('normalised_innovation_rms', float('nan')):.3g}"
                   + (f", whiteness p {wp:.2g} (lags 3-60)" if wp is not None else ""))
     return 0
-
-
-def _schedule_mismatch(cfg, log, source) -> list[str]:
-    """The configuration is built for a schedule whose positions excite its states; a log with far
-    fewer segments than it (a six-position log under psins19's 19 positions) leaves states at
-    their prior with σ that look like estimates: said before the run."""
-    if not getattr(cfg, "schedule", None) or log.segment is None:
-        return []
-    from components.control.schedule import load_schedule
-
-    try:
-        want = [lab for lab in load_schedule(cfg.schedule).labels if not lab.startswith("move-")]
-    except (ValueError, OSError):
-        return []
-    have = {str(x) for x in set(log.segment) if not str(x).startswith("move-")}
-    if len(have) >= 0.8 * len(want):
-        return []
-    return [f"{source}: {len(have)} segment label(s) beside the moves, where configuration {cfg.name}'s schedule "
-            f"{cfg.schedule!r} has {len(want)}: its filter's states are excited by that schedule's positions, and "
-            "on this log some will stay near their prior (their σ then the prior's, not the data's); run the "
-            "schedule, or a configuration made for this log's"]
 
 
 def _print_truth(args, res, truth: dict) -> None:

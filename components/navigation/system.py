@@ -71,6 +71,27 @@ class Config:
     stages: list
     schedule: str | None = None           # the ready-made schedule it is meant for
 
+    def schedule_mismatch(self, segment: np.ndarray | None, source) -> list[str]:
+        """The configuration is built for a schedule whose positions excite its states; a log
+        (its *segment* labels) with far fewer segments than it (a six-position log under psins19's
+        19 positions) leaves states at their prior with σ that look like estimates: said before
+        the run."""
+        if not self.schedule or segment is None:
+            return []
+        from components.control.schedule import load_schedule
+
+        try:
+            want = [lab for lab in load_schedule(self.schedule).labels if not lab.startswith("move-")]
+        except (ValueError, OSError):
+            return []
+        have = {str(x) for x in set(segment) if not str(x).startswith("move-")}
+        if len(have) >= 0.8 * len(want):
+            return []
+        return [f"{source}: {len(have)} segment label(s) beside the moves, where configuration {self.name}'s "
+                f"schedule {self.schedule!r} has {len(want)}: its filter's states are excited by that schedule's "
+                "positions, and on this log some will stay near their prior (their σ then the prior's, not the "
+                "data's); run the schedule, or a configuration made for this log's"]
+
 
 def static_mask(angles: np.ndarray) -> np.ndarray:
     d = np.abs(np.diff(angles, axis=0, prepend=angles[:1]))
