@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from components.cli import json_option, log_option
+from components.cli import json_option, log_option, noise_option
 from components.cli.calibration import result_json
 
 
@@ -35,10 +35,11 @@ def _cmd_kf(args: argparse.Namespace) -> int:
         raise UserError("kf: give a LOG or --simulate SCENARIO")
     for line in cfg.schedule_mismatch(log.segment, source):
         print(f"calbench: warning: {line}", file=sys.stderr)
+    data, noise = _noise_of(args, log)
     bar = _progress_bar(cfg, args.quiet)
     try:
         res, _ = calibrate_system(log, cfg, parse_exclude(args.exclude),
-                                  progress=None if bar is None else bar.step)
+                                  progress=None if bar is None else bar.step, noise=noise, data=data)
     except ValueError as e:  # a window no label matches, no rest to align on, ...
         raise UserError(f"kf: {source} with configuration {cfg.name}: {e}") from None
     finally:
@@ -78,6 +79,26 @@ def _cmd_kf(args: argparse.Namespace) -> int:
                   f"{st.get('normalised_innovation_rms', float('nan')):.3g}"
                   + (f", whiteness p {wp:.2g} (lags 3-60)" if wp is not None else ""))
     return 0
+
+
+def _noise_of(args, log):
+    """(the log's LogData, the noise model --noise gives or None): the filters take the slow
+    terms of a given model as states (components.navigation.kf); without --noise, white noise from
+    the static data, as before."""
+    from components.cli.log_option import parse_exclude
+    from components.diagnosis.noise_choice import choose_noise
+    from components.estimation.log_data import LogData
+
+    data = LogData.from_log(log, parse_exclude(args.exclude))
+    if not args.noise:
+        return data, None
+    noise, said, _ = choose_noise(args.noise, data)
+    if noise is None:   # --noise white: the filters' default
+        print(f"noise: {said}")
+        return data, None
+    print(f"noise: {said}; its bias instability and random walk are states of the filters")
+    json_option.record(args, noise=said)
+    return data, noise
 
 
 def _print_truth(args, res, truth: dict) -> None:
@@ -141,5 +162,6 @@ def register(sub) -> None:
                    help="the IMU's grade: the filter's priors and initial attitude uncertainty "
                         "(default navigation; mems for consumer/industrial MEMS)")
     k.add_argument("--quiet", action="store_true", help="no progress bar (none either when stderr is not a terminal)")
+    noise_option.add(k)
     log_option.add(k)
     k.set_defaults(func=_cmd_kf)

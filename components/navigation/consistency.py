@@ -133,8 +133,9 @@ def _whiteness(c: Consistency, stage: str, z: np.ndarray) -> None:
             f"stage {stage!r}: the velocity innovations are correlated in time beyond the filter's own lags (component "
             f"{'xyz'[k] if z.shape[1] == 3 else k}: autocorrelation {r:.2f} over lags {lo}-{lo + 7}, Ljung–Box p "
             f"{p:.2g} over lags {lo}-{hi}): a slow noise (bias instability, random walk) or a slowly varying effect "
-            "the filter has no state for; its σ are too small: identify the noise on the log (calbench noise, "
-            "calibrate --noise identify)")
+            "the filter has no state for; its σ are too small: give the filters the sensor's noise (kf --noise, "
+            "e.g. a datasheet's gyro.noise.bi='0.005 deg/h', or a noise file of calbench noise on a table log of "
+            "this IMU), whose slow terms become states")
 
 
 def prior_of(so, settings) -> tuple[np.ndarray, np.ndarray]:

@@ -29,6 +29,16 @@ re-centre the prior on the previous estimate, which walks them along weakly obse
 directions while the covariance still counts the prior: NEES up to 132 for 30 states on a
 12-minute seed-003 run.)
 
+Coloured noise states (``noise_states``): a sensor's bias instability and random walk are not
+white, and a filter that takes them for white noise is inconsistent (its innovations correlate
+over minutes, its σ too small: seed 003 under a 0.005 deg/h / 10 ug flicker floor, estimates up
+to 13σ off). Each channel's slow noise becomes states after the effects': each Gauss–Markov term
+(σ, T) of it (a flicker floor as its sum of them, components.model.flicker) x' = φ x + w over a
+filter interval Δ (φ = e^(−Δ/T), var w = σ² (1 − φ²), starting at its stationary σ²), a random walk
+K as x' = x + w (var w = K² Δ, starting at 0: the bias parameter holds the start). Each enters the
+navigation errors as a bias of its channel held over the interval (error ~Δ/T of its term); terms
+much faster than the interval (T < 5 Δ) are white noise of power spectral density 2 σ² T instead.
+
 Consider states (``consider``, a Schmidt–Kalman filter): parameters an earlier stage estimated
 and this one keeps. They are states (their uncertainty drives the navigation errors through
 their regressors, and their cross-covariance with the estimated states is kept) but the gain's
@@ -65,6 +75,40 @@ SIGMA_GYRO_FLOOR = 1e-10
 SIGMA_ACC_FLOOR = 1e-9
 
 NAV_STATES = ["phi.E", "phi.N", "phi.U", "dv.E", "dv.N", "dv.U", "dpos.L", "dpos.lon", "dpos.h"]
+FAST_TERM = 5.0  # a Gauss–Markov term with T below this many filter intervals is white noise to it
+
+
+@dataclass(frozen=True)
+class NoiseState:
+    """One state of a channel's slow noise (rate units: rad/s or m/s²)."""
+
+    channel: int      # 0-2 gyro x y z, 3-5 accelerometer x y z
+    sigma: float      # Gauss–Markov: stationary σ; random walk: K [unit/√s]
+    T: float          # Gauss–Markov time constant [s]; math.inf: a random walk
+
+    def transition(self, interval: float) -> tuple[float, float]:
+        """(φ, var w) over *interval* seconds."""
+        if math.isinf(self.T):
+            return 1.0, self.sigma**2 * interval
+        phi = math.exp(-interval / self.T)
+        return phi, self.sigma**2 * (1.0 - phi * phi)
+
+
+def noise_states(noise, kf_interval: float, span: float) -> tuple[list[NoiseState], np.ndarray]:
+    """The slow-noise states of a composite noise model (components.model.noise.NoiseModel) for
+    a filter of *kf_interval* over a run of *span* seconds, and (6,) the white power spectral
+    density [unit²·s] of its terms too fast for the filter's states (to add to the white noise).
+    A flicker floor without its own range is realised over [kf_interval, span]."""
+    states, fast = [], np.zeros(6)
+    for c, ch in enumerate(noise.channels):
+        for sigma, T in ch.gm_terms(FAST_TERM * kf_interval, max(span, 2 * FAST_TERM * kf_interval)):
+            if T < FAST_TERM * kf_interval:
+                fast[c] += 2.0 * sigma**2 * T
+            else:
+                states.append(NoiseState(c, float(sigma), float(T)))
+        if ch.random_walk > 0:
+            states.append(NoiseState(c, float(ch.random_walk), math.inf))
+    return states, fast
 
 
 @dataclass
@@ -92,6 +136,7 @@ class FilterSettings:
     consider: list = field(default_factory=list)   # kept, not updated (Schmidt–Kalman)
     effect_feedback: bool = False     # effects fed back at every update (the smoother needs it)
     prior_cov: object = None          # joint prior covariance of parameters + consider
+    noise_states: tuple = ()          # NoiseState: the sensors' slow noise as states (module docstring)
 
 
 @dataclass
@@ -147,7 +192,9 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     m_est = len(settings.parameters)
     e = slice(9, 9 + m_est)  # the estimated parameters in the state
     m = len(params)
-    n = 9 + m
+    slow = list(settings.noise_states)
+    ns = slice(9 + m, 9 + m + len(slow))  # the slow-noise states
+    n = 9 + m + len(slow)
     N = len(gyro)
     theta = np.zeros(m)
     if theta0 is not None:
@@ -170,14 +217,18 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     P0[6:8] = (settings.pos0 / site.rm) ** 2
     P0[8] = settings.pos0 ** 2
     if m:
-        P0[9:] = prior_sigmas(params, settings) ** 2
+        P0[9:9 + m] = prior_sigmas(params, settings) ** 2
+    # a Gauss–Markov term starts stationary; a random walk at 0 (the bias parameter holds the start)
+    P0[ns] = [0.0 if math.isinf(x.T) else x.sigma**2 for x in slow]
     kf.P = np.diag(P0)
     if settings.prior_cov is not None:
-        kf.P[9:, 9:] = np.asarray(settings.prior_cov, float)
+        kf.P[9:9 + m, 9:9 + m] = np.asarray(settings.prior_cov, float)
     effect_feedback = settings.effect_feedback or settings.smoother
     keep = np.ones((n, 1))
-    keep[9 + m_est:] = 0.0  # Schmidt: no gain for the consider states
+    keep[9 + m_est:9 + m] = 0.0  # Schmidt: no gain for the consider states
     schmidt = m > m_est
+    # each slow state's column of the navigation errors' input: its channel's (a bias of it)
+    slow_channel = np.array([x.channel for x in slow], int)
     H = np.zeros((nz, n))
     H[0:3, 3:6] = np.eye(3)
     R = np.eye(nz) * r * r
@@ -199,7 +250,9 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     while k < N:
         Aacc = I9.copy()
         Bacc = np.zeros((9, m))
+        Bnoise = np.zeros((9, 6))   # per channel: a bias of 1 (rad/s, m/s²) held over the interval
         Qacc = np.zeros((9, 9))
+        k_start = k
         all_static = True
         for _ in range(steps):
             if k >= N:
@@ -230,13 +283,23 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
                 Bk[0:3] = -Cm @ Gk.sum(0)
                 Bk[3:6] = Cm @ Ak.sum(0)
                 Bacc = Ak9 @ Bacc + Bk
+            if slow:
+                Bn = np.zeros((9, 6))
+                Bn[0:3, 0:3] = -Cm * T
+                Bn[3:6, 3:6] = Cm * T
+                Bnoise = Ak9 @ Bnoise + Bn
             all_static = all_static and bool(np.all(static[k:k + c]))
             k += c
         Phi = np.eye(n)
         Phi[:9, :9] = Aacc
-        Phi[:9, 9:] = Bacc
+        Phi[:9, 9:9 + m] = Bacc
         Q = np.zeros((n, n))
         Q[:9, :9] = Qacc
+        if slow:
+            Phi[:9, ns] = Bnoise[:, slow_channel]
+            interval = (k - k_start) * dt
+            for j, x in enumerate(slow):
+                Phi[ns.start + j, ns.start + j], Q[ns.start + j, ns.start + j] = x.transition(interval)
         kf.predict(F=Phi, Q=Q)
         predictions += 1
         P_prior = kf.P.copy() if store is not None else None
@@ -257,8 +320,8 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
         nav.correct(x[0:3], x[3:6], x[6:9])
         if effect_feedback:
             if m:
-                theta = theta + x[9:]
-            kf.x = np.zeros((n, 1))
+                theta = theta + x[9:9 + m]
+            kf.x[:9 + m] = 0.0   # the slow noise is not fed back: its states carry it on
         else:  # the navigation errors only: the effects stay linearised at theta for the pass
             kf.x[0:9] = 0.0
         if observed and (updates % settings.history_every == 0):
@@ -266,14 +329,14 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
             hist_v.append(theta[:m_est] + (0.0 if effect_feedback else kf.x[e, 0]))
             hist_s.append(np.sqrt(np.diag(kf.P)[e]))
     if not effect_feedback and m:
-        theta = theta + kf.x[9:, 0]
+        theta = theta + kf.x[9:9 + m, 0]
     out = FilterOutput(params[:m_est], theta[:m_est], kf.P[e, e].copy(), kf.P.copy(), nav.C.copy(),
                        np.sqrt(np.diag(kf.P)[:9]), updates, predictions,
                        np.array(hist_t), np.array(hist_v, float).reshape(len(hist_t), m_est),
                        np.array(hist_s, float).reshape(len(hist_t), m_est), np.array(innov).reshape(-1, 3),
                        np.array(innov_var).reshape(-1, 3))
     if store:
-        out.smoothed_nav, out.smoothed_values = _rts(store, theta, m)
+        out.smoothed_nav, out.smoothed_values = _rts(store, theta, m, len(slow))
         out.smoothed_values = out.smoothed_values[:m_est]
     return out
 
@@ -292,7 +355,7 @@ def _schmidt_update(kf: KalmanFilter, z: np.ndarray, R: np.ndarray, H: np.ndarra
     kf.y, kf.S, kf.K = y, S, K
 
 
-def _rts(store, theta_final, m):
+def _rts(store, theta_final, m, slow: int = 0):
     """Backward pass with the feedback as a known input (see the module docstring). Returns the
     smoothed navigation errors per interval (K, 9) (relative to each interval's navigation
     solution before its feedback) and the smoothed effect values at the first interval."""
@@ -308,11 +371,16 @@ def _rts(store, theta_final, m):
         # (condition number up to 1e23) only adds rounding noise that depends on the BLAS kernel
         # (0.5 σ of acc.bias.y on AVX2 OpenBLAS, 7e-6 σ on AVX-512)
         Cg = np.zeros_like(Phi_next)
-        Cg[9:, 9:] = np.eye(len(Cg) - 9)
-        Cg[:9] = np.linalg.solve(P_prior_next.T, (P_post[:9] @ Phi_next.T).T).T
-        xs = x_post + Cg @ xs  # x⁻_{i+1} = 0 after the feedback
+        Cg[9:9 + m, 9:9 + m] = np.eye(m)
+        solved = np.r_[0:9, 9 + m:9 + m + slow]   # the navigation errors and the slow noise
+        Cg[solved] = np.linalg.solve(P_prior_next.T, (P_post[solved] @ Phi_next.T).T).T
+        # x⁻_{i+1} = Φ (x⁺_i − u_i): the feedback u_i is all of x⁺_i but the slow noise, which
+        # is not fed back (without it x⁻ is 0)
+        kept = np.zeros_like(x_post)
+        kept[9 + m:] = x_post[9 + m:]
+        xs = x_post + Cg @ (xs - Phi_next @ kept)
         nav[i] = xs[:9]
     # θ at the first interval: θ̂ after the first feedback minus the first x⁺ plus the smoothed x
-    theta_first = theta_final - sum(s[3][9:] for s in store[1:]) if m else np.zeros(0)
-    smoothed = theta_first - store[0][3][9:] + xs[9:] if m else np.zeros(0)
+    theta_first = theta_final - sum(s[3][9:9 + m] for s in store[1:]) if m else np.zeros(0)
+    smoothed = theta_first - store[0][3][9:9 + m] + xs[9:9 + m] if m else np.zeros(0)
     return nav, smoothed

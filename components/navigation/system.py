@@ -41,6 +41,7 @@ from components.navigation.kf import (
     SIGMA_GYRO_FLOOR,
     FilterOutput,
     FilterSettings,
+    noise_states,
     prior_sigmas,
     run_filter,
 )
@@ -145,9 +146,22 @@ def joint_prior(outputs: list, names: list[str]) -> np.ndarray:
     return P
 
 
+def _noise_settings(settings: FilterSettings, noise, dt: float, span: float) -> None:
+    """A composite noise model into a filter's settings: its white level where it gives one
+    (else the data's, already set), plus the power of the terms too fast for states; its slow
+    terms as states (components.navigation.kf.noise_states)."""
+    states, fast = noise_states(noise, settings.kf_interval, span)
+    white = noise.white_sigma(dt)   # per-sample σ [rad, m/s]
+    for key, ch in (("sigma_gyro", slice(0, 3)), ("sigma_acc", slice(3, 6))):
+        own = np.broadcast_to(np.asarray(getattr(settings, key), float), (3,))
+        level = np.where(white[ch] > 0, white[ch], own)
+        setattr(settings, key, np.sqrt(level**2 + fast[ch] * dt))
+    settings.noise_states = tuple(states)
+
+
 def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
                  dt: float, earlier_sigma: dict | None = None, earlier: list | None = None,
-                 progress=None) -> StageOutput:
+                 progress=None, noise=None) -> StageOutput:
     params = stage.parameters or parameters_of(stage.effects)
     consider = []
     if stage.consider_earlier and earlier:
@@ -191,6 +205,8 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
     for key in ("sigma_gyro", "sigma_acc"):
         v = np.asarray(getattr(settings, key), float)
         setattr(settings, key, np.where(np.isfinite(v), v, 0.0))
+    if noise is not None:
+        _noise_settings(settings, noise, dt, (len(g) - s0) * dt)
     g, ac, st = g[s0:], ac[s0:], st[s0:]
     temp = None if temp is None else temp[s0:]
     theta = np.array([settings.initial.get(p, 0.0) for p in params], float)
@@ -223,8 +239,9 @@ def run_kf_stage(data: LogData, stage: Stage, fixed: dict, static: np.ndarray,
         theta = out.values
         passes.append(theta.copy())
     out.pass_values = passes
+    joint = slice(9, 9 + len(params) + len(consider))   # not the slow-noise states after them
     so = StageOutput(stage, params, theta, out.covariance, out, (a + s0, b), passes,
-                     params + consider, out.P[9:, 9:].copy())
+                     params + consider, out.P[joint, joint].copy())
     so.prior_values = np.array([settings.initial.get(p, 0.0) for p in params], float)
     so.prior_sigma = prior_sigmas(params, settings)
     so.kf_interval = settings.kf_interval
@@ -289,11 +306,14 @@ def rests_of(data: LogData) -> np.ndarray:
 
 
 def calibrate_system(log, config: Config, exclude: list | None = None,
-                     progress=None) -> tuple[CalibrationResult, list[StageOutput]]:
+                     progress=None, noise=None, data: LogData | None = None) -> tuple[CalibrationResult, list[StageOutput]]:
     """Run a configuration's stages on a MeasurementLog (``exclude``: more to leave out, as
-    components.estimation.log_data.LogData.from_log takes it). ``progress(text)``, when given, is
-    called before each table or CW/CCW stage and each filter pass."""
-    data = LogData.from_log(log, exclude)
+    components.estimation.log_data.LogData.from_log takes it; *data*: that LogData when the
+    caller has it). ``progress(text)``, when given, is called before each table or CW/CCW stage
+    and each filter pass. ``noise``: the sensors' composite noise model
+    (components.model.noise.NoiseModel); its slow terms become states of every filter stage
+    (components.navigation.kf); None: white noise, its level from the static data."""
+    data = LogData.from_log(log, exclude) if data is None else data
     dt = float(log.dt)
     static = rests_of(data)
     fixed: dict[str, float] = {}
@@ -317,13 +337,13 @@ def calibrate_system(log, config: Config, exclude: list | None = None,
         elif stage.kind != "kf":
             raise ValueError(f"stage {stage.name!r}: kind {stage.kind!r}, expected kf, table or cwccw")
         else:
-            so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas), outputs, progress)
+            so = run_kf_stage(data, stage, fixed, static, dt, dict(sigmas), outputs, progress, noise)
         for p, v, s in zip(so.parameters, so.values, np.sqrt(np.diag(so.covariance))):
             fixed[p] = fixed.get(p, 0.0) + float(v)
             sigmas[p] = float(s)
         so.totals = np.array([fixed[p] for p in so.parameters])
         outputs.append(so)
-    res = _result(log, data, config, fixed, sigmas, outputs)
+    res = _result(log, data, config, fixed, sigmas, outputs, noise)
     if notes:
         res.fit["notes"] = notes
     # a filter state whose σ stays at its prior's: the log did not inform it
@@ -340,7 +360,7 @@ def calibrate_system(log, config: Config, exclude: list | None = None,
     return res, outputs
 
 
-def _result(log, data, config, values, sigmas, outputs) -> CalibrationResult:
+def _result(log, data, config, values, sigmas, outputs, noise_model=None) -> CalibrationResult:
     effects = list(dict.fromkeys(effect_of(p).name for p in values))
     params = list(values)
     # correlations within each stage's filter; across stages 0
@@ -374,6 +394,11 @@ def _result(log, data, config, values, sigmas, outputs) -> CalibrationResult:
         stages.append(d)
     dt = float(log.dt)
     noise = {"model": "white noise per sample (estimated from static data)", "sample_interval_s": dt}
+    if noise_model is not None:
+        slow = max((len(so.filter.P) - 9 - len(so.joint_parameters) for so in outputs if so.filter is not None),
+                   default=0)
+        noise = {"model": f"composite ({noise_model.source}); its slow terms states of the filters ({slow} per "
+                          "filter)", "sample_interval_s": dt, "composite": noise_model.to_dict()}
     fit = {"config": config.name, "stages": stages,
            "observations": "navigation velocity (zero truth) in static filter intervals"}
     data_d = {"samples": int(len(data.time)), "duration_s": float(data.time[-1] - data.time[0] + dt)}
