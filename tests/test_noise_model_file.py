@@ -26,3 +26,55 @@ def test_an_interval_the_log_does_not_bound_is_null_in_the_file():
     text = json.dumps(m.to_dict(), allow_nan=False)  # strict JSON: no Infinity
     assert json.loads(text)["channels"]["acc_x"]["bias_instability"]["interval_3sigma"] == [None, None]
     assert NoiseModel.from_dict(json.loads(text)).intervals["acc.noise.bi.x"] == (0.0, float("inf"))
+
+
+def test_a_fixed_terms_sigma_is_null_not_nan():
+    """A count weight's quantization is fixed, not estimated: its σ (NaN inside) is written as
+    null, so the file is strict JSON that other tools parse."""
+    q = ChannelNoise(white=1e-6, quantization=2.9e-7)
+    m = NoiseModel((q,) * 6, "identified", {"gyro.noise.q.x": float("nan"), "gyro.noise.arw.x": 3e-9})
+    text = json.dumps(m.to_dict(), allow_nan=False)
+    d = json.loads(text)
+    assert d["channels"]["gyro_x"]["quantization"]["sigma"] is None
+    assert NoiseModel.from_dict(d).sigmas == {"gyro.noise.arw.x": 3e-9}
+
+
+def _well_formed() -> dict:
+    g, a = ChannelNoise(white=3e-7, bias_instability=2e-8), ChannelNoise(white=1e-4, random_walk=3e-7)
+    return NoiseModel((g, g, g, a, a, a), "given").to_dict()
+
+
+def test_a_malformed_noise_file_is_refused_naming_the_key(tmp_path, capsys):
+    """A typed term, a missing or unknown channel, a negative, textual or non-SI value: one error
+    naming the file and the key, exit 2 — never a channel silently left white."""
+    import copy
+
+    import pytest
+
+    from components.cli import main
+    from components.model.noise import NoiseModel
+
+    def broken(edit):
+        d = copy.deepcopy(_well_formed())
+        edit(d["channels"])
+        return d
+
+    cases = {
+        "channels.acc_x: unknown term 'whte'": broken(lambda c: c["acc_x"].update(whte=c["acc_x"].pop("white"))),
+        "acc_x, acc_y, acc_z missing": broken(lambda c: [c.pop(k) for k in ("acc_x", "acc_y", "acc_z")]),
+        "unknown channel 'gyro_q'": broken(lambda c: c.update(gyro_q={})),
+        "channels.acc_y.white.value: -1": broken(lambda c: c["acc_y"]["white"].update(value=-1)),
+        "channels.acc_y.white.value: 'abc'": broken(lambda c: c["acc_y"]["white"].update(value="abc")),
+        "channels.gyro_z.white: unit 'deg/sqrt(h)'": broken(lambda c: c["gyro_z"]["white"].update(unit="deg/sqrt(h)")),
+        "channels.gyro_y.gauss_markov[0].tau_s": broken(lambda c: c["gyro_y"].update(
+            gauss_markov=[{"sigma": 1e-8, "tau_s": 0}])),
+    }
+    NoiseModel.from_dict(_well_formed())   # the unbroken file reads
+    for k, (said, d) in enumerate(cases.items()):
+        with pytest.raises(ValueError, match="expected|missing"):
+            NoiseModel.from_dict(d)
+        path = tmp_path / f"n{k}.json"
+        path.write_text(json.dumps(d))
+        assert main(["plan", "six_position", "--noise", str(path)]) == 2, said
+        err = capsys.readouterr().err
+        assert str(path) in err and said in err, (said, err)

@@ -59,18 +59,25 @@ def _is_float(s: str) -> bool:
 
 
 def load_noise_file(path: str | Path) -> NoiseModel:
-    """A noise model from a noise file or from a result file's composite block."""
+    """A noise model from a noise file or from a result file's composite block; a file whose
+    model is not well formed is refused naming the key (a typed term or a missing channel must
+    not leave a channel's noise silently out)."""
     p = Path(path)
     try:
         d = json.loads(p.read_text())
     except (OSError, ValueError) as e:
         raise UserError(f"--noise {p}: cannot read a JSON noise file ({e})") from None
     if isinstance(d, dict) and d.get("format") == FORMAT:
-        return NoiseModel.from_dict(d)
-    if isinstance(d, dict) and isinstance(d.get("noise"), dict) and "composite" in d["noise"]:
-        return NoiseModel.from_dict(d["noise"]["composite"])
-    raise UserError(f"--noise {p}: expected a noise file (format {FORMAT!r}, from `calbench noise --out`) or a "
-                    "calibration result with a composite noise model")
+        block, at = d, ""
+    elif isinstance(d, dict) and isinstance(d.get("noise"), dict) and "composite" in d["noise"]:
+        block, at = d["noise"]["composite"], "noise.composite."
+    else:
+        raise UserError(f"--noise {p}: expected a noise file (format {FORMAT!r}, from `calbench noise --out`) or a "
+                        "calibration result with a composite noise model")
+    try:
+        return NoiseModel.from_dict(block)
+    except ValueError as e:
+        raise UserError(f"--noise {p}: {at}{e}") from None
 
 
 def quantization_known(data) -> dict:

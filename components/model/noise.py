@@ -148,7 +148,10 @@ class NoiseModel:
                     pname = f"{vname}.{AXES[k % 3]}"
                     d[term] = {"value": v, "unit": unit, "display": [v / scale, dunit]}
                     if pname in self.sigmas:
-                        d[term]["sigma"] = self.sigmas[pname]
+                        # a term fixed rather than estimated (a count weight's quantization) has
+                        # no σ: null, as JSON has no NaN
+                        sig = float(self.sigmas[pname])
+                        d[term]["sigma"] = sig if math.isfinite(sig) else None
                     if pname in self.intervals:
                         # an end the log does not bound is null (JSON has no infinity)
                         d[term]["interval_3sigma"] = [float(x) if math.isfinite(x) and x > 0 else None
@@ -164,24 +167,79 @@ class NoiseModel:
 
     @classmethod
     def from_dict(cls, d: dict) -> "NoiseModel":
-        chans = []
-        for name in CHANNELS:
-            c = d.get("channels", {}).get(name, {})
-            kw = {t: float(c[t]["value"]) for t in ("white", "quantization", "bias_instability", "random_walk")
-                  if t in c}
-            gm = tuple((float(g["sigma"]), float(g["tau_s"])) for g in c.get("gauss_markov", []))
-            fr = tuple(c["flicker_range_s"]) if "flicker_range_s" in c else None
-            chans.append(ChannelNoise(gauss_markov=gm, flicker_range=fr, **kw))
-        sig, iv = {}, {}
+        """The model of a noise block (:meth:`to_dict`'s form). Every channel must be there (one
+        without noise is ``{}``), every key known, every value a finite magnitude in the term's
+        SI unit: a ValueError naming the key otherwise (a typing mistake must not leave a channel
+        silently white)."""
+        if not isinstance(d, dict) or not isinstance(d.get("channels"), dict):
+            raise ValueError("expected an object with 'channels': {gyro_x: {...}, ..., acc_z: {...}}")
+        given = d["channels"]
+        unknown = [k for k in given if k not in CHANNELS]
+        if unknown:
+            raise ValueError(f"channels: unknown channel {unknown[0]!r}; expected {', '.join(CHANNELS)}")
+        missing = [k for k in CHANNELS if k not in given]
+        if missing:
+            raise ValueError(f"channels: {', '.join(missing)} missing; a noise model names all six channels (one "
+                             "without noise as {})")
+        chans, sig, iv = [], {}, {}
         for k, name in enumerate(CHANNELS):
-            for term, (vname, *_rest) in TERMS[sensor_of(k)].items():
-                entry = d.get("channels", {}).get(name, {}).get(term, {})
-                if entry.get("sigma") is not None:
-                    sig[f"{vname}.{AXES[k % 3]}"] = float(entry["sigma"])
+            c = given[name]
+            where = f"channels.{name}"
+            if not isinstance(c, dict):
+                raise ValueError(f"{where}: expected an object of terms, got {type(c).__name__}")
+            terms = TERMS[sensor_of(k)]
+            extra = [t for t in c if t not in terms and t not in ("gauss_markov", "flicker_range_s")]
+            if extra:
+                raise ValueError(f"{where}: unknown term {extra[0]!r}; expected {', '.join(terms)}, gauss_markov, "
+                                 "flicker_range_s")
+            kw = {}
+            for term, (vname, unit, *_rest) in terms.items():
+                if term not in c:
+                    continue
+                entry = c[term]
+                at = f"{where}.{term}"
+                if not isinstance(entry, dict):
+                    raise ValueError(f"{at}: expected {{\"value\": ..., \"unit\": \"{unit}\"}}")
+                if entry.get("unit", unit) != unit:
+                    raise ValueError(f"{at}: unit {entry.get('unit')!r}; expected {unit!r} (noise files are in SI)")
+                kw[term] = _magnitude(entry.get("value"), f"{at}.value")
+                pname = f"{vname}.{AXES[k % 3]}"
+                sigma = entry.get("sigma")
+                # (files before null was written for a fixed term's σ hold NaN there)
+                if sigma is not None and not (isinstance(sigma, float) and math.isnan(sigma)):
+                    sig[pname] = _magnitude(sigma, f"{at}.sigma")
                 if entry.get("interval_3sigma") is not None:
-                    lo, hi = entry["interval_3sigma"]
-                    iv[f"{vname}.{AXES[k % 3]}"] = (float(lo or 0.0), math.inf if hi is None else float(hi))
-        return cls(tuple(chans), d.get("source", ""), sig, iv)
+                    b = entry["interval_3sigma"]
+                    if not (isinstance(b, list) and len(b) == 2):
+                        raise ValueError(f"{at}.interval_3sigma: expected [low, high] (null: unbounded)")
+                    lo = 0.0 if b[0] is None else _magnitude(b[0], f"{at}.interval_3sigma")
+                    iv[pname] = (lo, math.inf if b[1] is None else _magnitude(b[1], f"{at}.interval_3sigma"))
+            gm = c.get("gauss_markov", [])
+            if not isinstance(gm, list) or not all(isinstance(g, dict) for g in gm):
+                raise ValueError(f"{where}.gauss_markov: expected a list of {{\"sigma\": ..., \"tau_s\": ...}}")
+            pairs = []
+            for j, g in enumerate(gm):
+                T = _magnitude(g.get("tau_s"), f"{where}.gauss_markov[{j}].tau_s")
+                if T <= 0:
+                    raise ValueError(f"{where}.gauss_markov[{j}].tau_s: expected a time constant > 0 s")
+                pairs.append((_magnitude(g.get("sigma"), f"{where}.gauss_markov[{j}].sigma"), T))
+            fr = c.get("flicker_range_s")
+            if fr is not None:
+                if not (isinstance(fr, list) and len(fr) == 2):
+                    raise ValueError(f"{where}.flicker_range_s: expected [lowest, highest] time constant [s]")
+                lo = _magnitude(fr[0], f"{where}.flicker_range_s")
+                hi = None if fr[1] is None else _magnitude(fr[1], f"{where}.flicker_range_s")
+                if lo <= 0 or (hi is not None and hi <= lo):
+                    raise ValueError(f"{where}.flicker_range_s: {fr}; expected 0 < lowest < highest")
+                fr = (lo, hi)
+            chans.append(ChannelNoise(gauss_markov=tuple(pairs), flicker_range=fr, **kw))
+        return cls(tuple(chans), str(d.get("source", "")), sig, iv)
+
+
+def _magnitude(v, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+        raise ValueError(f"{where}: {v!r}; expected a finite number >= 0")
+    return float(v)
 
 
 def describe(noise: NoiseModel | None) -> str:
