@@ -79,6 +79,7 @@ class Binding:
     unit_name: str
     factor: float = 1.0
     offset: float = 0.0
+    role_unit: str | None = None   # the role variable's unit: what the converted value is in
 
 
 @dataclass
@@ -157,5 +158,5 @@ def check_unit(unit: Unit, role: Role, mapping: dict[str, str] | None = None) ->
         elif conv != (1.0, 0.0):
             res.notes.append(f"{name}: {v.unit} converted to {rv.unit} (x {conv[0]:.12g}"
                              + (f", + {conv[1]:g})" if conv[1] else ")"))
-        res.bindings[rv.name] = Binding(rv.name, name, *conv)
+        res.bindings[rv.name] = Binding(rv.name, name, *conv, rv.unit if rv.type == "Real" else None)
     return res

@@ -28,6 +28,7 @@ import pytest
 from components.cli import main as cli_main
 from fmus.build import fmu_path
 from orchestrator.component import Component, Var
+from orchestrator.errors import OrchestratorError
 from orchestrator.loader import load_system
 from orchestrator.master import simulate
 
@@ -219,3 +220,20 @@ def test_check_fmu_refuses_without_mapping(supplier_fmu, capsys):
         assert f"missing input f.{c} [m/s2, Real]" in out
         assert f"missing output gyro.{c} [rad/s, Real]" in out
         assert f"missing output acc.{c} [m/s2, Real]" in out
+
+
+@pytest.mark.parametrize("source, target, said", [
+    ("motion.f.x", "sup.omega.x", "motion.f.x is in m/s2 but sup.omega.x takes rad/s"),
+    ("motion.omega.x", "sup.f.x", "motion.omega.x is in rad/s but sup.f.x takes m/s2"),
+])
+def test_a_wire_into_a_role_name_of_another_quantity_is_refused(supplier_fmu, tmp_path, source, target, said):
+    """A connection whose target is reached through the supplier's mapping converts that end
+    into the role's unit; what the source puts in must be the same quantity (a specific force
+    wired into a rate input ran, the gyro reading 9.8 rad/s)."""
+    text = _toml(supplier_fmu, False).replace('from = "motion.omega"\nto = "sup.omega"',
+                                              f'from = "{source}"\nto = "{target}"', 1)
+    assert source in text
+    f = tmp_path / "wrong.toml"
+    f.write_text(text)
+    with pytest.raises(OrchestratorError, match=said):
+        simulate(load_system(f))
