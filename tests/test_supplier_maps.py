@@ -90,6 +90,10 @@ def test_the_seed_reaches_the_supplier(supplier_run):
      r"declares GyroBias_X in 'deg/h', which is not a unit of m/s2"),
     ({"noise_map": {"gyro.noise.arw": ["GyroARW", "ug/sqrt(Hz)"]}}, r"unit 'ug/sqrt\(Hz\)': expected one of"),
     ({"seed_parameter": "Seed"}, r"seed_parameter = 'Seed': the FMU \S+ has no such parameter"),
+    # the seed into a Real parameter: a scale factor of +300 % with seed 3
+    ({"seed_parameter": "GyroBias_Y"}, r"GyroBias_Y is a Real; the noise seed is an Integer parameter"),
+    # a parameter set by hand and by an injected effect: the run used one, the truth the other
+    ({"parameters": {"GyroBias_X": 1.0}}, r"\[imu.parameters\] sets 'GyroBias_X', which \[imu.effects\]"),
 ])
 def test_map_mistakes_are_refused_before_the_run(change, match):
     sc = scenario_from_dict(_scenario(**change), source="test")

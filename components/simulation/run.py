@@ -129,6 +129,15 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     em, nm, seed_par = maps_for(imu_path, sc.imu_effect_map, sc.imu_noise_map, sc.imu_seed_parameter,
                                 f"{sc.source}: [imu]")
     injection = plan_injection(sc.imu_effects, sc.imu_noise, em, nm, seed_par)
+    # a parameter set twice, by an injected effect or noise term and by hand, would run with the
+    # hand's value while the truth records the injected one
+    both = sorted(set(injection.parameters) & set(sc.imu_parameters))
+    if seed_par is not None and seed_par in injection.parameters:
+        both.append(seed_par)
+    if both:
+        raise ScenarioError(f"{sc.source}: [imu.parameters] sets {', '.join(map(repr, both))}, which "
+                            f"[imu.effects] / [imu.noise] (or the seed) already set through the unit's maps: give "
+                            "each once (the truth records the effects)")
     iparams = {**injection.parameters, **sc.imu_parameters}
     if seed_par is not None:
         iparams[seed_par] = sc.seed

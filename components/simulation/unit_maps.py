@@ -150,6 +150,10 @@ def check_seed(seed_parameter: str | None, fmu_path: Path, where: str) -> str | 
     if v is None or v.causality != "parameter":
         raise ScenarioError(f"{where}: seed_parameter = {seed_parameter!r}: the FMU {fmu_path.name} has no such "
                             "parameter")
+    if v.type != "Integer":   # (the family: Int32, UInt64, ... too)
+        # a Real parameter took the seed: a scale factor of +300 % with seed 3
+        raise ScenarioError(f"{where}: seed_parameter = {seed_parameter!r}: the FMU {fmu_path.name}'s {seed_parameter} "
+                            f"is a {v.fmi_type or v.type}; the noise seed is an Integer parameter")
     return seed_parameter
 
 
