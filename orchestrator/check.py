@@ -101,8 +101,7 @@ def check_fmu(path: str | Path, role: str | None = None, mapping: dict | None = 
         try:
             role_def = get_role(role, **(role_options or {}))
         except (KeyError, TypeError, ValueError) as e:
-            raise SystemError_(f"role {role!r} with options {role_options or {}}: "
-                               f"{str(e).strip(chr(39))}") from None
+            raise SystemError_(f"role {role!r} with options {role_options or {}}: {e}") from None
         try:
             unit = load_fmu_unit("candidate", path)
         except UnitError as e:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
+from orchestrator.errors import SystemError_
 from orchestrator.plugins import load_plugins
 
 _FMU_RESOLVERS: dict[str, Callable[[str], Path]] = {}
@@ -27,6 +28,9 @@ def resolve_fmu(spec: str, base_dir: Path) -> Path:
     if rest and scheme not in _FMU_RESOLVERS and not Path(spec).exists():
         load_plugins()
     if rest and scheme in _FMU_RESOLVERS:
-        return Path(_FMU_RESOLVERS[scheme](rest))
+        try:
+            return Path(_FMU_RESOLVERS[scheme](rest))
+        except (KeyError, ValueError) as e:   # a name the scheme does not know
+            raise SystemError_(f"fmu = {spec!r}: {str(e).strip(chr(39))}") from None
     p = Path(spec)
     return p if p.is_absolute() else base_dir / p

@@ -349,11 +349,38 @@ def load_fmu_unit(name: str, path: str | Path) -> Unit:
     p = Path(path)
     if not p.exists():
         raise UnitError(f"unit {name}: FMU file {p} does not exist")
+    if p.is_dir():
+        raise UnitError(f"unit {name}: {p} is a directory; expected an .fmu file")
     try:
         md = read_model_description(str(p))
     except Exception as e:
         raise UnitError(f"unit {name}: {p} is not a readable FMU ({e})") from None
+    _check_binary(name, p, md)
     return FMU3Unit(name, p) if md.fmiVersion.startswith("3") else FMU2Unit(name, p)
+
+
+def _check_binary(name: str, path: Path, md) -> None:
+    """The archive holds a co-simulation binary for this machine (fmpy's own message is a
+    traceback from the depths of loading)."""
+    import zipfile
+
+    import fmpy
+
+    if md.coSimulation is None:
+        return
+    fmi3 = md.fmiVersion.startswith("3")
+    folder = fmpy.platform_tuple if fmi3 else fmpy.platform
+    ext = {"linux": ".so", "darwin": ".dylib", "windows": ".dll"}.get(fmpy.system, ".so")
+    want = f"binaries/{folder}/{md.coSimulation.modelIdentifier}{ext}"
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+    except (zipfile.BadZipFile, OSError):
+        return   # fmpy read the description, so this is an unpacked FMU or similar: let it load
+    if want not in names:
+        have = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") >= 2})
+        raise UnitError(f"unit {name}: {path} has no binary for this machine ({want} missing; its binaries: "
+                        f"{', '.join(have) or 'none'}): ask the supplier for a {folder} build or the sources")
 
 
 def read_fmu_variables(path: str | Path) -> dict[str, VarInfo]:

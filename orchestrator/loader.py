@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from orchestrator.errors import SystemError_
 from orchestrator.ssp_load import load_ssp
 from orchestrator.system import System, load_toml_system
 
@@ -15,6 +16,10 @@ from orchestrator.system import System, load_toml_system
 def load_system(path: str | Path) -> System:
     """The :class:`System` in the file at *path* (TOML, or SSP when it ends in ``.ssp``)."""
     p = Path(path)
+    if p.is_dir():
+        raise SystemError_(f"{p}: a directory; expected a system file (.toml or .ssp)")
+    if not p.exists():
+        raise SystemError_(f"{p}: no such system file (.toml or .ssp)")
     if p.suffix.lower() == ".ssp":
         return load_ssp(p)
     return load_toml_system(p)

@@ -97,8 +97,7 @@ class Simulation:
                     role = get_role(spec.role, **spec.role_options)
                 except (KeyError, TypeError, ValueError) as e:
                     opts = f" with role_options {spec.role_options}" if spec.role_options else ""
-                    raise SystemError_(f"units.{spec.name}.role = {spec.role!r}{opts}: "
-                                       f"{str(e).strip(chr(39))}") from None
+                    raise SystemError_(f"units.{spec.name}.role = {spec.role!r}{opts}: {e}") from None
                 chk = check_unit(self.units[spec.name], role, spec.mapping)
                 checks.append(chk)
                 self.bindings[spec.name] = chk.bindings

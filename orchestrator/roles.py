@@ -57,12 +57,26 @@ def register_role(name: str, factory: Callable[..., Role]) -> None:
 
 
 def get_role(name: str, **options) -> Role:
+    """The role *name* with its *options*; a ValueError naming an unknown role or option (and
+    what there is), not a factory's TypeError."""
+    import difflib
+    import inspect
+
     if name not in _ROLE_FACTORIES:
         load_plugins()
     if name not in _ROLE_FACTORIES:
         known = ", ".join(sorted(_ROLE_FACTORIES)) or "none registered"
-        raise KeyError(f"unknown role {name!r} (known: {known})")
-    return _ROLE_FACTORIES[name](**options)
+        raise ValueError(f"unknown role {name!r} (known: {known})")
+    factory = _ROLE_FACTORIES[name]
+    params = inspect.signature(factory).parameters
+    takes_any = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
+    allowed = [k for k, p in params.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    for key in options:
+        if key not in allowed and not takes_any:
+            close = difflib.get_close_matches(key, allowed, n=1)
+            raise ValueError(f"role {name!r} has no option {key!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+                             + f"; its options: {', '.join(allowed) or 'none'}")
+    return factory(**options)
 
 
 def known_roles() -> list[str]:

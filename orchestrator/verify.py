@@ -181,6 +181,8 @@ def on_grid(rec: Recording, block: int, how: list[str]) -> np.ndarray:
     data = rec.data[: rec.rows]
     n = (rec.rows - 1) // block
     out = data[:: block][: n + 1].copy()
+    if n == 0:   # a run shorter than one grid interval: only row 0
+        return out
     sums = data[1: n * block + 1].reshape(n, block, -1).sum(axis=1)
     for j, h in enumerate(how):
         if h == "sum":
@@ -204,6 +206,10 @@ def verify(system: System, rel_tol: float = 1e-6, engine_abs: float = 1e-12, eng
     every = system.record_every
     runs = [simulate(_refined(system, r), progress=False) for r in (1, 2, 4)]
     names = runs[0].signals
+    for key in aggregate or {}:
+        if not any(n == key or n.startswith(key + ".") for n in names):
+            raise SystemError_(f"--aggregate {key}: no recorded signal is or starts with {key!r} (recorded: "
+                               f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''})")
     how = [aggregation_of(system, n, aggregate) for n in names]
     report = VerifyReport(system.source or system.name, system.step, rel_tol, engine_abs, engine_rel)
     other, judged = _other_algorithm(system, sim, report)
@@ -215,6 +221,11 @@ def verify(system: System, rel_tol: float = 1e-6, engine_abs: float = 1e-12, eng
         agg = how[j] if kind == "real" else "sample"
         cols = [_column_on_grid(np.asarray(rec[name]), every * r, agg) for rec, r in zip(runs, (1, 2, 4))]
         rows = min(len(c) for c in cols)
+        if rows < 2:
+            # only t = 0 is on the coarse grid: there is nothing to compare, and no verdict
+            raise SystemError_(f"{system.source or system.name}: step {system.step:g} s over a run of "
+                               f"{system.stop - system.start:g} s leaves no communication step after t = 0 to "
+                               "compare; verify needs a run of several steps (a longer stop, a shorter step)")
         c1, c2, c4 = (c[1:rows] for c in cols)
         alt = None
         if other is not None:

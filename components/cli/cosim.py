@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from components.cli import json_option
+from components.cli.arg_types import positive
 from components.errors import UserError
 
 # verify's exit codes beyond the shared 0 (fine) and 2 (bad input)
@@ -129,6 +130,11 @@ def _cmd_check_fmu(args: argparse.Namespace) -> int:
         if not sep or not k.strip():
             raise UserError(f"--parameter {it!r}: expected NAME=NUMBER (in the FMU's own units)")
     mapping = _parse_mapping(args.map)
+    if args.role == "imu" and not args.no_cost:
+        # the interface cost's options, before the checks print a verdict
+        from components.simulation.interface_cost import check_cost_inputs
+
+        check_cost_inputs(args.step, args.grade, args.noise_fraction)
     verdict = check_fmu(args.fmu, args.role, mapping, options, args.step)
     print(verdict.report())
     json_option.record(args, fmu=str(args.fmu), role=args.role, accepted=bool(verdict.ok),
@@ -160,7 +166,7 @@ def register(sub) -> None:
     r = sub.add_parser("run", help="run a system file (TOML or SSP) and save its recording (Parquet)")
     r.add_argument("system", help="system file (.toml or .ssp)")
     r.add_argument("--out", help="recording file (default: <system name>.parquet)")
-    r.add_argument("--stop", type=float, help="override the stop time [s]")
+    r.add_argument("--stop", type=positive, help="override the stop time [s]")
     r.set_defaults(func=_cmd_run)
 
     c = sub.add_parser("check-fmu", help="validate an FMU, check it against a role, smoke-test it")
@@ -170,14 +176,14 @@ def register(sub) -> None:
                    help="map a role variable onto the FMU's own name (repeatable)")
     c.add_argument("--option", action="append", metavar="KEY=VALUE",
                    help="role option, e.g. gyro_output=rate (imu) (repeatable)")
-    c.add_argument("--step", type=float, default=0.005,
+    c.add_argument("--step", type=positive, default=0.005,
                    help="communication step of the smoke test and the interface cost [s]")
     c.add_argument("--parameter", action="append", metavar="NAME=NUMBER",
                    help="a parameter for the interface cost, in the FMU's own name and unit (e.g. "
                         "its noise set to 0) (repeatable)")
     c.add_argument("--grade", choices=("navigation", "tactical"), default="navigation",
                    help="whose white noise per sample the coupling error is set against (imu)")
-    c.add_argument("--noise-fraction", type=float, default=0.1,
+    c.add_argument("--noise-fraction", type=positive, default=0.1,
                    help="the share of that noise the coupling error may reach (0.1)")
     c.add_argument("--no-cost", action="store_true",
                    help="skip the interface cost (role imu: the coupling error while the table "
@@ -189,18 +195,18 @@ def register(sub) -> None:
                                       "tolerance, 2 bad input, 3 could not run (a unit failed, "
                                       "libcosimpy not installed)")
     v.add_argument("system", help="system file (.toml or .ssp)")
-    v.add_argument("--rel-tol", type=float, default=1e-6, help="coupling error / signal RMS (1e-6)")
-    v.add_argument("--engine-tol", type=float, default=1e-12, help="engine difference, abs and rel (1e-12)")
+    v.add_argument("--rel-tol", type=positive, default=1e-6, help="coupling error / signal RMS (1e-6)")
+    v.add_argument("--engine-tol", type=positive, default=1e-12, help="engine difference, abs and rel (1e-12)")
     v.add_argument("--aggregate", action="append", metavar="SIGNAL=sample|sum|mean",
                    help="how a finer run maps onto the coarse grid (repeatable; overrides "
                         "record.aggregate and what the unit's role declares)")
-    v.add_argument("--stop", type=float, help="override the stop time [s]")
+    v.add_argument("--stop", type=positive, help="override the stop time [s]")
     v.add_argument("--no-engine", action="store_true", help="skip the libcosim comparison")
     v.set_defaults(func=_cmd_verify)
 
     t = sub.add_parser("tumble", help="co-simulate the table tumbling a navigation-grade IMU "
                                       "through the six axis-up attitudes and check its outputs")
     t.add_argument("--seed", type=int, default=1, help="IMU noise seed")
-    t.add_argument("--dwell", type=float, default=10.0, help="static dwell per attitude [s]")
-    t.add_argument("--step", type=float, default=0.005, help="communication step [s]")
+    t.add_argument("--dwell", type=positive, default=10.0, help="static dwell per attitude [s]")
+    t.add_argument("--step", type=positive, default=0.005, help="communication step [s]")
     t.set_defaults(func=_cmd_tumble)

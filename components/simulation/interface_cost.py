@@ -149,22 +149,30 @@ def _worst(rec_h, rec_ref, block: int, how: list[str]) -> tuple[np.ndarray, bool
     return np.max(diff, axis=0), bool(np.all(np.max(diff[rest], axis=0) <= ROUNDING * scale))
 
 
+def check_cost_inputs(step: float, grade: str, fraction: float):
+    """The interface cost's own options, refused before anything runs: the grade's noise model."""
+    if not (0 < fraction):
+        raise UserError(f"noise fraction {fraction}: expected a positive number")
+    multiple = step / SERVO_PERIOD
+    if step > AT_REST / 5:
+        raise UserError(f"step {step} s: the interface cost compares the outputs over the last {AT_REST} s of a "
+                        f"{DURATION} s index, which needs steps of at most {AT_REST / 5:g} s")
+    if step <= 0 or abs(multiple - round(multiple)) > 1e-9 * multiple:
+        raise UserError(f"step {step} s: the interface cost drives our turntable, whose steps are "
+                        f"whole multiples of its servo period {SERVO_PERIOD} s")
+    try:
+        return noise_grade(grade)
+    except KeyError:
+        raise UserError(f"grade {grade!r}: expected navigation or tactical") from None
+
+
 def interface_cost(imu_fmu: str | Path, mapping: dict | None = None, role_options: dict | None = None,
                    parameters: dict | None = None, step: float = 0.005, grade: str = "navigation",
                    fraction: float = 0.1) -> InterfaceCost:
     """The coupling error of *imu_fmu* (in role ``imu`` through *mapping* and *role_options*) at
     *step* and at :data:`STEPS_TRIED`, set against *grade*'s white noise per sample."""
     mapping, role_options, parameters = dict(mapping or {}), dict(role_options or {}), dict(parameters or {})
-    if not (0 < fraction):
-        raise UserError(f"noise fraction {fraction}: expected a positive number")
-    multiple = step / SERVO_PERIOD
-    if step <= 0 or abs(multiple - round(multiple)) > 1e-9 * multiple:
-        raise UserError(f"step {step} s: the interface cost drives our turntable, whose steps are "
-                        f"whole multiples of its servo period {SERVO_PERIOD} s")
-    try:
-        noise = noise_grade(grade)
-    except KeyError:
-        raise UserError(f"grade {grade!r}: expected navigation or tactical") from None
+    noise = check_cost_inputs(step, grade, fraction)
     role = get_role("imu", **role_options)
     unit = load_fmu_unit("imu", Path(imu_fmu))
     bindings = check_unit(unit, role, mapping).bindings

@@ -87,7 +87,7 @@ def _builtin(name: str):
     if name.endswith("@3"):
         name, fmi = name[:-2], 3
     if name not in MODELS:
-        raise KeyError(f"builtin:{name}: expected one of {', '.join(MODELS)}")
+        raise ValueError(f"builtin:{name}: expected one of {', '.join('builtin:' + m for m in MODELS)}")
     return fmu_path(name, fmi)
 
 

@@ -84,6 +84,16 @@ def run_tumble(seed: int = 1, dwell: float = 10.0, step: float = 0.005,
                settle_timeout: float = 10.0, summary: dict | None = None) -> int:
     """Exit status 0 when every attitude's IMU output matches truth + injected errors within 5 σ of
     the dwell mean's noise; *summary* (when given) receives the per-attitude figures for --json."""
+    from components.errors import UserError
+    from components.simulation.interface_cost import SERVO_PERIOD
+
+    multiple = step / SERVO_PERIOD
+    if abs(multiple - round(multiple)) > 1e-9 * multiple or round(multiple) < 1:
+        raise UserError(f"--step {step:g}: the turntable's servo runs every {SERVO_PERIOD * 1e3:g} ms, so the step "
+                        "must be a whole multiple of it (e.g. 0.005)")
+    if step > min(dwell, settle_timeout) / 20:
+        raise UserError(f"--step {step:g}: the check needs at least 20 steps in a dwell ({dwell:g} s) and in the "
+                        f"settling time ({settle_timeout:g} s): at most {min(dwell, settle_timeout) / 20:g} s")
     table = _Unit(fmu_path("turntable"), "table", {})
     # the table's integrals over each step make the IMU's increments exact through the servo
     # transients (input_integrals 1: see fmus/imu/model.c)
