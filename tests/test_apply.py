@@ -53,3 +53,4 @@ def test_the_corrected_log_keeps_the_raw_logs_format_unless_told(conformance, tm
     assert main(["apply", str(tmp_path / "raw"), "--result", str(tmp_path / "r.json"), "--out", str(tmp_path / "x.csv"),
                  "--format", "parquet"]) == 2
     assert "--out" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+

@@ -35,14 +35,12 @@ def _print_comparison(c, coloured: bool = False) -> None:
     if free:
         print(f"{', '.join(free)}: no noise in these data (the residual's sample differences are rounding): their χ² "
               "weighs rounding against a numerical floor, not a misfit against noise; read their rms")
-    from components.estimation.distributions import chi2_isf
+    from components.diagnosis.misfit import chi2_band_note
 
-    low = chi2_isf(0.9995, max(c.dof, 1)) / max(c.dof, 1)
-    if c.chi2_per_dof < low:
+    note = chi2_band_note(c.chi2_per_dof, c.dof)
+    if note:
         # too good to be true: the noise model, not the model, is what is wrong
-        print(f"chi2/dof {c.chi2_per_dof:.3f} is below what a correct model gives (99.9 % band from {low:.3f}): the "
-              "noise model states more noise than the residual has, so every σ from it is too wide; identify the "
-              "noise on this log (calbench noise, --noise identify) or check the noise given")
+        print(note)
     if c.misfits is not None:
         # only what is significant given how many cells were looked at (components.diagnosis.misfit)
         print("where it fails: " + "\n                ".join(c.misfits.lines()))
