@@ -39,7 +39,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
                             "NAME=VALUE terms")
         noise, _, _ = choose_noise(args.noise, None, base=noise)
     target = args.schedule
-    is_log = Path(target).with_suffix(".json").exists() and (
+    # a .toml is a schedule (a log of the same stem beside it is not what was named)
+    is_log = Path(target).suffix.lower() != ".toml" and Path(target).with_suffix(".json").exists() and (
         Path(target).with_suffix(".csv").exists() or Path(target).with_suffix(".parquet").exists())
     if is_log:
         log = read_log(target)

@@ -61,7 +61,7 @@ class CalibrationController(Component):
 
     def __init__(self, name: str, schedule, axes=("outer", "middle", "inner"),
                  counts_per_rev: int = COUNTS_PER_REV, acc_max=200 * DEG, overrides: dict | None = None,
-                 stop_when_done: bool = False) -> None:
+                 stop_when_done: bool = False, rate_max=None) -> None:
         self.stop_when_done = stop_when_done  # end the co-simulation when the schedule is done
         if isinstance(schedule, Schedule):
             if overrides:
@@ -81,6 +81,10 @@ class CalibrationController(Component):
         if len(acc_max) != n or not all(a > 0 for a in acc_max):
             raise ValueError(f"controller {name}: acc_max {acc_max!r}: expected a positive value or one per axis")
         self.acc_max = acc_max
+        # the table's rate limit per axis [rad/s] when known: a rotation faster than it would be
+        # run at the limit, its segment labelled with the rate the schedule asked for
+        self.rate_max = [float(r) for r in ([rate_max] * n if isinstance(rate_max, (int, float)) else rate_max)] \
+            if rate_max is not None else None
         if not isinstance(counts_per_rev, int) or counts_per_rev < 0:
             raise ValueError(f"controller {name}: counts_per_rev {counts_per_rev!r}: expected an integer >= 0")
         self.counts_per_rev = counts_per_rev
@@ -110,7 +114,11 @@ class CalibrationController(Component):
                 raise ScheduleError(f"{src}: step {s.origin} (index): {len(s.angles)} angles for a table with "
                                     f"{n} axes ({', '.join(self.axes)}): expected {n}")
             if isinstance(s, (Rotate, Rate)):
-                self._axis_index(s)
+                k = self._axis_index(s)
+                if self.rate_max is not None and abs(s.rate) > self.rate_max[k] * (1 + 1e-12):
+                    raise ScheduleError(f"{src}: step {s.origin} ({s.kind}): rate {s.rate / DEG:g} deg/s, beyond the "
+                                        f"table's {self.axes[k]} axis limit of {self.rate_max[k] / DEG:g} deg/s (it would "
+                                        "turn at the limit under this step's label)")
 
     def _axis_index(self, s) -> int:
         a, n = s.axis, len(self.axes)

@@ -123,6 +123,9 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     acc = [sc.acc_max if sc.acc_max is not None else
            float(tparams.get(f"{fmu_axis[a]}.acc_max", tstart.get(f"{fmu_axis[a]}.acc_max", 200 * DEG)))
            for a in axes]
+    # the rate limit the table FMU states (a parameter or its start value), where it states one
+    rmax = [tparams.get(f"{fmu_axis[a]}.rate_max", tstart.get(f"{fmu_axis[a]}.rate_max")) for a in axes]
+    rmax = [float(r) for r in rmax] if all(r is not None for r in rmax) else None
     imu_names = set(istart) | _names(imu_path)
     # the vocabulary's effects and noise through the unit's maps (ours: the identity); what the
     # FMU has no parameter for is not injected, and the truth says so
@@ -142,7 +145,7 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     if seed_par is not None:
         iparams[seed_par] = sc.seed
     multiple = int(round(1.0 / (sc.controller_rate_hz * sc.step)))
-    ctrl = CalibrationController("ctrl", sc.schedule, axes=axes, counts_per_rev=cpr, acc_max=acc)
+    ctrl = CalibrationController("ctrl", sc.schedule, axes=axes, counts_per_rev=cpr, acc_max=acc, rate_max=rmax)
     conns = []
     for a in axes:
         for v in ("mode", "angle_cmd", "rate_cmd"):
