@@ -192,3 +192,14 @@ def test_a_corrupt_value_is_one_clear_error_and_a_mask_lets_the_rest_calibrate(e
     t = example.time[1000]
     assert main(["calibrate", str(tmp_path / "huge"), "--out", str(tmp_path / "r.json"),
                  "--exclude", f"{t - 1e-4}:{t + 1e-4}"]) == 0
+
+
+def test_a_scale_mixup_is_named_for_the_sensor_it_can_happen_to():
+    """A gyro's output 10 times its motion (a pulse count weight off by ten) was named "g declared
+    as m/s²", a mix-up only an accelerometer can have; each sensor gets its own."""
+    from components.model.plausibility import implausible
+
+    got = implausible({"gyro.sf.x": 9.0, "acc.sf.y": 9.80665 - 1, "gyro.sf.z": 180 / math.pi - 1}, 0.005)
+    assert "a unit prefix or a pulse count weight off by 10^1" in got["gyro.sf.x"], got
+    assert "g declared as m/s²" in got["acc.sf.y"], got
+    assert "degrees declared as radians" in got["gyro.sf.z"], got

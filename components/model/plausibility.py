@@ -98,11 +98,17 @@ def _cause(p: str, v: float, values: dict[str, float], dt: float | None) -> str:
         if _near(v, -1.0, 0.1):
             return (f"scale factor {100 * v:+.0f} %: the channel barely responds (a wrong column, or a sign "
                     "flip together with a swap)")
-        for k, what in ((180 / math.pi, "degrees declared as radians"), (math.pi / 180, "radians declared as degrees"),
-                        (G0, "g declared as m/s²"), (1 / G0, "m/s² declared as g"), (3600.0, "per hour declared as "
-                        "per second"), (1 / 3600.0, "per second declared as per hour")):
+        # the unit mix-ups each sensor can have (a gyro knows no g, an accelerometer no degrees)
+        mixups = ((180 / math.pi, "degrees declared as radians"), (math.pi / 180, "radians declared as degrees"),
+                  (3600.0, "per hour declared as per second"), (1 / 3600.0, "per second declared as per hour")) \
+            if sensor == "gyro" else ((G0, "g declared as m/s²"), (1 / G0, "m/s² declared as g"))
+        for k, what in mixups:
             if _near(ratio, k):
                 return f"the output is {ratio:.4g} times the motion: {what}"
+        decade = round(math.log10(ratio)) if ratio > 0 else 0
+        if decade and _near(ratio, 10.0 ** decade, 0.02):
+            return (f"the output is {ratio:.4g} times the motion: a unit prefix or a pulse count weight off by "
+                    f"10^{decade}")
         return f"scale factor {100 * v:+.3g} %: beyond any real IMU (check the units and the mapping)"
     if e.name.endswith(".mis") and abs(v) > 0.5:
         return f"misalignment of {math.degrees(v):+.0f}°: two axes look swapped or mixed in the mapping"
