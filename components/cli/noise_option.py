@@ -7,5 +7,7 @@ HELP = ("noise model (repeatable, applied in order): identify | white | navigati
         "from the static data; pulse counts: identified)")
 
 
-def add(parser) -> None:
-    parser.add_argument("--noise", action="append", metavar="SPEC", help=HELP)
+def add(parser, default: str | None = None) -> None:
+    """``default``: what the command takes without --noise, when not the model's or the data's."""
+    text = HELP if default is None else HELP.split(" (default:")[0] + f" (default: {default})"
+    parser.add_argument("--noise", action="append", metavar="SPEC", help=text)

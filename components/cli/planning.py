@@ -94,7 +94,8 @@ def register(sub) -> None:
     p.add_argument("--gyro-bi", type=float, help="gyro bias instability [deg/h]")
     p.add_argument("--acc-bi", type=float, help="accelerometer bias instability [ug]")
     p.add_argument("--dwell", type=float, help="override the schedule's dwell [s]")
-    noise_option.add(p)
+    noise_option.add(p, default="the --grade's noise, with --arw/--vrw/--gyro-bi/--acc-bi on top; a noise file "
+                              "replaces it, NAME=VALUE terms go on top")
     p.add_argument("--observability", metavar="CONFIG",
                    help="also the system-level filter's PWCS/SVD observability and its covariance "
                         "(white noise of the grade): a kf configuration (seed_003, ...: each stage on "

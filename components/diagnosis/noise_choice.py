@@ -120,10 +120,10 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
         s = spec.strip()
         if s == "white":
             noise, what = white_noise_model(data)
-            said.append(what)
+            said = [what]   # a whole model: what came before is replaced
         elif s in ("navigation", "tactical"):
             noise = grade(s)
-            said.append(f"{s} grade (given)")
+            said = [f"{s} grade (given)"]
         elif s == "identify":
             from components.diagnosis.noise_id import identify_noise
 
@@ -139,14 +139,14 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             except ValueError as e:
                 raise UserError(f"--noise identify: {e}") from None
             noise = ident.model
-            said.append(lead + IDENTIFIED)
+            said = [lead + IDENTIFIED]
         elif "=" in s:
             name, v = _term(s)
             noise = from_terms({name: v}, noise, "given by hand")
             said.append(f"{name} = {v:.4g} (SI, given)")
         elif s.endswith(".json"):
             noise = load_noise_file(s)
-            said.append(f"from {s}")
+            said = [f"from {s}"]
         else:
             raise UserError(f"--noise {spec!r}: expected identify, white, navigation, tactical, a noise .json file "
                             "or NAME=VALUE (e.g. acc.noise.bi=10 ug)")
