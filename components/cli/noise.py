@@ -53,7 +53,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     for k, c in enumerate(ident.channels):
         av = c.fast.allan
         lo, hi = av.interval()
-        model_adev = np.sqrt(c.noise.avar(av.tau))
+        model_adev = np.sqrt(c.noise.avar_realised(av.tau))
         unit, scale = TERMS[sensor_of(k)]["bias_instability"][2:]
         print(f"{CHANNELS[k]}: Allan deviation [{unit}] (68 % interval from the equivalent degrees of freedom) "
               "and the identified model")

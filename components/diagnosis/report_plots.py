@@ -162,7 +162,7 @@ def allan_plot(identification) -> str:
         ax.fill_between(av.tau, lo / scale, hi / scale, color="#9ecae1", alpha=0.6, lw=0, label="68 % interval")
         ax.loglog(av.tau, av.adev / scale, "o", ms=3, color="#08519c", label="residual")
         tau = np.geomspace(av.tau[0], av.tau[-1] * 30, 80)
-        ax.loglog(tau, np.sqrt(c.noise.avar(tau)) / scale, "-", color="#d95f02", label="identified model")
+        ax.loglog(tau, np.sqrt(c.noise.avar_realised(tau)) / scale, "-", color="#d95f02", label="identified model")
         ax.set_title(NAMES[k], fontsize=9)
         ax.set_ylabel(f"ADEV [{dunit}]", fontsize=8)
         ax.tick_params(labelsize=7)

@@ -74,7 +74,7 @@ class ChannelFit:
     notes: list = field(default_factory=list)
 
     def model_avar(self, tau) -> np.ndarray:
-        return self.noise.avar(tau)
+        return self.noise.avar_realised(tau)
 
 
 def _at(av: AllanVariance, keep: np.ndarray) -> AllanVariance:

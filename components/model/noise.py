@@ -85,6 +85,19 @@ class ChannelNoise:
             a = a + gm_avar(s, T, tau)
         return a
 
+    def avar_realised(self, tau) -> np.ndarray:
+        """Allan variance at *tau* of the model as realised: a flicker floor with a stated range
+        as its Gauss–Markov sum (below its lowest time constant it falls away, where
+        :meth:`avar` keeps it flat; the two agree inside the range). What a plot of the model
+        beside the measured deviation shows."""
+        tau = np.asarray(tau, float)
+        if not (self.bias_instability and self.flicker_range):
+            return self.avar(tau)
+        flat = replace(self, bias_instability=0.0)
+        lo, hi = self.flicker_range
+        terms = flicker_terms(self.bias_instability, lo, max(float(np.max(tau)), 2 * lo) if hi is None else hi)
+        return flat.avar(tau) + sum((gm_avar(s, T, tau) for s, T in terms), np.zeros_like(tau))
+
     def gm_terms(self, t_lo: float, t_hi: float) -> list[tuple[float, float]]:
         """Every Gauss–Markov term: the explicit ones and the flicker floor realised over its own
         range or, without one, over [t_lo, t_hi] (the time scales a log can show)."""
