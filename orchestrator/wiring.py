@@ -58,7 +58,7 @@ def resolve(unit: Unit, bindings: dict[str, Binding], name: str, where: str) -> 
         parts = [_lookup(unit, bindings, f"{name}.{s}") for s in suffixes]
         if all(parts):
             return parts
-    candidates = list(bindings) + list(unit.variables)
+    candidates = list(dict.fromkeys(list(bindings) + list(unit.variables)))
     close = difflib.get_close_matches(name, candidates, n=3)
     hint = f"; did you mean {', '.join(close)}?" if close else ""
     raise SystemError_(f"{where}: unit {unit.name} has no variable {name!r}{hint}")

@@ -76,3 +76,19 @@ def test_an_fmu_without_a_binary_for_this_machine_is_named(tmp_path, capsys):
     err = _err(capsys, ["run", str(system), "--out", str(tmp_path / "r.parquet")])
     assert "has no binary for this machine (binaries/linux64/" in err and "its binaries: win64" in err
     shutil.rmtree(tmp_path / "r.parquet", ignore_errors=True)
+
+
+def test_verify_json_gives_each_signal_as_numbers(tmp_path):
+    """CI reads the coupling error per signal, not a printed table: each signal's estimated error,
+    order and verdict, the verdict true exactly when the relative error is within the tolerance."""
+    import json
+
+    out = tmp_path / "v.json"
+    assert main(["verify", str(PAIR), "--rel-tol", "1e-3", "--no-engine", "--json", str(out)]) == 0
+    d = json.loads(out.read_text())
+    sig = {s["name"]: s for s in d["signals"]}
+    assert {"imu.gyro.x", "imu.acc.z", "table.outer.angle"} <= set(sig)
+    for s in sig.values():
+        assert s["ok"] == (s["rel_error"] <= 1e-3), s
+    # the gyro's coupling error halves twice with each halving of the step: order near 2 (README)
+    assert 1.5 < sig["imu.gyro.x"]["order"] < 2.5

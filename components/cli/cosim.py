@@ -87,7 +87,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         print(f"calbench verify: could not run {args.system}: {e}", file=sys.stderr)
         return VERIFY_COULD_NOT_RUN
     print(report.table())
-    json_option.record(args, ok=bool(report.ok), engine_missing=bool(report.engine_missing), table=report.table())
+    json_option.record(args, ok=bool(report.ok), engine_missing=bool(report.engine_missing), table=report.table(),
+                       signals=[_signal_json(s) for s in report.signals], skipped=list(report.skipped))
     if not report.ok:
         return VERIFY_OUT_OF_TOLERANCE
     if report.engine_missing:
@@ -95,6 +96,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return VERIFY_COULD_NOT_RUN
     return 0
+
+
+def _signal_json(s) -> dict:
+    """One signal of a verify report as numbers a CI script reads (NaN and infinity as null)."""
+    import math
+    from dataclasses import asdict
+
+    d = {**asdict(s), "rel_error": s.rel_error, "ok": bool(s.ok)}
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
 
 
 def _parse_mapping(items: list[str]) -> dict:
