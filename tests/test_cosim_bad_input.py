@@ -92,3 +92,9 @@ def test_verify_json_gives_each_signal_as_numbers(tmp_path):
         assert s["ok"] == (s["rel_error"] <= 1e-3), s
     # the gyro's coupling error halves twice with each halving of the step: order near 2 (README)
     assert 1.5 < sig["imu.gyro.x"]["order"] < 2.5
+
+
+def test_run_refuses_a_recording_name_of_another_format(tmp_path, capsys):
+    """run writes Parquet: --out x.csv wrote Parquet bytes under a .csv name."""
+    err = _err(capsys, ["run", str(PAIR), "--out", str(tmp_path / "x.csv")])
+    assert "--out" in err and "Parquet" in err and not (tmp_path / "x.csv").exists()

@@ -29,9 +29,13 @@ def _cmd_build_fmus(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from orchestrator.loader import load_system
     from orchestrator.master import Simulation
 
+    if args.out and Path(args.out).suffix.lower() != ".parquet":
+        raise UserError(f"--out {args.out}: a recording is written as Parquet; name it .parquet")
     system = load_system(args.system)
     if args.stop is not None:
         system.stop = args.stop
@@ -47,8 +51,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
             problems = validate_fmu(str(path))
             for p in problems:
                 print(f"unit {name}: validation: {p}")
-    from pathlib import Path
-
     # an SSP archive's inner system is often just "root": the file names the run
     default = Path(args.system).stem if str(args.system).lower().endswith(".ssp") else system.name
     out = args.out or f"{default}.parquet"
