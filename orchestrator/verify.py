@@ -211,7 +211,19 @@ def verify(system: System, rel_tol: float = 1e-6, engine_abs: float = 1e-12, eng
             raise SystemError_(f"--aggregate {key}: no recorded signal is or starts with {key!r} (recorded: "
                                f"{', '.join(names[:12])}{' ...' if len(names) > 12 else ''})")
     how = [aggregation_of(system, n, aggregate) for n in names]
+    # an aggregation given against what the unit's role declares its output to be (a mean rate
+    # summed, increments averaged) makes the finer runs disagree by the step ratio: a false FAIL
+    contrary = {}
+    for n, h in zip(names, how):
+        declared = _role_aggregation(system, n)
+        if {h, declared} == {"sum", "mean"}:
+            contrary.setdefault((h, declared), []).append(n)
     report = VerifyReport(system.source or system.name, system.step, rel_tol, engine_abs, engine_rel)
+    for (h, declared), which in contrary.items():
+        report.interface_notes.append(
+            f"note: {', '.join(which[:6])}{' ...' if len(which) > 6 else ''} aggregated by '{h}' (record.aggregate or "
+            f"--aggregate), but the unit's role declares them '{declared}' outputs (its role_options): the finer "
+            f"runs then differ by the step ratio; --aggregate SIGNAL={declared} if the role is right")
     other, judged = _other_algorithm(system, sim, report)
     for j, name in enumerate(names):
         kind, why = _kind(sim, name, runs[0][name])
@@ -249,7 +261,7 @@ def verify(system: System, rel_tol: float = 1e-6, engine_abs: float = 1e-12, eng
                     res.coupling_ok = res.coupling_ok and res.alg_diff == 0
         report.signals.append(res)
     _explain_algorithm_comparison(report)
-    report.interface_notes = interface_notes(system, sim)
+    report.interface_notes += interface_notes(system, sim)
     if engine:
         reuse = (other if other is not None and other.provenance["system"]["algorithm"] == "jacobi"
                  and every == 1 else None)

@@ -98,3 +98,19 @@ def test_run_refuses_a_recording_name_of_another_format(tmp_path, capsys):
     """run writes Parquet: --out x.csv wrote Parquet bytes under a .csv name."""
     err = _err(capsys, ["run", str(PAIR), "--out", str(tmp_path / "x.csv")])
     assert "--out" in err and "Parquet" in err and not (tmp_path / "x.csv").exists()
+
+
+def test_verify_notes_an_aggregation_against_the_roles_output_kind(tmp_path, capsys):
+    """examples/tumble.toml sums the IMU's increments; the same IMU told to give mean rates
+    (role_options) while record.aggregate still sums them fails by the step ratio: verify says
+    which aggregation contradicts the role, and the mean passes."""
+    text = (ROOT / "examples" / "tumble.toml").read_text()
+    assert 'role = "imu"' in text
+    text = text.replace('role = "imu"', 'role = "imu"\nrole_options = { gyro_output = "rate", acc_output = "specific_force" }', 1)
+    f = tmp_path / "rate.toml"
+    f.write_text(text)
+    capsys.readouterr()
+    assert main(["verify", str(f), "--no-engine"]) == 1
+    out = capsys.readouterr().out
+    assert "aggregated by 'sum' (record.aggregate or --aggregate), but the unit's role declares them 'mean'" in out
+    assert main(["verify", str(f), "--no-engine", "--aggregate", "imu.gyro=mean", "--aggregate", "imu.acc=mean"]) == 0
