@@ -100,3 +100,4 @@ def test_gyro_accelerometer_offset_is_a_state_of_psins19_tga():
     truth = truth_of_result(run.truth["effects"], list(res.values), estimation_frame(list(res.values)))
     assert truth["imu.time_offset"] == pytest.approx(1e-3)
     assert abs(res.values["imu.time_offset"] - truth["imu.time_offset"]) < 0.05e-3, res.values["imu.time_offset"]
+

@@ -58,7 +58,9 @@ def _cmd_kf(args: argparse.Namespace) -> int:
             if p in undetermined:
                 print(f"{p:18s} {'not determined':>25s}  ({undetermined[p]['why']}; needs {undetermined[p]['needs']})")
                 continue
-            print(f"{p:18s} {v / k:12.4f} ± {res.sigmas[p] / k:9.4f} {unit}")
+            share = res.extra.get("determinability", {}).get("posterior_to_prior_sigma", {}).get(p)
+            flag = f"  weakly determined (σ at {share:.0%} of its prior σ: the prior weighs in)" if share else ""
+            print(f"{p:18s} {v / k:12.4f} ± {res.sigmas[p] / k:9.4f} {unit}{flag}")
     for note in res.fit.get("notes", []):
         print(f"note: {note}")
     print(f"wrote {args.out} ({res.method}, config {cfg.name})")

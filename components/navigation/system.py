@@ -50,6 +50,7 @@ from components.navigation.sensor import Regressors
 METHOD = "system-level KF"
 STATIC_TOL = 1e-9  # rad: an angle change per sample below this is "at rest"
 UNINFORMED = 0.9  # a filter state whose posterior σ is above this share of its prior σ: not determined
+PRIOR_WEIGHTED = 0.5  # above this share the prior holds a quarter or more of its information: weak
 
 
 @dataclass
@@ -347,7 +348,7 @@ def calibrate_system(log, config: Config, exclude: list | None = None,
     if notes:
         res.fit["notes"] = notes
     # a filter state whose σ stays at its prior's: the log did not inform it
-    undetermined = {}
+    undetermined, prior_weighted = {}, {}
     for so in outputs:
         if so.filter is None or so.prior_sigma is None:
             continue
@@ -355,8 +356,14 @@ def calibrate_system(log, config: Config, exclude: list | None = None,
             if s0 > 0 and s > UNINFORMED * s0:
                 undetermined[p] = {"why": f"stage {so.stage.name!r}: its σ stays at {s / s0:.0%} of its prior σ: "
                                           "this log does not inform it", "needs": needs(p)}
-    if undetermined:
-        res.extra["determinability"] = {"undetermined": undetermined}
+            elif s0 > 0 and s > PRIOR_WEIGHTED * s0:
+                # the prior still holds a quarter or more of what is known of it: its estimate
+                # leans towards where the filter started, its σ partly the prior's
+                prior_weighted[p] = float(s / s0)
+    if undetermined or prior_weighted:
+        res.extra["determinability"] = {"undetermined": undetermined,
+                                        "weakly_determined": sorted(prior_weighted),
+                                        "posterior_to_prior_sigma": prior_weighted}
     return res, outputs
 
 
