@@ -176,6 +176,22 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     return status
 
 
+def _noise_terms_in(model, terms: list[str]) -> list[str]:
+    """The noise *terms* (acc.noise.bi, ...) *model*'s own noise model already has on every axis."""
+    from components.model.noise import TERM_OF_NAME
+
+    own = model.noise_model()
+    if own is None:
+        return []
+    out = []
+    for t in terms:
+        sensor, _, kind = t.split(".")
+        off = 0 if sensor == "gyro" else 3
+        if all(getattr(own.channels[off + a], TERM_OF_NAME[kind]) > 0 for a in range(3)):
+            out.append(t)
+    return out
+
+
 def _cmd_add(args: argparse.Namespace) -> int:
     from components.diagnosis.compare import compare
     from components.diagnosis.diagnose import NOISE_CANDIDATES
@@ -195,6 +211,14 @@ def _cmd_add(args: argparse.Namespace) -> int:
         new = parse_effects(",".join(c for c in names if c not in NOISE_CANDIDATES)) if len(noise_terms) < len(names) else []
     except ValueError as e:
         raise UserError(f"--effect: {e} (noise terms: {', '.join(NOISE_CANDIDATES)})") from None
+    already = [e for e in new if e in model.effects] + _noise_terms_in(model, noise_terms)
+    if already:
+        # refitting the same effects would add a rung "+ acc.k2" that changes nothing
+        from components.model.noise import describe
+
+        raise UserError(f"--effect {', '.join(already)}: already in the model {args.model} (its effects: "
+                        f"{', '.join(model.effects)}; its noise: {describe(model.noise_model())}); diagnose names "
+                        "what is missing")
     noise, said, _ = choose_noise(args.noise, data, model)
     print(f"noise: {said}")
     model, refit = model_option.own(model, args.model, log, data, noise)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from components.cli import log_option, noise_option
+from components.cli import log_option, model_option, noise_option
 
 
 def add_option(parser) -> None:
@@ -28,6 +28,10 @@ def load_truth(path: str, log=None) -> dict:
     if not isinstance(d, dict) or not isinstance(d.get("effects"), dict):
         raise UserError(f"--truth {path}: no \"effects\" object (parameter -> SI value), expected the "
                         "STEM.truth.json `calbench simulate` writes")
+    mismatch = _other_samples(d, log) if log is not None else None
+    if mismatch:
+        raise UserError(f"--truth {path}: the truth of {mismatch}, not of {log.source or 'the log'} (its samples' "
+                        "SHA-256 differs); expected the STEM.truth.json `calbench simulate` wrote beside this log")
     if log is not None and not _of_this_run(d, log):
         sc = d.get("scenario")
         name = sc.get("name", "?") if isinstance(sc, dict) else "?"
@@ -35,6 +39,22 @@ def load_truth(path: str, log=None) -> dict:
                         f"of {log.source or 'the log'}; expected the STEM.truth.json `calbench simulate` wrote beside "
                         "this log")
     return {str(k): float(v) for k, v in d["effects"].items()}
+
+
+def _other_samples(truth: dict, log) -> str | None:
+    """The sample file *truth* records (name) when *log*'s samples are not it; None when they are
+    or when the truth records none (older truth files: the segment check below decides)."""
+    from pathlib import Path
+
+    from components.model.result import file_sha256
+
+    files = truth.get("log_files")
+    if not isinstance(files, dict) or not files or not log.source or not Path(log.source).exists():
+        return None
+    own = file_sha256(Path(log.source))
+    if own in files.values():
+        return None
+    return ", ".join(files)
 
 
 def _of_this_run(truth: dict, log) -> bool:
@@ -76,6 +96,13 @@ def _cmd_report(args: argparse.Namespace) -> int:
     baseline = CalibrationResult.load(args.baseline) if args.baseline else None
     noise, said, _ = choose_noise(args.noise, data, model)
     print(f"noise: {said}")
+    # a result (or baseline) of another log is refitted here first, as compare and diagnose do:
+    # its stored values shown on this log's residuals are neither model's fit
+    model, _ = model_option.own(model, args.model, log, data, noise)
+    if baseline is not None:
+        baseline, _ = model_option.own(baseline, args.baseline, log, data, noise, say=False)
+        if baseline.extra.get("refit_from"):
+            print(f"the baseline {args.baseline} was fitted to another log: refitting its effects on this log first")
     truth = load_truth(args.truth, log) if args.truth else None
     if truth is not None:
         # in the frame the result's misalignments are estimated in (a system-level or positions
@@ -87,7 +114,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
         if frame != "table":
             print("truth: turned into the accelerometer-defined frame the result's misalignments are estimated in")
     write(args.out, log, data, model, args.model, noise, diagnose_models=args.diagnose,
-          identify=not args.no_noise, truth=truth, baseline=baseline)
+          identify=not args.no_noise, truth=truth, baseline=baseline, baseline_path=args.baseline)
     return 0
 
 

@@ -66,7 +66,8 @@ class NoiseIdentification:
                 if t in c.present:
                     iv = self.model.intervals.get(f"{vname}.{AXES[k % 3]}")
                     within = f"  [{iv[0] / scale:.3g}, {iv[1] / scale:.3g}]" if iv else ""
-                    lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {s / scale:10.2g}  "
+                    sd = f"{s / scale:10.2g}" if np.isfinite(s) else f"{'-':>10s}"
+                    lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {sd}  "
                                  f"{dunit:14s} yes{within}")
                 else:
                     up = c.fast.upper.get(t) if t in c.fast.upper else None

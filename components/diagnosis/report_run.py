@@ -62,6 +62,8 @@ def _provenance(log, models: dict) -> dict:
         entry = {"effects": list(m.effects), "file": str(path) if path else "refitted on this log"}
         if path and Path(path).exists():
             entry["sha256"] = file_sha256(Path(path))
+        if m.extra.get("refit_from"):   # the file's effects, refitted here: its values are not the file's
+            entry["refitted_on_this_log"] = True
         out["models"][name] = entry
         out.setdefault("software", m.to_dict().get("software"))
     return out
@@ -69,11 +71,13 @@ def _provenance(log, models: dict) -> dict:
 
 def write_model_report(page: str | Path, log, data, model, *, model_path=None, noise=None, title: str | None = None,
                        diagnose_models: str = "after", identify: bool = True, truth: dict | None = None,
-                       baseline=None, diagnoses: dict | None = None, extra_provenance: dict | None = None):
+                       baseline=None, diagnoses: dict | None = None, extra_provenance: dict | None = None,
+                       baseline_path=None):
     """Write the page for *model* on *log* (*data* its LogData). ``noise``: the noise model the
     rows are whitened with; ``diagnose_models``: "after", "both" or "none"; ``identify``: add the
     noise identification of the after-model's residual; ``truth``: parameter -> SI value of a
-    known truth; ``baseline``: the before-model (default: the ladder's first rung refitted);
+    known truth; ``baseline``: the before-model (default: the ladder's first rung refitted),
+    ``baseline_path`` its file;
     ``diagnoses``: name -> an already computed diagnosis (not run again)."""
     from components.diagnosis.compare import compare
     from components.diagnosis.diagnose import diagnose
@@ -87,7 +91,7 @@ def write_model_report(page: str | Path, log, data, model, *, model_path=None, n
     models: dict = {}
     refitted = None
     if baseline is not None:
-        models[model_name(baseline)] = (baseline, None)
+        models[model_name(baseline)] = (baseline, baseline_path)
     elif len(ladder) > 1 and list(ladder[0]["effects"]) != list(model.effects):
         effects = list(ladder[0]["effects"])
         fit = calibrate(data, effects, temperature_ref=model.temperature_ref, noise=noise)

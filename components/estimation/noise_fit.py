@@ -236,13 +236,13 @@ def identify_channel(rate: np.ndarray, runs: list[tuple[int, int]], dt: float, *
 
     present = [k for k in sigma if value.get(k, 0.0) > PRESENT_SIGMAS * sigma[k] and share(k) >= PRESENT_SHARE] \
         + list(known)
-    if "white" in sigma and "white" not in present and value.get("white", 0.0) > 0 and math.isfinite(sigma["white"]):
+    if "white" in sigma and "white" not in present and value.get("white", 0.0) > 0:
         # every sensor has white noise: below three σ it is poorly read (pulse counts leave a
         # couple of τ above their quantization), not absent; dropped, the channel was weighed by
         # its quantization alone (σ 5-22x too small, a false verdict on one log in six)
         present.append("white")
-        notes.append("white noise kept though below three σ of its estimate (few τ above the quantization): "
-                     "no sensor is without it")
+        notes.append("white noise kept though below three σ of its estimate (few τ above the quantization) or "
+                     "untested (no bootstrap): no sensor is without it")
     upper = {k: value.get(k, 0.0) + PRESENT_SIGMAS * sigma[k] for k in sigma if k not in present}
     # the present terms refitted alone: an absent term's estimate is held non-negative, so on
     # average it took variance that is not its own from the terms beside it (the white level read

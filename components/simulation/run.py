@@ -339,8 +339,13 @@ def write_outputs(result: RunResult, stem: str | Path, fmt: str = "csv") -> list
     if stem.suffix.lower() in (".csv", ".parquet", ".json"):
         stem = stem.with_suffix("")
     paths = write_log(stem, result.log, fmt)
+    from components.model.result import file_sha256
+
+    # the truth names the samples it is the truth of (a truth file beside another run's log,
+    # with the same schedule, is otherwise indistinguishable: report judged against it)
+    truth = {**result.truth, "log_files": {p.name: file_sha256(p) for p in paths if p.suffix in (".csv", ".parquet")}}
     tp = Path(str(stem) + ".truth.json")
-    tp.write_text(json.dumps(result.truth, indent=1) + "\n", encoding="utf-8")
+    tp.write_text(json.dumps(truth, indent=1) + "\n", encoding="utf-8")
     return paths + [tp]
 
 
