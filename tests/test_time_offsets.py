@@ -62,3 +62,31 @@ def test_a_late_accelerometer_is_named_and_added(late_accelerometers, capsys):
     assert json.loads((d / "d1.json").read_text())["verdict"] is None
     ladder = r1.extra["ladder"]
     assert ladder[-1]["chi2_per_dof"] < ladder[0]["chi2_per_dof"] and not math.isnan(ladder[0]["chi2_per_dof"])
+
+
+def test_a_whole_imu_offset_leaves_no_accelerometer_offset_behind(tmp_path, capsys):
+    """The IMU 0.5 ms late against the table, its offset in the model: the gyro rows are
+    rest-to-rest sums no time shift changes, so nothing is left for acc.time_offset. The spline
+    of a move ended one sample late (at the next rest sample, clamped there), which gave the
+    rest after every move a rate at its start the rest's own sums do not have: acc.time_offset
+    was named (F 7.7 here, 84-100 on the diagnosis schedule) and, added, pulled imu.time_offset
+    10 σ off."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "six_position.toml").read_text()
+    text = text.replace("[imu.effects]", '[imu.effects]\n"imu.time_offset" = "0.5 ms"', 1)
+    scn = tmp_path / "late.toml"
+    scn.write_text(text)
+    assert main(["simulate", str(scn), "--out", str(tmp_path / "late"), "--dwell", "10"]) == 0
+    effects = "gyro.bias,gyro.sf,gyro.mis,acc.bias,acc.sf,acc.mis,imu.time_offset"
+    assert main(["calibrate", str(tmp_path / "late"), "--effects", effects, "--out", str(tmp_path / "r.json")]) == 0
+    res = CalibrationResult.load(tmp_path / "r.json")
+    off, s = res.values["imu.time_offset"], res.sigmas["imu.time_offset"]
+    assert abs(off - 0.5e-3) < 3.5 * s, (off, s)
+    capsys.readouterr()
+    assert main(["diagnose", str(tmp_path / "late"), "--model", str(tmp_path / "r.json"), "--candidates",
+                 "acc.time_offset", "--json", str(tmp_path / "d.json")]) == 0
+    d = json.loads((tmp_path / "d.json").read_text())
+    assert d["found"] == [] and "acc.time_offset is missing" not in capsys.readouterr().out
+    cand = next(c for c in d["ranking"] if c["effect"] == "acc.time_offset")
+    assert cand["p_adjusted"] > 0.01, cand

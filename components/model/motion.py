@@ -184,9 +184,12 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
     row = 0  # the run's first row
     for a, b in moving_runs(static):
         # knots: the rest sample before the run (index a-1, or the virtual one) to sample b-1,
-        # plus the rest sample after it when there is one
+        # whose reading is the rest's when one follows: the plate is at rest from there, as it was
+        # up to the rest sample before the run (a knot at the next rest sample instead let the
+        # spline overshoot and come back inside that sample's rest interval, with a rate at its
+        # start the rest's sums do not have: a spurious time-offset column on every rest after a move)
         lo = a - 1
-        hi = b if b < n else b - 1
+        hi = b - 1
         kt = np.concatenate([[t_prev[a]], time[a:hi + 1]])
         kth = np.vstack([measured[lo] if lo >= 0 else measured[0], measured[a:hi + 1]])
         rest_lo = lo < 0 or static[lo]
