@@ -239,7 +239,10 @@ def _cmd_add(args: argparse.Namespace) -> int:
             print(f"{name:18s} {r['value']:.4g} ± {r['sigma']:.2g} (SI; likelihood ratio {r['likelihood_ratio']:.1f}"
                   f"{', not significant' if not r['present'] else ''})")
     fit = calibrate(data, effects, temperature_ref=model.temperature_ref, noise=noise)
-    if new and not args.noise and noise is not None and IDENTIFIED in noise.source:
+    # identified here (--noise identify) or by the model's own identification: identified again
+    # with the effect in the model; a noise given as such (a file, a grade, terms) stays as given
+    given = [x for x in (args.noise or []) if x.strip() != "identify"]
+    if new and not given and noise is not None and IDENTIFIED in noise.source:
         # a noise identified on the residual of the model without the effect took the effect's
         # misfit in (its slow terms and white levels too large: χ²/dof 0.87 after adding a 2"
         # reversal under navigation-grade flicker noise, 0.99 with the noise identified again)
