@@ -90,7 +90,8 @@ def observation_blocks(static: np.ndarray, angles: np.ndarray,
     sample (a window cut out of a schedule) has neither the angle at the start of that sample's
     interval nor the rate at its first angle: the interpolation takes the table at rest there,
     which is wrong through the whole first move (at 10 cm off the centre, a block residual of
-    1.6e-3 m/s that pulled the time offset by 9 us). That move is left out.
+    1.6e-3 m/s that pulled the time offset by 9 us). That move is left out, and any move after
+    it before the first rest as long as a block (a settling that pauses and creeps on).
 
     ``valid`` (N,) bool: samples left out (a gap, a mask, an exclusion) leave every block: a
     static chunk or an accelerometer chunk keeps its usable stretches, a rest-to-rest gyro move
@@ -99,6 +100,13 @@ def observation_blocks(static: np.ndarray, angles: np.ndarray,
     if len(angles) > 1 and np.any(angles[1] != angles[0]):
         runs = moving_runs(static)
         first = runs[0][1] if runs and runs[0][0] <= 1 else 1
+        # a table settling at the start can pause within a count and creep on (an encoder error
+        # at the start angle: 0.25 s still, then two more counts): the log is known from its
+        # first rest as long as a block, not from its first pause
+        for a, b in runs[1:]:
+            if a - first >= samples_per_chunk:
+                break
+            first = b
     gb = make_blocks(static, samples_per_chunk, whole_moves=True, start=first)
     ab = make_blocks(static, samples_per_chunk, whole_moves=False, start=first, cut_cost=_jerk_near(angles))
     if valid is None or np.all(valid):
