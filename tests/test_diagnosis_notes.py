@@ -110,3 +110,15 @@ def test_effects_ranked_before_a_noise_term_are_said_to_need_ranking_again(incom
                                                      "chi2_per_dof_after": 1.0, "loglik_gain": 600.0}])
     said = [line for line in verdict_lines(late) if "ranked under a noise model" in line]
     assert len(said) == 1 and "acc.noise.bi found after them" in said[0] and "--noise identify" in said[0]
+
+
+def test_the_candidates_below_the_top_are_named(incomplete, conformance, capsys):
+    """diagnose prints --top ranking lines; the rest were left off without a word (a table effect
+    among them was invisible): they are named in one line, with whether any is significant."""
+    d, path = incomplete
+    capsys.readouterr()
+    assert main(["diagnose", str(conformance / "example"), "--model", str(path), "--top", "3"]) in (0, 1)
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if "more below" in x)
+    assert f"{len(d.ranking) - 3} more below" in line and f"--top {len(d.ranking)}" in line
+    assert all(c.effect in line for c in d.ranking[3:])

@@ -154,6 +154,11 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         print(ranking_line(i, c))
         for note in candidate_notes_lines(c):
             print("       " + note)
+    rest = d.ranking[args.top:]
+    if rest:
+        quiet = "" if any(c.passes for c in rest) else "none significant; "
+        print(f"  ... {len(rest)} more below ({quiet}--top {len(d.ranking)} shows them): "
+              + ", ".join(c.effect for c in rest))
     print(LEGEND)
     if d.unseeable:
         print("not tested, this log cannot see them at any plausible magnitude: " + "; ".join(
@@ -329,7 +334,7 @@ def register(sub) -> None:
                    help="exit 1 when the verdict names a missing effect or noise term (for CI)")
     d.add_argument("--alpha", type=float, default=0.01, help="family-wise error rate (Holm)")
     d.add_argument("--candidates", help="comma list of effects to test (default: all not in the model)")
-    d.add_argument("--top", type=int, default=10, help="ranking lines to print")
+    d.add_argument("--top", type=int, default=10, help="ranking lines to print (the rest are named in one line)")
     noise_option.add(d)
     log_option.add(d)
     report_option.add_option(d)
