@@ -262,6 +262,14 @@ def _cmd_add(args: argparse.Namespace) -> int:
         res.extra["refit_from"] = refit
     res.save(args.out)
     print("\n".join(ladder_lines(ladder)))
+    from components.model.effects import effect_of
+
+    for p in res.values:   # what was added, as the result holds it
+        if effect_of(p).name in new:
+            unit, k = effect_of(p).display
+            sigma = res.sigmas.get(p, float("nan"))
+            print(f"{p:22s} {res.values[p] / k:+12.5g} ± {sigma / k:.3g} {unit}" if sigma == sigma else
+                  f"{p:22s} not determined by this log (held at 0)")
     print(f"-> {args.out}")
     if args.report:
         report_option.write(args.report, log, data, res, args.out, noise, baseline=model)
