@@ -111,8 +111,22 @@ class RoleCheck:
     def report(self) -> str:
         head = f"unit {self.unit} against role {self.role}: " + (
             "conforms" if self.ok else f"{len(self.problems)} problem(s)")
-        lines = [head] + [f"  - {p}" for p in self.problems] + [f"  note: {n}" for n in self.notes]
+        lines = [head] + [f"  - {p}" for p in self.problems] + [f"  note: {n}" for n in _merged(self.notes)]
         return "\n".join(lines)
+
+
+def _merged(notes: list[str]) -> list[str]:
+    """Notes that differ only in a vector's component ("gyro.x: ...", "gyro.y: ...") as one
+    ("gyro.x, gyro.y: ..."), in the order they first came."""
+    groups: dict[str, list[str]] = {}
+    for n in notes:
+        name, sep, text = n.partition(": ")
+        key = text if sep and "." in name else n
+        groups.setdefault(key, []).append(name if sep and "." in name else None)
+    out = []
+    for key, names in groups.items():
+        out.append(key if None in names else f"{', '.join(names)}: {key}")
+    return out
 
 
 def _conversion(rv: RoleVariable, v: VarInfo) -> tuple[float, float] | str:
