@@ -114,3 +114,11 @@ def test_verify_notes_an_aggregation_against_the_roles_output_kind(tmp_path, cap
     out = capsys.readouterr().out
     assert "aggregated by 'sum' (record.aggregate or --aggregate), but the unit's role declares them 'mean'" in out
     assert main(["verify", str(f), "--no-engine", "--aggregate", "imu.gyro=mean", "--aggregate", "imu.acc=mean"]) == 0
+
+
+def test_check_fmu_names_an_unknown_parameter_before_its_verdict(capsys):
+    """--parameter of a name the FMU lacks printed ACCEPTED, then failed at the interface cost
+    naming a TOML section nobody wrote ('units.imu.parameters') and an odd step."""
+    err = _err(capsys, ["check-fmu", str(fmu_path("imu", 2)), "--role", "imu", "--parameter", "gyro.noise.arww=0"])
+    assert "--parameter gyro.noise.arww: " in err and "has no parameter 'gyro.noise.arww' (did you mean gyro.noise.arw" in err
+    assert "ACCEPTED" not in capsys.readouterr().out

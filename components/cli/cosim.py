@@ -100,6 +100,27 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_parameters(fmu: str, parameters: dict) -> None:
+    """--parameter names the FMU's own parameters (a readable FMU: the checks below say if not)."""
+    import difflib
+    from pathlib import Path
+
+    from orchestrator.fmu_units import read_fmu_variables
+
+    if not parameters:
+        return
+    try:
+        variables = read_fmu_variables(fmu)
+    except Exception:   # not a readable FMU: check_fmu's validation names why
+        return
+    own = [n for n, v in variables.items() if v.causality in ("parameter", "structuralParameter")]
+    for name in parameters:
+        if name not in own:
+            close = difflib.get_close_matches(name, own, n=2)
+            raise UserError(f"--parameter {name}: {Path(fmu).name} has no parameter {name!r}"
+                            + (f" (did you mean {', '.join(close)}?)" if close else ""))
+
+
 def _signal_json(s) -> dict:
     """One signal of a verify report as numbers a CI script reads (NaN and infinity as null)."""
     import math
@@ -147,6 +168,7 @@ def _cmd_check_fmu(args: argparse.Namespace) -> int:
         from components.simulation.interface_cost import check_cost_inputs
 
         check_cost_inputs(args.step, args.grade, args.noise_fraction)
+        _check_parameters(args.fmu, parameters)
     verdict = check_fmu(args.fmu, args.role, mapping, options, args.step)
     print(verdict.report())
     json_option.record(args, fmu=str(args.fmu), role=args.role, accepted=bool(verdict.ok),
