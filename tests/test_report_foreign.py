@@ -45,11 +45,11 @@ def test_a_model_of_another_log_is_refitted_before_the_page(two_runs, capsys):
 def test_a_truth_of_another_run_of_the_same_schedule_is_refused(two_runs, capsys):
     d = two_runs
     truth = json.loads((d / "b.truth.json").read_text())
-    assert list(truth["log_files"]) == ["b.csv"]
+    assert list(truth["samples_sha256"]) == ["csv"]
     err_code = main(["report", str(d / "b"), "--model", str(d / "b_res.json"), "--truth", str(d / "a.truth.json"),
                      "--out", str(d / "t.html")])
     assert err_code == 2
-    assert "the truth of a.csv, not of" in capsys.readouterr().err
+    assert "the truth of another run's samples (csv " in capsys.readouterr().err
     assert main(["report", str(d / "b"), "--model", str(d / "b_res.json"), "--truth", str(d / "b.truth.json"),
                  "--out", str(d / "ok.html")]) == 0
 

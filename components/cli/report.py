@@ -42,19 +42,19 @@ def load_truth(path: str, log=None) -> dict:
 
 
 def _other_samples(truth: dict, log) -> str | None:
-    """The sample file *truth* records (name) when *log*'s samples are not it; None when they are
-    or when the truth records none (older truth files: the segment check below decides)."""
+    """What *truth* records of its samples when *log*'s are not them; None when they are or when
+    the truth records none (older truth files: the segment check below decides)."""
     from pathlib import Path
 
     from components.model.result import file_sha256
 
-    files = truth.get("log_files")
+    files = truth.get("samples_sha256")
     if not isinstance(files, dict) or not files or not log.source or not Path(log.source).exists():
         return None
     own = file_sha256(Path(log.source))
     if own in files.values():
         return None
-    return ", ".join(files)
+    return "another run's samples (" + ", ".join(f"{k} {v[:12]}" for k, v in files.items()) + ")"
 
 
 def _of_this_run(truth: dict, log) -> bool:

@@ -343,7 +343,9 @@ def write_outputs(result: RunResult, stem: str | Path, fmt: str = "csv") -> list
 
     # the truth names the samples it is the truth of (a truth file beside another run's log,
     # with the same schedule, is otherwise indistinguishable: report judged against it)
-    truth = {**result.truth, "log_files": {p.name: file_sha256(p) for p in paths if p.suffix in (".csv", ".parquet")}}
+    # (by format, not by name: the same run under another stem is the same truth, byte for byte)
+    truth = {**result.truth, "samples_sha256": {p.suffix[1:]: file_sha256(p) for p in paths
+                                                if p.suffix in (".csv", ".parquet")}}
     tp = Path(str(stem) + ".truth.json")
     tp.write_text(json.dumps(truth, indent=1) + "\n", encoding="utf-8")
     return paths + [tp]
