@@ -52,6 +52,14 @@ def test_a_truth_of_another_run_of_the_same_schedule_is_refused(two_runs, capsys
     assert "the truth of another run's samples (csv " in capsys.readouterr().err
     assert main(["report", str(d / "b"), "--model", str(d / "b_res.json"), "--truth", str(d / "b.truth.json"),
                  "--out", str(d / "ok.html")]) == 0
+    twin = json.loads((d / "ok.json").read_text())
+    # every fitted parameter against the truth, 0 where the scenario injected nothing
+    rows = {r["parameter"]: r for r in twin["truth_values"]}
+    res = CalibrationResult.load(d / "b_res.json")
+    assert set(res.values) <= set(rows)
+    for p in set(res.values) - set(truth["effects"]):
+        assert rows[p]["truth"] == 0.0
+    assert twin["provenance"]["truth"]["seed"] == 2 and len(twin["provenance"]["truth"]["sha256"]) == 64
 
 
 def test_the_pages_noise_model_has_the_white_noise(two_runs):

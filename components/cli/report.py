@@ -76,6 +76,19 @@ def _of_this_run(truth: dict, log) -> bool:
     return isinstance(stopped, (int, float)) and abs(stopped - length) <= 0.01 * max(stopped, length)
 
 
+def _truth_provenance(path: str | None) -> dict:
+    """The --truth file on the page's provenance: its path, SHA-256 and the run's seed."""
+    if not path:
+        return {}
+    import json
+    from pathlib import Path
+
+    from components.model.result import file_sha256
+
+    seed = json.loads(Path(path).read_text()).get("seed")
+    return {"truth": {"file": str(path), "sha256": file_sha256(Path(path)), "seed": seed}}
+
+
 def write(page: str, log, data, model, model_path: str | None, noise, **kw) -> None:
     from components.diagnosis.report_run import write_model_report
 
@@ -114,7 +127,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
         if frame != "table":
             print("truth: turned into the accelerometer-defined frame the result's misalignments are estimated in")
     write(args.out, log, data, model, args.model, noise, diagnose_models=args.diagnose,
-          identify=not args.no_noise, truth=truth, baseline=baseline, baseline_path=args.baseline)
+          identify=not args.no_noise, truth=truth, baseline=baseline, baseline_path=args.baseline,
+          truth_complete=True, extra_provenance=_truth_provenance(args.truth))
     return 0
 
 

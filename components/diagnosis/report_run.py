@@ -17,12 +17,17 @@ def model_name(model) -> str:
     return ladder[-1]["model"] if ladder else "+".join(model.effects)
 
 
-def truth_values(truth_effects: dict, model) -> list[dict]:
-    """Each effect of a known truth (parameter -> SI value) against the model's estimate, as
-    numbers (SI), for the page and for scripts reading its JSON twin: the truth, the model's value
-    and σ (None when not in the model) and the error in σ."""
+def truth_values(truth_effects: dict, model, complete: bool = False) -> list[dict]:
+    """Each effect of a known truth (parameter -> SI value), then, for a *complete* truth (a
+    simulation's, all it injected), each other parameter of the model (its truth 0), against the model's estimate, as numbers (SI), for the
+    page and for scripts reading its JSON twin: the truth, the model's value and σ (None when
+    not in the model) and the error in σ."""
     out = []
-    for p, v in truth_effects.items():
+    # a whole simulation's truth (*complete*): every parameter the model fitted too, what it did
+    # not inject being 0 (a fitted acc.mis.xz 2.1 σ off was left off the page)
+    rest = [q for q in model.values if q not in truth_effects] if complete else []
+    for p in list(truth_effects) + rest:
+        v = truth_effects.get(p, 0.0)
         val = model.values.get(p)
         s = model.sigmas.get(p, float("nan")) if val is not None else None
         z = (val - v) / s if val is not None and s and s > 0 else (float("nan") if val is not None else None)
@@ -72,11 +77,11 @@ def _provenance(log, models: dict) -> dict:
 def write_model_report(page: str | Path, log, data, model, *, model_path=None, noise=None, title: str | None = None,
                        diagnose_models: str = "after", identify: bool = True, truth: dict | None = None,
                        baseline=None, diagnoses: dict | None = None, extra_provenance: dict | None = None,
-                       baseline_path=None):
+                       baseline_path=None, truth_complete: bool = False):
     """Write the page for *model* on *log* (*data* its LogData). ``noise``: the noise model the
     rows are whitened with; ``diagnose_models``: "after", "both" or "none"; ``identify``: add the
     noise identification of the after-model's residual; ``truth``: parameter -> SI value of a
-    known truth; ``baseline``: the before-model (default: the ladder's first rung refitted),
+    known truth (``truth_complete``: all of a simulation's, the rest 0); ``baseline``: the before-model (default: the ladder's first rung refitted),
     ``baseline_path`` its file;
     ``diagnoses``: name -> an already computed diagnosis (not run again)."""
     from components.diagnosis.compare import compare
@@ -119,7 +124,7 @@ def write_model_report(page: str | Path, log, data, model, *, model_path=None, n
             ident = identify_noise(data, model, known=quantization_known(data), bootstrap=0)
         except ValueError:
             ident = None  # too few static runs to identify: the page says nothing about noise
-    numbers = truth_values(truth, model) if truth else None
+    numbers = truth_values(truth, model, truth_complete) if truth else None
     prov = _provenance(log, models)
     prov.update(extra_provenance or {})
     return build_report(page, title=title or f"calbench report: {log.source or 'log'}", views=views,
