@@ -281,3 +281,17 @@ def test_scenario_sets_and_records_the_flicker_range(tmp_path):
     assert not np.array_equal(with_flicker.log.acc, without.log.acc)
     with pytest.raises(ScenarioError, match="acc.noise.bi_tau_max.*1 parsec"):
         scenario({"acc.noise.bi_tau_max": "1 parsec"})
+
+
+def test_a_flicker_range_upside_down_is_refused():
+    """bi_tau_max at or below bi_tau: the IMU simulated one Gauss–Markov term of bi_tau instead of
+    the flicker floor asked for, and said nothing."""
+    import tomllib
+    from pathlib import Path
+
+    from components.simulation.scenario import scenario_from_dict
+
+    d = tomllib.loads((Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "six_position.toml").read_text())
+    d["imu"]["noise"].update({"gyro.noise.bi": "0.01 deg/h", "gyro.noise.bi_tau": 10.0, "gyro.noise.bi_tau_max": 5.0})
+    with pytest.raises(ScenarioError, match="bi_tau_max = 5 s is not above bi_tau = 10 s"):
+        scenario_from_dict(d, source="test")

@@ -229,6 +229,13 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
             imu_noise[k] = noise_value(k, v, f"{w}.noise")
         except QuantityError as e:
             raise ScenarioError(str(e)) from None
+    for sensor in ("gyro", "acc"):
+        lo, hi = imu_noise.get(f"{sensor}.noise.bi_tau", 100.0), imu_noise.get(f"{sensor}.noise.bi_tau_max", 0.0)
+        if hi and hi <= lo:
+            # (the IMU then simulates one Gauss–Markov term of bi_tau, not the flicker floor asked for)
+            raise ScenarioError(f"{w}.noise: {sensor}.noise.bi_tau_max = {hi:g} s is not above bi_tau = {lo:g} s: the "
+                                "flicker floor spans bi_tau to bi_tau_max (leave bi_tau_max out for one Gauss–Markov "
+                                "term of bi_tau)")
     imu_params = {k: _param(v, k, f"{w}.parameters") for k, v in _table(im, "parameters", w).items()}
     if "seed" in imu_params:
         raise ScenarioError(f"{w}.parameters: seed: give the seed as [scenario] seed")
