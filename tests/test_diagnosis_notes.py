@@ -122,3 +122,16 @@ def test_the_candidates_below_the_top_are_named(incomplete, conformance, capsys)
     line = next(x for x in out.splitlines() if "more below" in x)
     assert f"{len(d.ranking) - 3} more below" in line and f"--top {len(d.ranking)}" in line
     assert all(c.effect in line for c in d.ranking[3:])
+
+
+def test_effects_named_in_turn_are_not_also_listed_as_not_the_verdict(incomplete):
+    """"in turn: gyro.sf_asym, acc.k2" then "not the verdict: also significant: acc.k2" said two
+    things of one effect: the ones found in turn are named once."""
+    d, _ = incomplete
+    assert len(d.found) > 1
+    lines = verdict_lines(d)
+    other = next((x for x in lines if "are not the verdict" in x), "")
+    import re
+
+    listed = set(re.findall(r"\b[a-z0-9]+\.[a-z0-9_]+\b", other.split("not the verdict", 1)[-1]))
+    assert not listed & set(d.found), (d.found, other)

@@ -196,7 +196,8 @@ def verdict_lines(d) -> list[str]:
         lines.append(f"   the effects were ranked under a noise model this log shows too simple ({', '.join(late)} found "
                      "after them): rank them again with the noise identified (--noise identify, or add "
                      f"{late[0]} first) before taking the order of look-alikes as found")
-    others = [c for c in d.ranking if c.p_adjusted < d.alpha and c.status != "verdict"]
+    # (the ones named in turn after the verdict are named above: not listed again as "not the verdict")
+    others = [c for c in d.ranking if c.p_adjusted < d.alpha and c.status != "verdict" and c.effect not in d.found]
     if others:
         by = {}
         for c in others:
