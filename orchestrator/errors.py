@@ -46,7 +46,11 @@ class SimulationFault(OrchestratorError):
     def __init__(self, message: str, recording, saved=None):
         self.recording = recording
         self.saved = saved
-        super().__init__(message + (f"\n(partial results saved to {saved})" if saved else ""))
+        rows = getattr(recording, "rows", None)
+        # the initial values alone are no result: said so, not as "partial results"
+        what = (f"the initial values only (no step completed) saved to {saved}" if rows is not None and rows <= 1
+                else f"partial results saved to {saved}")
+        super().__init__(message + (f"\n({what})" if saved else ""))
 
 
 class NativeSpanFault(OrchestratorError):
