@@ -229,6 +229,7 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
     schmidt = m > m_est
     # each slow state's column of the navigation errors' input: its channel's (a bias of it)
     slow_channel = np.array([x.channel for x in slow], int)
+    slow_transitions: dict = {}   # samples in an interval -> the slow states' (φ, var w)
     H = np.zeros((nz, n))
     H[0:3, 3:6] = np.eye(3)
     R = np.eye(nz) * r * r
@@ -297,9 +298,13 @@ def run_filter(gyro: np.ndarray, acc: np.ndarray, dt: float, site: Site, C0: np.
         Q[:9, :9] = Qacc
         if slow:
             Phi[:9, ns] = Bnoise[:, slow_channel]
-            interval = (k - k_start) * dt
-            for j, x in enumerate(slow):
-                Phi[ns.start + j, ns.start + j], Q[ns.start + j, ns.start + j] = x.transition(interval)
+            # every interval but a short last one has the same samples: its (φ, var w) once
+            n_k = k - k_start
+            if n_k not in slow_transitions:
+                slow_transitions[n_k] = np.array([x.transition(n_k * dt) for x in slow]).T
+            phi_s, q_s = slow_transitions[n_k]
+            Phi[ns, ns] = np.diag(phi_s)
+            Q[ns, ns] = np.diag(q_s)
         kf.predict(F=Phi, Q=Q)
         predictions += 1
         P_prior = kf.P.copy() if store is not None else None
