@@ -224,10 +224,8 @@ def _parse_v2(meta: dict, out: dict, where: str) -> dict:
         from components.model.noise import NoiseModel
 
         try:
-            if not isinstance(noise, dict) or not isinstance(noise.get("channels"), dict):
-                raise TypeError("no 'channels' object")
-            NoiseModel.from_dict(noise)
-        except (TypeError, KeyError, ValueError) as e:
+            NoiseModel.from_dict(noise)   # (it names what is missing or wrong, key by key)
+        except ValueError as e:
             raise LogFormatError(f"{where}: key 'imu.noise': {e}; expected a calbench-noise/1 model (its "
                                  "'channels' block, as `calbench noise --out` writes)") from None
     v2["noise"] = noise
