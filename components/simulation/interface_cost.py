@@ -36,6 +36,7 @@ import numpy as np
 
 from components.errors import UserError
 from components.model.noise import grade as noise_grade
+from fmus.turntable import CONTROL_RATE_HZ
 from orchestrator.errors import OrchestratorError
 from orchestrator.fmu_units import load_fmu_unit
 from orchestrator.master import simulate
@@ -43,7 +44,7 @@ from orchestrator.roles import check_unit, get_role
 from orchestrator.system import Connection, System, UnitSpec
 from orchestrator.verify import on_grid
 
-SERVO_PERIOD = 0.0005            # the builtin turntable's controller period (2 kHz) [s]
+SERVO_PERIOD = 1.0 / CONTROL_RATE_HZ  # the builtin turntable's controller period [s]
 STEPS_TRIED = (0.002, 0.005, 0.01, 0.02)
 AT_REST = 0.5                    # the last 0.5 s: the table has settled
 ROUNDING = 1e-10                 # a difference at rest below this share of the output is rounding

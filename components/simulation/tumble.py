@@ -85,8 +85,9 @@ def run_tumble(seed: int = 1, dwell: float = 10.0, step: float = 0.005,
     """Exit status 0 when every attitude's IMU output matches truth + injected errors within 5 σ of
     the dwell mean's noise; *summary* (when given) receives the per-attitude figures for --json."""
     from components.errors import UserError
-    from components.simulation.interface_cost import SERVO_PERIOD
+    from fmus.turntable import CONTROL_RATE_HZ
 
+    SERVO_PERIOD = 1.0 / CONTROL_RATE_HZ
     multiple = step / SERVO_PERIOD
     if abs(multiple - round(multiple)) > 1e-9 * multiple or round(multiple) < 1:
         raise UserError(f"--step {step:g}: the turntable's servo runs every {SERVO_PERIOD * 1e3:g} ms, so the step "

@@ -17,12 +17,13 @@ import math
 import control
 import numpy as np
 
+from fmus.turntable import CONTROL_RATE_HZ
+
 # What the default gains are designed for (variables.py makes them the FMU's defaults): motor +
 # load inertia [kg m2] and viscous friction [N m s/rad] of a mid-size three-axis test table, per
 # axis, outer first; the controller rate and the loop's targets.
 DEFAULT_INERTIA = {"outer": 12.0, "middle": 5.0, "inner": 1.5}
 DEFAULT_VISCOUS = {"outer": 0.8, "middle": 0.4, "inner": 0.15}
-CONTROL_RATE_HZ = 2000.0
 BANDWIDTH_HZ = 20.0
 PHASE_MARGIN_DEG = 50.0
 
