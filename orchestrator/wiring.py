@@ -83,11 +83,8 @@ def expand_connections(system: System, units: dict[str, Unit],
             if dv.causality != "input":
                 raise SystemError_(f"{where}: {tu}.{d.var} is a {dv.causality}, not an input")
             _check_types(where, f"{su}.{s.var}", sv, f"{tu}.{d.var}", dv)
-            if s.name == s.var and d.name == d.var:
-                _check_units(where, f"{su}.{s.var}", sv, f"{tu}.{d.var}", dv, c.derivative_order)
-            else:  # a role binding converts its end into the role's unit; the dimensions must agree
-                _check_role_units(where, (f"{su}.{s.name}", sv, _binding(bindings, su, s)),
-                                  (f"{tu}.{d.name}", dv, _binding(bindings, tu, d)), c.derivative_order)
+            _check_units(where, (f"{su}.{s.name}", sv, _binding(bindings, su, s)),
+                         (f"{tu}.{d.name}", dv, _binding(bindings, tu, d)), c.derivative_order)
             if c.derivative_order and (dv.type != "Real" or not units[tu].can_interpolate_inputs):
                 raise SystemError_(f"{where}: unit {tu} cannot take input derivatives "
                                    "(canInterpolateInputs is false)")
@@ -111,36 +108,21 @@ def _check_types(where: str, src: str, sv, dst: str, dv) -> None:
             "Integer <-> Enumeration)")
 
 
-def _check_units(where: str, src: str, sv, dst: str, dv, derivative_order: int = 0) -> None:
-    """Both ends declare a unit definition: the same dimension and scale (a k-th derivative:
-    the target's unit per s^k), or refused (the exchange does not convert between an FMU's own
-    units)."""
-    if sv.base_exponents is None or dv.base_exponents is None:
-        return
-    expected = list(dv.base_exponents)
-    expected[2] -= derivative_order  # the exponent of s (orchestrator.fmu_units._BASE)
-    offsets_match = derivative_order or sv.unit_offset == dv.unit_offset
-    if list(sv.base_exponents) != expected or sv.unit_factor != dv.unit_factor or not offsets_match:
-        what = f"the derivative {derivative_order} of {dst}" if derivative_order else dst
-        raise SystemError_(f"{where}: {src} is in {sv.unit} but {what} is in {dv.unit}"
-                           f"{'/s' + str(derivative_order) if derivative_order else ''}; "
-                           "connected variables need the same unit")
-
-
 def _binding(bindings: dict, unit: str, e: Endpoint) -> Binding | None:
     if e.name == e.var:
         return None
     return bindings.get(unit, {}).get(e.name.split("[")[0])
 
 
-def _unit_of(var, binding: Binding | None):
+def _unit_of(var, binding: Binding | None, parse: bool):
     """(unit text, base exponents, factor, offset) of what an end puts into or takes from the
-    exchange: a role binding's role unit, else the variable's declared unit; None if unknown."""
+    exchange: a role binding's role unit, else the variable's declared unit definition, else
+    (*parse*) its unit text read as SI; None if unknown."""
     from orchestrator import si
 
-    text = binding.role_unit if binding is not None else var.unit
     if binding is None and var.base_exponents is not None:
         return var.unit, tuple(var.base_exponents), var.unit_factor, var.unit_offset
+    text = binding.role_unit if binding is not None else (var.unit if parse else None)
     if not text:
         return None
     try:
@@ -150,26 +132,33 @@ def _unit_of(var, binding: Binding | None):
     return text, tuple(exps), factor, offset
 
 
-def _check_role_units(where: str, src: tuple, dst: tuple, derivative_order: int = 0) -> None:
-    """A connection with a role name at one end or both: what the source puts into the exchange
-    (its role unit, or its own declared unit) must be what the target takes (a specific force
-    wired into a rate input ran, the gyro reading 9.8 rad/s)."""
+def _check_units(where: str, src: tuple, dst: tuple, derivative_order: int = 0) -> None:
+    """What the source end puts into the exchange must be what the target end takes: the same
+    dimension and scale (a k-th derivative: the target's unit per s^k). *src*, *dst*: (name,
+    variable, its role binding or None). Between two ends by the FMUs' own names only declared
+    unit definitions are compared (the exchange does not convert between an FMU's own units);
+    an end by role name is in its role's unit (a specific force wired into a rate input ran,
+    the gyro reading 9.8 rad/s)."""
     (sname, sv, sb), (dname, dv, db) = src, dst
-    su, du = _unit_of(sv, sb), _unit_of(dv, db)
+    direct = sb is None and db is None
+    su, du = _unit_of(sv, sb, not direct), _unit_of(dv, db, not direct)
     if su is None or du is None:
         return
     expected = list(du[1])
-    expected[2] -= derivative_order
+    expected[2] -= derivative_order  # the exponent of s (orchestrator.fmu_units._BASE)
     same = list(su[1]) == expected and math.isclose(su[2], du[2], rel_tol=1e-12) \
         and (derivative_order or math.isclose(su[3], du[3], rel_tol=1e-12, abs_tol=1e-12))
-    if not same:
-        hint = ""
-        if list(su[1]) == expected:   # the same quantity in another scale: the direct end's own
-            hint = "; connect both ends by role name to have them converted"
-        what = f"the derivative {derivative_order} of {dname}" if derivative_order else dname
-        raise SystemError_(f"{where}: {sname} is in {su[0]} but {what} takes {du[0]}"
-                           f"{'/s' + str(derivative_order) if derivative_order else ''}{hint}; "
-                           "connected variables need the same quantity and unit")
+    if same:
+        return
+    what = f"the derivative {derivative_order} of {dname}" if derivative_order else dname
+    per = f"/s{derivative_order}" if derivative_order else ""
+    if direct:
+        raise SystemError_(f"{where}: {sname} is in {su[0]} but {what} is in {du[0]}{per}; "
+                           "connected variables need the same unit")
+    # the same quantity in another scale: a direct end's own
+    hint = "; connect both ends by role name to have them converted" if list(su[1]) == expected else ""
+    raise SystemError_(f"{where}: {sname} is in {su[0]} but {what} takes {du[0]}{per}{hint}; "
+                       "connected variables need the same quantity and unit")
 
 
 def strongly_connected(nodes: list[str], edges: dict[str, list[str]]) -> list[list[str]]:
