@@ -468,3 +468,20 @@ def test_the_time_checks_name_the_first_offending_row_across_pieces(ideal, tmp_p
                 r"sample 5001, column 'time': interval 0\.50[45]\d* s .*expected 1/sample_rate_hz")
     with pytest.raises(LogFormatError, match=expected):
         write_log(tmp_path / "x", bad)
+
+
+def test_a_files_hash_is_read_again_only_when_the_file_changed(tmp_path):
+    """The hash is memoised by size and modification time: the same bytes give the digest
+    hashlib gives, and a rewritten file its new digest."""
+    import hashlib
+    import os
+
+    from orchestrator.units import sha256_file
+
+    f = tmp_path / "x.bin"
+    f.write_bytes(b"a" * 1000)
+    assert sha256_file(f) == hashlib.sha256(b"a" * 1000).hexdigest() == sha256_file(f)
+    f.write_bytes(b"b" * 1001)
+    st = os.stat(f)
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 1))
+    assert sha256_file(f) == hashlib.sha256(b"b" * 1001).hexdigest()
