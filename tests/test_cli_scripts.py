@@ -179,3 +179,33 @@ def test_tumble_json_residuals_are_noise(capsys):
                 for a in doc["attitudes"].values())
     assert worst == pytest.approx(doc["largest_residual_sigma"], rel=1e-9) and worst < 5
     assert f"largest residual {worst:.2f} sigma" in text
+
+
+def test_a_warning_of_another_kind_is_passed_on_once(monkeypatch, capsys):
+    """A library's warning that is not numerical (Dask's "port 8787 is already in use" when two
+    campaigns start at once) reaches the caller once, and main returns. It was re-emitted inside
+    the block that records warnings, onto the list being walked: main never returned (found as a
+    test-suite hang when two workers ran campaigns side by side)."""
+    import threading
+    import warnings
+
+    from components.cli import cosim
+
+    def warns(args):
+        warnings.warn("Port 8787 is already in use", UserWarning)
+        return 0
+
+    monkeypatch.setattr(cosim, "_cmd_tumble", warns)
+    outcome = {}
+
+    def run():
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            outcome["code"] = main(["tumble"])
+        outcome["seen"] = [str(w.message) for w in seen]
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(20.0)
+    assert not t.is_alive(), "main did not return after a UserWarning"
+    assert outcome["code"] == 0 and outcome["seen"] == ["Port 8787 is already in use"]

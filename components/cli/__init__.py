@@ -64,35 +64,45 @@ def main(argv: list[str] | None = None) -> int:
     # long computations show a bar on a terminal (after two seconds), never in a pipe or a file
     progress.enable(sys.stderr.isatty() and not getattr(args, "quiet", False))
     stdout = sys.stdout
-    with warnings.catch_warnings(record=True) as caught, json_option.redirect_text(args):
-        # numpy's and scipy's warnings are calbench's to handle: a user sees one line each, said
-        # as what it is, never a raw stack of them
-        warnings.simplefilter("always", RuntimeWarning)
-        code, error = None, None  # stays None on a bug: no JSON then, the traceback speaks
-        try:
-            code = args.func(args)
-            return code
-        except COULD_NOT_RUN as e:
-            code, error = json_option.COULD_NOT_RUN, str(e)
-            print(f"calbench: error: could not run: {e}", file=sys.stderr)
-            return code
-        except BAD_INPUT as e:
-            code, error = json_option.BAD_INPUT, str(e)
-            print(f"calbench: error: {e}", file=sys.stderr)
-            return code
-        finally:
-            if code is not None:
-                json_option.write(args, code, stdout, error)
-            seen = set()
-            for w in caught:
-                if issubclass(w.category, RuntimeWarning) and str(w.message) not in seen:
-                    seen.add(str(w.message))
-                    print(f"calbench: warning: a numerical step warned ({w.message}, in "
-                          f"{w.filename.rsplit('/', 1)[-1]}:{w.lineno}); the results above may be affected: please "
-                          "report it with the input", file=sys.stderr)
-                elif not issubclass(w.category, RuntimeWarning):
-                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    caught: list = []
+    try:
+        with warnings.catch_warnings(record=True) as caught, json_option.redirect_text(args):
+            # numpy's and scipy's warnings are calbench's to handle: a user sees one line each, said
+            # as what it is, never a raw stack of them
+            warnings.simplefilter("always", RuntimeWarning)
+            code, error = None, None  # stays None on a bug: no JSON then, the traceback speaks
+            try:
+                code = args.func(args)
+                return code
+            except COULD_NOT_RUN as e:
+                code, error = json_option.COULD_NOT_RUN, str(e)
+                print(f"calbench: error: could not run: {e}", file=sys.stderr)
+                return code
+            except BAD_INPUT as e:
+                code, error = json_option.BAD_INPUT, str(e)
+                print(f"calbench: error: {e}", file=sys.stderr)
+                return code
+            finally:
+                if code is not None:
+                    json_option.write(args, code, stdout, error)
+    finally:
+        # after the recording block: a warning passed on inside it would be recorded again, onto
+        # the list being walked (a loop without end)
+        _pass_on(caught)
 
+
+def _pass_on(caught: list) -> None:
+    """Each numerical warning as one line of calbench's; any other warning to the caller's filters."""
+    seen = set()
+    for w in caught:
+        if issubclass(w.category, RuntimeWarning):
+            if str(w.message) not in seen:
+                seen.add(str(w.message))
+                print(f"calbench: warning: a numerical step warned ({w.message}, in "
+                      f"{w.filename.rsplit('/', 1)[-1]}:{w.lineno}); the results above may be affected: please "
+                      "report it with the input", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 if __name__ == "__main__":
     sys.exit(main())
