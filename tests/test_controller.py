@@ -233,6 +233,9 @@ def test_simulate_cli_writes_log_and_truth(tmp_path):
     assert len(truth["imu"]["sha256"]) == 64 and len(truth["turntable"]["sha256"]) == 64
     assert truth["schedule"]["parameters"]["dwell"] == 0.5
     assert [a["name"] for a in truth["geometry"]["axes"]] == list(AXES)
+    # the site as the log states it: normal gravity is null in both (the scenario's 0 means it)
+    assert truth["site"] == {"latitude_deg": log.latitude_deg, "height_m": log.height_m,
+                             "gravity_mps2": log.gravity_mps2} and log.gravity_mps2 is None
     # same seed -> bit-identical files; another seed -> other noise
     assert main(["simulate", src, "--out", str(tmp_path / "b"), "--dwell", "0.5"]) == 0
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()

@@ -314,7 +314,8 @@ def truth_of(sc: Scenario, ctrl: CalibrationController, info: dict, rec) -> dict
         "turntable": {"fmu": str(info["table_path"]), "sha256": file_sha256(info["table_path"]),
                       "parameters": info["table_parameters"], "counts_per_rev": info["counts_per_rev"],
                       "acc_max_rps2": info["acc_max"]},
-        "site": dict(sc.site),
+        # as the log states it: the scenario's 0 (normal gravity) is the log's null
+        "site": {**sc.site, "gravity_mps2": sc.site["gravity_mps2"] or None},
         "geometry": {"axes": [{"name": a, "axis": info["geometry"][a]} for a in sc.table_axes],
                      "base_tilt_rad": [info["table_parameters"].get("base.tilt.x", 0.0),
                                        info["table_parameters"].get("base.tilt.y", 0.0)],
