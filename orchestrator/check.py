@@ -35,6 +35,8 @@ class FmuVerdict:
     smoke: list[str] = field(default_factory=list)  # problems found by the dynamic test
     smoke_notes: list[str] = field(default_factory=list)
     cannot_run: str | None = None  # why the orchestrator cannot run this (valid) FMU
+    step: float | None = None  # the smoke test's communication step [s]
+    step_source: str = ""
 
     @property
     def ok(self) -> bool:
@@ -51,7 +53,8 @@ class FmuVerdict:
             return "\n".join(lines)
         if self.role_check is not None:
             lines.append(self.role_check.report())
-        lines.append("dynamic smoke test: " + ("passed" if not self.smoke else "FAILED"))
+        lines.append("dynamic smoke test: " + ("passed" if not self.smoke else "FAILED")
+                     + (f" (step {self.step:g} s: {self.step_source})" if self.step is not None else ""))
         lines += [f"  - {p}" for p in self.smoke] + [f"  note: {n}" for n in self.smoke_notes]
         lines.append("verdict: " + ("ACCEPTED" if self.ok else "REFUSED"))
         return "\n".join(lines)
@@ -79,8 +82,28 @@ def unsupported_reason(md) -> str | None:
             + "; ".join(why[k] for k in offered))
 
 
+# the smoke test's step when neither the user nor the FMU's DefaultExperiment gives one [s]
+SMOKE_STEP = 0.005
+
+
+def default_step(md) -> tuple[float, str]:
+    """The smoke test's step [s] for model description *md* and where it comes from: the FMU's
+    DefaultExperiment stepSize (its maker's choice: a model may refuse other steps), else
+    :data:`SMOKE_STEP`."""
+    exp = getattr(md, "defaultExperiment", None)
+    try:
+        h = float(exp.stepSize) if exp is not None and exp.stepSize is not None else None
+    except (TypeError, ValueError):
+        h = None
+    if h is not None and math.isfinite(h) and h > 0:
+        return h, "the FMU's DefaultExperiment"
+    return SMOKE_STEP, "calbench's default: the FMU states no DefaultExperiment step"
+
+
 def check_fmu(path: str | Path, role: str | None = None, mapping: dict | None = None,
-              role_options: dict | None = None, step: float = 0.005) -> FmuVerdict:
+              role_options: dict | None = None, step: float | None = None) -> FmuVerdict:
+    """Validate, check against *role*, smoke-test at *step* [s] (None: the FMU's DefaultExperiment
+    step, else :data:`SMOKE_STEP`)."""
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
 
@@ -108,7 +131,8 @@ def check_fmu(path: str | Path, role: str | None = None, mapping: dict | None = 
             verdict.smoke.append(str(e))
             return verdict
         verdict.role_check = check_unit(unit, role_def, mapping)
-    _smoke(Path(path), md, step, verdict)
+    verdict.step, verdict.step_source = (step, "given") if step is not None else default_step(md)
+    _smoke(Path(path), md, verdict.step, verdict)
     return verdict
 
 

@@ -69,3 +69,19 @@ def test_a_failing_step_is_refused_with_the_fmus_own_message(tmp_path, capsys):
     (problem,) = verdict.smoke
     assert "fmi2DoStep" in problem and "deliberate failure: step from t = 0 reached fail_time = 0" in problem
     assert capsys.readouterr().out == ""  # the FMU's log is in the verdict, not printed on the side
+
+
+def test_the_smoke_test_steps_at_the_fmus_default_experiment_step(tmp_path):
+    """An FMU whose maker states a DefaultExperiment step is smoke-tested at it, unless a step is
+    given: the failing FMU, failing from t = 4 ms on, runs steps that start at 0 and at one step,
+    so it passes at a stated 2 ms and fails at 5 ms (calbench stepped at 5 ms whatever was stated)."""
+    src = fmu_path(HERE / "failing", 2)
+    fails_at_4ms = _rewrite(src, tmp_path / "a.fmu", '<Real unit="s" start="1e+300"/>', '<Real unit="s" start="0.004"/>')
+    unstated = _rewrite(fails_at_4ms, tmp_path / "c.fmu", '<DefaultExperiment startTime="0" stopTime="1" stepSize="0.005"/>', "")
+    assert not check_fmu(unstated).ok and "calbench's default" in check_fmu(unstated).report()
+    stated = _rewrite(fails_at_4ms, tmp_path / "b.fmu", 'stepSize="0.005"', 'stepSize="0.002"')
+    verdict = check_fmu(stated)
+    assert verdict.ok, verdict.report()
+    assert "step 0.002 s: the FMU's DefaultExperiment" in verdict.report()
+    forced = check_fmu(stated, step=0.005)
+    assert not forced.ok and "step 0.005 s: given" in forced.report()

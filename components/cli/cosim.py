@@ -12,6 +12,9 @@ from components.errors import UserError
 # verify's exit codes beyond the shared 0 (fine) and 2 (bad input)
 VERIFY_OUT_OF_TOLERANCE = 1
 VERIFY_COULD_NOT_RUN = 3
+# check-fmu's interface cost step [s] when --step is not given: the built-in turntable's grid
+# (a whole number of its servo periods), whatever the candidate's DefaultExperiment says
+COST_STEP = 0.005
 
 
 def _cmd_build_fmus(args: argparse.Namespace) -> int:
@@ -167,7 +170,7 @@ def _cmd_check_fmu(args: argparse.Namespace) -> int:
         # the interface cost's options, before the checks print a verdict
         from components.simulation.interface_cost import check_cost_inputs
 
-        check_cost_inputs(args.step, args.grade, args.noise_fraction)
+        check_cost_inputs(args.step or COST_STEP, args.grade, args.noise_fraction)
         _check_parameters(args.fmu, parameters)
     verdict = check_fmu(args.fmu, args.role, mapping, options, args.step)
     print(verdict.report())
@@ -177,7 +180,8 @@ def _cmd_check_fmu(args: argparse.Namespace) -> int:
     if args.role == "imu" and verdict.ok and not args.no_cost:
         from components.simulation.interface_cost import interface_cost
 
-        cost = interface_cost(args.fmu, mapping, options, parameters, args.step, args.grade, args.noise_fraction)
+        cost = interface_cost(args.fmu, mapping, options, parameters, args.step or COST_STEP, args.grade,
+                              args.noise_fraction)
         print(cost.report())
         json_option.record(args, interface_cost=cost.report())
     return 0 if verdict.ok else 1
@@ -210,8 +214,9 @@ def register(sub) -> None:
                    help="map a role variable onto the FMU's own name (repeatable)")
     c.add_argument("--option", action="append", metavar="KEY=VALUE",
                    help="role option, e.g. gyro_output=rate (imu) (repeatable)")
-    c.add_argument("--step", type=positive, default=0.005,
-                   help="communication step of the smoke test and the interface cost [s]")
+    c.add_argument("--step", type=positive,
+                   help="communication step of the smoke test and the interface cost [s] (default: the "
+                        f"smoke test at the FMU's DefaultExperiment step, else {COST_STEP}; the cost at {COST_STEP})")
     c.add_argument("--parameter", action="append", metavar="NAME=NUMBER",
                    help="a parameter for the interface cost, in the FMU's own name and unit (e.g. "
                         "its noise set to 0) (repeatable)")
