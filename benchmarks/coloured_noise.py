@@ -57,6 +57,8 @@ from scipy import stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from pulse_counts import PulseLogger  # noqa: E402  (beside this script)
+
 from components.cli.demo import SCENARIO  # noqa: E402
 from components.diagnosis.compare import compare  # noqa: E402
 from components.diagnosis.diagnose import diagnose  # noqa: E402
@@ -118,10 +120,8 @@ def as_pulse_counts(log, weights: dict, seed: int):
     rng = np.random.default_rng(seed)
     for sensor in ("gyro", "acc"):
         w = weights[sensor]
-        inc = getattr(log, sensor)
-        start = rng.random(3) * w
-        total = np.floor((np.cumsum(inc, axis=0) + start) / w)
-        setattr(log, sensor, np.diff(total, axis=0, prepend=np.floor(start / w)[None, :]))
+        logger = PulseLogger(w, rng.random(3) * w)
+        setattr(log, sensor, logger.counts(getattr(log, sensor)).astype(float))
         setattr(log, f"{sensor}_output", "counts")
     log.gyro_count_rad, log.acc_count_mps = weights["gyro"], weights["acc"]
     return log

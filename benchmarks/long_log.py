@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import math
 import os
 import subprocess
 import sys
@@ -126,23 +125,18 @@ def as_pulse_counts(log: Path, stem: Path, gyro_count_rad: float, acc_count_mps:
     import numpy as np
     import pyarrow as pa
     import pyarrow.parquet as pq
+    from pulse_counts import PulseLogger
 
     weights = {"gyro": gyro_count_rad, "acc": acc_count_mps}
     rng = np.random.default_rng(7)
-    total = {f"{s}_{c}": rng.random() * weights[s] for s in weights for c in "xyz"}   # running sums
-    floor = {k: math.floor(v / weights[k[:-2]]) for k, v in total.items()}           # their whole counts
+    loggers = {f"{s}_{c}": PulseLogger(weights[s], rng.random() * weights[s]) for s in weights for c in "xyz"}
     pf = pq.ParquetFile(log)
     writer = None
     try:
         for i in range(pf.num_row_groups):
             table = pf.read_row_group(i)
-            for name, carry in total.items():
-                w = weights[name[:-2]]
-                sums = np.cumsum(np.concatenate([[carry], table.column(name).to_numpy()]))
-                whole = np.floor(sums / w)
-                whole[0] = floor[name]
-                total[name], floor[name] = float(sums[-1]), float(whole[-1])
-                counts = pa.array(np.diff(whole).astype(np.int64))
+            for name, logger in loggers.items():
+                counts = pa.array(logger.counts(table.column(name).to_numpy()))
                 table = table.set_column(table.schema.get_field_index(name), name, counts)
             if writer is None:
                 writer = pq.ParquetWriter(stem.with_suffix(".parquet"), table.schema)
