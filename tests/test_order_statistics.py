@@ -56,3 +56,17 @@ def test_the_bracket_is_what_answers_a_long_array(monkeypatch):
     values = np.random.default_rng(5).standard_normal(N)
     assert median(values) == real(values)
     assert calls == []
+
+
+@pytest.mark.parametrize("name,values", list(_arrays()), ids=[n for n, _ in _arrays()])
+def test_the_median_of_pieces_is_numpys_whatever_the_cuts_and_the_sample(name, values):
+    """The values in uneven pieces, never joined (unless the bracket misses): np.median's value,
+    with the strided sample and with a sample of only the lowest values (a bracket off the middle)."""
+    from components.estimation.order_statistics import median_of_pieces, stride
+
+    cuts = np.sort(np.random.default_rng(5).choice(np.arange(1, len(values)), 40, replace=False))
+    parts = np.split(values, cuts)
+    expected = np.median(values)
+    for sample in (values[::stride(len(values))], np.sort(values)[:SAMPLE]):
+        got = median_of_pieces(lambda: iter(parts), len(values), sample)
+        assert got == expected, (name, got, expected)

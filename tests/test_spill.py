@@ -57,10 +57,30 @@ def _bits(a):
 
 def test_the_spilled_columns_are_the_same_bits(pair):
     memory, spilled = pair
-    assert spill.is_spilled(spilled.gyro) and spill.is_spilled(spilled.acc) and spill.is_spilled(spilled.temperature)
-    assert not spill.is_spilled(memory.gyro)
+    for k in ("time", "angles", "gyro", "acc", "temperature"):
+        assert spill.is_spilled(getattr(spilled, k)) and not spill.is_spilled(getattr(memory, k)), k
     for k in ("time", "angles", "gyro", "acc", "temperature"):
         assert np.array_equal(_bits(getattr(memory, k)), _bits(getattr(spilled, k))), k
+
+
+def test_the_medians_a_piece_at_a_time_are_numpys(pair, monkeypatch):
+    """The white-noise σ (a median absolute deviation of the static differences) and the median
+    interval, taken a piece at a time from the spilled log (never its differences whole), equal
+    numpy's on the differences made whole, bit for bit."""
+    from components.estimation import order_statistics
+    from components.estimation.blocks import white_noise_sigma
+
+    monkeypatch.setattr(order_statistics, "DIRECT_BELOW", 1000)  # the pieces' path on this short log
+    monkeypatch.setattr(spill, "PIECE", 3000)
+    _, spilled = pair
+    t = np.asarray(spilled.time)
+    both = spilled.static[1:] & spilled.static[:-1]
+    for inc in (spilled.gyro, spilled.acc):
+        d = np.diff(np.asarray(inc), axis=0)[both]
+        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+        assert np.array_equal(white_noise_sigma(inc, spilled.static), 1.4826 * mad / np.sqrt(2))
+    assert spilled.interval_median() == np.median(np.diff(t))
+    assert spilled.interval_median(first=0.5) == np.median(np.concatenate([[0.5], np.diff(t)]))
 
 
 def test_estimates_comparison_and_diagnosis_equal_in_memory(pair):

@@ -62,6 +62,7 @@ def read(args, *, say: bool = True, commands: bool = False):
     # script's JSON on stdout stays whole), before a fit that would converge on nonsense
     for line in check_semantics(data, log):
         print(f"calbench: warning: {line}", file=sys.stderr)
+    data.release()  # the pages these whole-log checks touched (a spilled log: components.logs.spill)
     return log, data
 
 

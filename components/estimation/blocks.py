@@ -11,12 +11,13 @@ accelerometer rows are short chunks everywhere. Static chunks keep time resoluti
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from components.estimation import order_statistics
 from components.logs import spill
-from components.logs.spill import is_spilled, pieces, release
+from components.logs.spill import gathered, is_spilled, pieces, release
 from components.model.approach import moving_runs
 
 
@@ -136,18 +137,33 @@ def restrict(blocks: Blocks, valid: np.ndarray) -> Blocks:
     return Blocks(np.array(starts, int), np.array(stops, int), np.array(moving, bool), blocks.whole_moves)
 
 
-def _jerk_near(angles: np.ndarray) -> np.ndarray:
-    """See :func:`_jerk_near_of`; a long log a piece at a time (its work arrays are 40 bytes a
-    sample), each piece with a margin of 8 samples either side, so the same bits come out."""
-    n = len(angles)
-    if n <= 2 * spill.PIECE:
-        return _jerk_near_of(angles)
-    out = np.empty(n + 1)
-    for ka in range(0, n + 1, spill.PIECE):
-        kb = min(ka + spill.PIECE, n + 1)
-        lo, hi = max(ka - 8, 0), min(kb + 8, n)
-        out[ka:kb] = _jerk_near_of(angles[lo:hi])[ka - lo:kb - lo]
-    return out
+class _JerkNear:
+    """:func:`_jerk_near_of` of a log's angles, computed where it is asked for (the block
+    boundaries tried inside moves; the whole log's was an (N+1,) array, 8 bytes a sample, and a
+    pass over every angle), from the angles around them with a margin of 8 samples either side:
+    the same bits as the whole log's."""
+
+    def __init__(self, angles: np.ndarray):
+        self.angles = angles
+
+    def __len__(self) -> int:
+        return len(self.angles) + 1
+
+    def __getitem__(self, k):
+        """At the boundaries *k* (an int or an array of them)."""
+        k = np.asarray(k)
+        if k.size == 0:
+            return np.zeros(k.shape)
+        ka, kb = int(k.min()), int(k.max()) + 1
+        lo, hi = max(ka - 8, 0), min(kb + 8, len(self.angles))
+        near = _jerk_near_of(self.angles[lo:hi])[k - lo]
+        release(self.angles)  # a spilled log's: each read maps a large stretch of the file
+        return near
+
+
+def _jerk_near(angles: np.ndarray) -> _JerkNear:
+    """See :func:`_jerk_near_of` (evaluated where indexed: :class:`_JerkNear`)."""
+    return _JerkNear(angles)
 
 
 def _jerk_near_of(angles: np.ndarray) -> np.ndarray:
@@ -230,6 +246,14 @@ def samples_per_block(dt: float, block_s: float) -> int:
     return max(1, int(round(block_s / dt)))
 
 
+def _static_differences(x: np.ndarray, both: np.ndarray, centre: float | None = None):
+    """The differences x[k+1] - x[k] where *both* (the pairs within static runs), a piece at a
+    time; with *centre*, their absolute deviations from it."""
+    for s in pieces(len(both), x):
+        v = np.diff(x[s.start:s.stop + 1])[both[s]]
+        yield v if centre is None else np.abs(v - centre)
+
+
 def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) -> np.ndarray:
     """Per-sample white-noise σ of each channel from static data: consecutive differences within
     static runs remove any constant (bias, gravity, Earth rate), var(x_k - x_{k-1}) = 2 σ².
@@ -240,22 +264,22 @@ def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) ->
     if np.count_nonzero(both) < 2:
         return np.full(increments.shape[1], np.nan)
     # a robust scale (median absolute deviation) so that a few steps at a run edge do not count;
-    # a channel at a time (a long log's differences of every channel at once are 100 B a sample)
-    mad = np.empty(increments.shape[1])
+    # a channel at a time and a piece at a time: a long log's differences are never made whole
+    # (240 MB a channel on an 8-hour log), only those near their medians are kept
     pairs = len(both)
+    m = int(np.count_nonzero(both))
+    # the bracketing sample: the differences at every stride-th static pair
+    step, at, seen = order_statistics.stride(m), [], 0
+    for s in pieces(pairs):
+        idx = np.flatnonzero(both[s])
+        at.append(idx[(-seen) % step::step] + s.start)
+        seen += len(idx)
+    at = np.concatenate(at)
+    mad = np.empty(increments.shape[1])
     for k in range(increments.shape[1]):
-        # the differences within static runs, a piece at a time (a spilled log's column is read
-        # once per channel, a piece at a time)
-        d = np.empty(int(np.count_nonzero(both)))
-        i = 0
-        for s in pieces(pairs, increments):
-            v = np.diff(increments[s.start:s.stop + 1, k])[both[s]]
-            d[i:i + len(v)] = v
-            i += len(v)
-        # in place: the order of d does not matter to either median (np.median without it
-        # copied a long log's differences, 1.5 s of every command on an 8-hour log)
-        d -= order_statistics.median(d, overwrite_input=True)
-        np.abs(d, out=d)
-        mad[k] = order_statistics.median(d, overwrite_input=True)
+        sample = gathered(increments[:, k], at + 1) - gathered(increments[:, k], at)
+        med = order_statistics.median_of_pieces(partial(_static_differences, increments[:, k], both), m, sample)
+        mad[k] = order_statistics.median_of_pieces(partial(_static_differences, increments[:, k], both, med), m,
+                                                   np.abs(sample - med))
     sigma = 1.4826 * mad / np.sqrt(2)
     return sigma if floor is None else np.maximum(sigma, floor)

@@ -3,12 +3,13 @@ the table geometry of its metadata, and the plate motion interpolated from the a
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
 from components.estimation import order_statistics
 from components.estimation.rest_angles import encoder_quantum
-from components.logs.spill import pieces, release
+from components.logs.spill import gathered, pieces, release
 from components.model.approach import run_sides
 from components.model.geometry import Stage, TableGeometry
 from components.model.motion import Motion, interpolate_angles, motion_from_profile
@@ -59,9 +60,25 @@ class LogData:
         """The median sample interval [s] (a jittered clock's nominal one), computed once: on an
         8-hour log each median of the intervals was ~0.4 s, and a command took it in several places."""
         if self._interval is None:
-            self._interval = (order_statistics.median(np.diff(self.time), overwrite_input=True) if len(self.time) > 1
-                              else float("nan"))
+            self._interval = self.interval_median() if len(self.time) > 1 else float("nan")
         return self._interval
+
+    def interval_median(self, first: float | None = None) -> float:
+        """The median of the intervals between consecutive sample times, with *first* (an
+        interval before them) among them if given; exact (np.median's value), a piece of the log
+        at a time: a long log's intervals are not made whole (240 MB on an 8-hour log)."""
+        t = self.time
+        n = len(t) - 1
+
+        def intervals():
+            if first is not None:
+                yield np.array([first])
+            for s in pieces(n, t):
+                yield np.diff(t[s.start:s.stop + 1])
+
+        at = np.arange(0, n, order_statistics.stride(n))
+        sample = gathered(t, at + 1) - gathered(t, at)
+        return order_statistics.median_of_pieces(intervals, n + (first is not None), sample)
 
     @property
     def has_table(self) -> bool:
@@ -112,8 +129,12 @@ class LogData:
                 rests = [lab for lab, d in (kinds or {}).items() if d["kind"] == "static"]
                 st = np.isin(self.segment, rests) if rests else np.ones(len(self.time), bool)
             else:
+                # a piece at a time: a spilled log's angles are not brought into memory whole
                 a = self.angles
-                st = np.concatenate([[True], np.all(a[1:] == a[:-1], axis=1)])
+                st = np.empty(len(a), bool)
+                st[0] = True
+                for s in pieces(len(a) - 1, a):
+                    np.all(a[s.start + 1:s.stop + 1] == a[s], axis=1, out=st[s.start + 1:s.stop + 1])
             st.setflags(write=False)
             self._static = st
         return self._static
@@ -134,7 +155,7 @@ class LogData:
     def release(self) -> None:
         """Give back the pages of spilled sensor columns a pass has touched (components.logs.spill;
         nothing for a log in memory)."""
-        release(self.gyro, self.acc, self.temperature)
+        release(self.time, self.angles, self.gyro, self.acc, self.temperature)
 
     def stretch(self, a: int, b: int) -> "LogData":
         """Samples a-1..b-1 of the log as a log of their own that computes exactly what the whole
@@ -171,7 +192,10 @@ class LogData:
         log's moves before it (components.model.approach.run_sides)."""
         if self._sides is None:
             start = np.zeros(self.angles.shape[1], np.int8) if self.approach0 is None else self.approach0
-            runs, after, _ = run_sides(self.angles, self.static, start, self.band())
+            # a spilled log's pages of each run go back after it: the runs are spread over the
+            # whole log, and each read maps a large stretch of the file (0.7 GB on an 8-hour log)
+            runs, after, _ = run_sides(self.angles, self.static, start, self.band(),
+                                       after_run=partial(release, self.angles))
             self._sides = (np.array([b for _, b in runs], np.int64), after, np.asarray(start, np.int8))
         ends, after, start = self._sides
         r = np.searchsorted(ends, i, side="right") - 1  # the last run over by sample i
@@ -211,14 +235,13 @@ MAX_FORCE = 1.0e5     # m/s² (10 000 g)
 def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
     from components.errors import EstimationError
 
-    dt = log.intervals()[:, None]
-    use = np.ones(log.n, bool) if valid is None else valid
-
     def first_beyond(inc, limit):
-        # in pieces: the whole log's quotient and mask would be 27 bytes a sample at once
-        for s in pieces(log.n, inc):
+        # in pieces: the whole log's intervals, quotient and mask would be 35 bytes a sample at once
+        for s in pieces(log.n, inc, log.time):
             with np.errstate(over="ignore", invalid="ignore"):
-                bad = use[s, None] & ~(np.abs(inc[s] / dt[s]) <= limit)
+                bad = ~(np.abs(inc[s] / log.intervals(s)[:, None]) <= limit)
+            if valid is not None:
+                bad &= valid[s, None]
             if bad.any():
                 i, k = np.argwhere(bad)[0]
                 return s.start + i, k
@@ -228,10 +251,11 @@ def _check_range(log, gyro: np.ndarray, acc: np.ndarray, valid) -> None:
         hit = first_beyond(inc, limit)
         if hit is not None:
             i, k = hit
+            dt = float(log.intervals(slice(i, i + 1))[0])
             with np.errstate(over="ignore"):
-                value = inc[i, k] / dt[i, 0]
+                value = inc[i, k] / dt
             raise EstimationError(
                 f"{log.source or 'log'}: sample {i + 1} (t = {log.time[i]:.6g} s), column {name}_{'xyz'[k]}: "
-                f"{inc[i, k]:.4g} per {dt[i, 0]:g} s ({value:.4g} {unit}) is beyond any {'gyro' if name == 'gyro' else 'accelerometer'}'s "
+                f"{inc[i, k]:.4g} per {dt:g} s ({value:.4g} {unit}) is beyond any {'gyro' if name == 'gyro' else 'accelerometer'}'s "
                 f"range (|value| <= {limit:g} {unit}): a corrupt value, or a wrong unit or count weight; mask or "
                 "exclude it, or fix the metadata")

@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import EstimationError
-from components.estimation import order_statistics
 from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
@@ -214,7 +213,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
     rows["residual"] = resid_vec
     # the median interval as the motion has them (the first one from dt0)
-    dt_median = order_statistics.median(np.diff(np.concatenate([[data.start_time], data.time])), overwrite_input=True)
+    dt_median = data.interval_median(first=float(data.time[0] - data.start_time))
     fit = Fit(params, value, cov, chi2, len(y) - len(params), sg, sa, geo, dt_median,
               float(temperature_ref or 0.0), it, rows)
     fit.rest_sigma = q

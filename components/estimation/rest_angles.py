@@ -7,13 +7,14 @@ import numpy as np
 
 from components.errors import EstimationError
 from components.estimation.blocks import Blocks
+from components.logs.spill import gathered, pieces
 from components.model.geometry import TableGeometry
 
 
 def rest_directions(angles: np.ndarray, geo: TableGeometry, at: np.ndarray) -> np.ndarray:
     """Plate-frame rotation direction of each stage (B, n_axes, 3) at the logged angles of the
     samples *at*: how a small error of that stage's rest angle shows in the gyro triad."""
-    th = np.atleast_2d(angles[at])
+    th = np.atleast_2d(gathered(angles, at))  # a spilled log's: not its every page at once
     _, w0, _, _ = geo.kinematics(th)
     out = np.empty((len(th), th.shape[1], 3))
     for k in range(th.shape[1]):
@@ -83,6 +84,19 @@ COUNT_TOLERANCE = 1e-3
 COUNT_STEPS = 20_000  # distinct steps the whole-number test reads, at most
 
 
+def _distinct(x: np.ndarray) -> np.ndarray:
+    """np.unique(x) from the values where x changes (a rest repeats its angle: sorting every
+    sample of an 8-hour log was 0.6 s a call), a piece at a time (a spilled log's angles are not
+    brought into memory whole)."""
+    if not len(x):
+        return x
+    changed = [x[:1]]
+    for s in pieces(len(x) - 1, x):
+        a = x[s.start:s.stop + 1]
+        changed.append(a[1:][a[1:] != a[:-1]])
+    return np.unique(np.concatenate(changed))
+
+
 def encoder_quantum(angles: np.ndarray) -> np.ndarray:
     """Per axis, the count: the largest q of which every step between distinct logged angles is a
     whole multiple (a table that moves several counts a sample never logs a one-count step: a
@@ -92,9 +106,7 @@ def encoder_quantum(angles: np.ndarray) -> np.ndarray:
     out = []
     for k in range(angles.shape[1]):
         x = angles[:, k]
-        # the distinct values are those of the changes (a rest repeats its angle: sorting every
-        # sample of an 8-hour log was 0.6 s a call)
-        u = np.unique(x[np.concatenate([[True], x[1:] != x[:-1]])]) if len(x) else x
+        u = _distinct(x)
         d = np.diff(u)
         d = d[d > 0]
         if not len(d):

@@ -112,7 +112,8 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
     n = pf.metadata.num_rows
     # a long log read for the estimators: its sensor columns on disk (components.logs.spill)
     spill = lean and n > spill_threshold()
-    heavy = {"gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z", "temperature"} if spill else set()
+    heavy = ({"time", "gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z", "temperature"}
+             | {f"gimbal_{a}" for a in meta["axis_names"]}) if spill else set()
     stacked = {g: spilled_array((n, len(c))) if c and set(c) <= heavy else np.empty((n, len(c)))
                for g, c in sensor_groups(meta).items()}
     place = {c: (g, j) for g, cs in sensor_groups(meta).items() for j, c in enumerate(cs)}

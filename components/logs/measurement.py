@@ -104,12 +104,16 @@ class MeasurementLog:
               or self.segments is not None or bool(self.exclude) or self.noise is not None or self.mask is not None)
         return FORMAT_V2 if v2 else FORMAT
 
-    def intervals(self) -> np.ndarray:
-        """(N,) each sample's interval [s]: the nominal 1/sample_rate_hz, or with measured timing
-        t[k] - t[k-1] (the first sample's nominal)."""
+    def intervals(self, rows: slice = slice(None)) -> np.ndarray:
+        """Each sample's interval [s] (of the samples *rows*, a slice with step 1: a long log a
+        piece at a time): the nominal 1/sample_rate_hz, or with measured timing t[k] - t[k-1]
+        (the first sample's nominal)."""
+        a, b, _ = rows.indices(self.n)
         if self.timing != "measured":
-            return np.full(self.n, self.dt)
-        return np.concatenate([[self.dt], np.diff(self.time)])
+            return np.full(max(b - a, 0), self.dt)
+        if a == 0:
+            return np.concatenate([[self.dt], np.diff(self.time[:b])])
+        return np.diff(self.time[a - 1:b])
 
     def gaps(self) -> np.ndarray:
         """(N,) bool: the sample's interval is longer than ``max_interval_s`` (default 1.5 nominal

@@ -14,7 +14,7 @@ def moving_runs(static: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
-def run_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band: np.ndarray):
+def run_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band: np.ndarray, after_run=None):
     """The side each stage is on after each moving run: (runs [(a, b)], sides (R, n_axes) int8,
     the sample where each stage's side changes in each run (R, n_axes), b where it does not).
 
@@ -23,7 +23,8 @@ def run_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band:
     taken back counts, a reading that dithers a count or two at a rest (a hunting servo, the
     plate held by friction or within a backlash) does not, and a run that moves the stage less
     than *band* leaves its side. The side changes where the stage's reading first changes in the
-    run (the play is taken up at the start of a move)."""
+    run (the play is taken up at the start of a move). ``after_run()``, if given, is called
+    after each run (a caller's log on disk gives back the pages the run read)."""
     runs = moving_runs(static)
     n_ax = measured.shape[1]
     out = np.empty((len(runs), n_ax), np.int8)
@@ -40,6 +41,8 @@ def run_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band:
                 changes = np.flatnonzero(seg[1:] != seg[:-1])
                 at[r, k] = lo + 1 + changes[0]
         out[r] = side
+        if after_run is not None:
+            after_run()
     return runs, out, at
 
 
