@@ -280,12 +280,9 @@ def _condition_masks(data: LogData, plate: PlateAtSamples, rows: dict) -> dict:
     cond["rate sign -"] = rows["moving"] & (wsign < 0)
     if data.temperature is not None:
         T = gathered(data.temperature, mid)
-        # (a copy it may reorder, made a piece at a time: a spilled column's pages go back)
-        copy = np.empty(len(data.temperature))
-        for s in pieces(len(copy), data.temperature):
-            copy[s] = data.temperature[s]
-        lo, hi = np.quantile(copy, [1 / 3, 2 / 3], overwrite_input=True)
-        del copy
+        # the thirds of the blocks' temperatures, the rows these conditions split (the thirds of
+        # every sample's were a copy of the whole column, 8 bytes a sample)
+        lo, hi = np.quantile(T, [1 / 3, 2 / 3]) if len(T) else (0.0, 0.0)
         if hi > lo:  # a temperature that hardly changes has no low and high thirds to set apart
             cond["temperature low"] = T <= lo
             cond["temperature mid"] = (T > lo) & (T <= hi)
