@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from components.estimation.blocks import observation_blocks
 from components.navigation.system import static_mask

@@ -5,7 +5,9 @@ rank-deficient pair."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from components.diagnosis import candidate_design
 from components.diagnosis.candidate_design import CandidateDesign
 
 
@@ -18,7 +20,11 @@ def _design(n: int = 3000, seed: int = 4) -> tuple[CandidateDesign, np.ndarray, 
     return d, y, H
 
 
-def test_fit_equals_the_whitened_rows_least_squares():
+@pytest.mark.parametrize("qr_rows", [None, 256])
+def test_fit_equals_the_whitened_rows_least_squares(qr_rows, monkeypatch):
+    """Also with the rows factored 256 at a time (an 8-hour log's are factored in blocks)."""
+    if qr_rows:
+        monkeypatch.setattr(candidate_design, "QR_ROWS", qr_rows)
     d, y, H = _design()
     for subset in (["p0", "p1", "p2"], ["p0", "p3", "p4", "p5"], ["p1", "p5", "p6"], list(d.index)):
         A = H[:, [d.index[p] for p in subset]]
