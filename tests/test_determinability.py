@@ -170,6 +170,27 @@ def test_impossible_values_are_flagged_with_the_likely_cause(example, tmp_path, 
 def test_a_good_log_flags_nothing(example):
     fit = calibrate(LogData.from_log(example), list(DEFAULT_EFFECTS))
     assert not fit.implausible and not fit.weak and not fit.determinability.undetermined
+    assert not fit.determinability.confounded
+
+
+def test_a_table_non_orthogonality_the_imu_mounting_absorbs_is_said_to_be(example, tmp_path, capsys):
+    """The middle axis's non-orthogonality about u turns the plate as a rotation of the IMU on it
+    would at every attitude this schedule visits: `add table.nonorth` gives it a σ of hundreds of
+    arcsec beside fractions for the others, and says it moves with the gyro and the accelerometer
+    misalignments together (a common rotation: coefficients ±1); without it nothing is
+    confounded (test_a_good_log_flags_nothing)."""
+    write_log(tmp_path / "ex", example)
+    assert main(["calibrate", str(tmp_path / "ex"), "--out", str(tmp_path / "m.json")]) == 0
+    assert main(["add", str(tmp_path / "ex"), "--model", str(tmp_path / "m.json"), "--effect", "table.nonorth",
+                 "--out", str(tmp_path / "n.json")]) == 0
+    out = capsys.readouterr().out
+    got = json.loads((tmp_path / "n.json").read_text())["determinability"]["confounded"]
+    # the partners' σ are inflated by it in turn (the confounding is mutual); nothing else is
+    assert "table.nonorth.middle.u" in got and all(p == "table.nonorth.middle.u" or ".mis." in p for p in got)
+    moves = dict(got["table.nonorth.middle.u"]["moves_with"])
+    assert any(p.startswith("gyro.mis") for p in moves) and any(p.startswith("acc.mis") for p in moves)
+    assert all(abs(abs(c) - 1.0) < 0.05 for c in moves.values()), moves
+    assert "confounded table.nonorth.middle.u: its sigma is" in out
 
 
 def test_undetermined_refusal_names_the_motion(example):
@@ -203,3 +224,28 @@ def test_a_scale_mixup_is_named_for_the_sensor_it_can_happen_to():
     assert "a unit prefix or a pulse count weight off by 10^1" in got["gyro.sf.x"], got
     assert "g declared as m/s²" in got["acc.sf.y"], got
     assert "degrees declared as radians" in got["gyro.sf.z"], got
+
+
+def test_a_confounded_parameter_is_named_with_what_it_moves_with():
+    """Columns a, b and c = k (a + b + ε d) (a, b, d orthonormal) beside an orthogonal column e:
+    the least-squares σ of c with the others free is 1/(k ε) (its part outside their span), alone
+    1/|c| = 1/(k √(2 + ε²)), so it is √(2 + ε²)/ε times larger; one unit of c looks like k units
+    of a plus k of b; e is not confounded. (Whitened columns of 1e6 a unit: σ well inside the
+    plausible limits of the names they are given.)"""
+    from components.estimation.determinability import CONFOUNDED, assess
+
+    rng = np.random.default_rng(2)
+    Q, _ = np.linalg.qr(rng.standard_normal((400, 4)))
+    a, b, d, e = Q.T * 1e6
+    eps, k = 0.01, 100.0
+    names = ["acc.bias.x", "acc.bias.y", "acc.bias.z", "gyro.bias.x"]
+    det = assess(np.column_stack([a, b, k * (a + b + eps * d), e]), names)
+    assert det.determined == names and "gyro.bias.x" not in det.confounded
+    ratio, like = det.confounded["acc.bias.z"]
+    assert ratio == pytest.approx(math.sqrt(2 + eps**2) / eps, rel=1e-6) and ratio > CONFOUNDED
+    assert dict(like) == pytest.approx({"acc.bias.x": k, "acc.bias.y": k}, rel=1e-6)
+    why = det.describe_confounded("acc.bias.z")
+    assert why.startswith("its sigma is 141 x") and "acc.bias.x (+100)" in why and "acc.bias.y (+100)" in why
+    # far from the threshold: nothing said
+    mild = assess(np.column_stack([a, b, a + b + 0.5 * d, e]), names)
+    assert mild.confounded == {}

@@ -38,6 +38,15 @@ def _print_result(res) -> None:
               f"{', '.join(sorted(weak))}")
     for p, why in bad.items():
         print(f"IMPLAUSIBLE {p}: {why}")
+    for line in confounded_lines(det, res.parameters):
+        print(line)
+
+
+def confounded_lines(det: dict, parameters) -> list[str]:
+    """A line for each of *parameters* the log hardly tells from others (result determinability
+    block's 'confounded'): its σ is large because of them, not because the log does not see it."""
+    got = det.get("confounded", {})
+    return [f"confounded {p}: {got[p]['why']} (needs {got[p]['needs']})" for p in parameters if p in got]
 
 
 # a σ that would grow by more than this were the unseen slow terms at their bounds is named

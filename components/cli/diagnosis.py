@@ -270,6 +270,11 @@ def _cmd_add(args: argparse.Namespace) -> int:
             sigma = res.sigmas.get(p, float("nan"))
             print(f"{p:22s} {res.values[p] / k:+12.5g} ± {sigma / k:.3g} {unit}" if sigma == sigma else
                   f"{p:22s} not determined by this log (held at 0)")
+    from components.cli.calibration import confounded_lines
+
+    for line in confounded_lines(res.extra.get("determinability", {}),
+                                 [p for p in res.values if effect_of(p).name in new]):
+        print(line)
     print(f"-> {args.out}")
     if args.report:
         report_option.write(args.report, log, data, res, args.out, noise, baseline=model)

@@ -17,6 +17,9 @@ from scipy.linalg import qr
 
 INDEPENDENT = 1e-6   # fraction of a unit column outside the span of the others, below: undetermined
 LIKE_SHARE = 0.05    # a partner is named when it carries this share of the undetermined column
+# a determined parameter whose σ is this many times the σ the rows give it alone (the others
+# known) is confounded: the rows hardly tell it from the others, which are named
+CONFOUNDED = 30.0
 
 
 def undetermined_columns(J: np.ndarray, req: list[int], nuisance: list[int], tol: float = INDEPENDENT,
@@ -71,6 +74,9 @@ class Determinability:
 
     determined: list[str]
     undetermined: dict[str, list[tuple[str, float]]] = field(default_factory=dict)
+    # determined, but with a σ CONFOUNDED times or more the σ it would have alone: parameter ->
+    # (that ratio, the parameters its column moves with and their coefficients)
+    confounded: dict[str, tuple[float, list[tuple[str, float]]]] = field(default_factory=dict)
 
     def describe(self, parameter: str) -> str:
         """"not seen by this log" or "moves with acc.bias.x (−9.8) and ...": what the rows cannot
@@ -79,6 +85,16 @@ class Determinability:
         if not like:
             return "not seen by this log"
         return "cannot be told from " + ", ".join(f"{p} ({c:+.3g})" for p, c in like)
+
+    def describe_confounded(self, parameter: str) -> str:
+        """"its σ is 1500 × ... moves with gyro.mis.zy (+1) and ...": why a determined parameter's σ
+        is large (empty when it is not confounded)."""
+        if parameter not in self.confounded:
+            return ""
+        ratio, like = self.confounded[parameter]
+        partners = ", ".join(f"{p} ({c:+.3g})" for p, c in like) or "a combination of the others"
+        return (f"its sigma is {ratio:.3g} x what this log gives it with the others known: it moves with "
+                f"{partners}, which this log hardly tells apart from it")
 
 
 def assess(H: np.ndarray, params: list[str], nuisance: int = 0, tol: float = INDEPENDENT) -> Determinability:
@@ -93,6 +109,7 @@ def assess(H: np.ndarray, params: list[str], nuisance: int = 0, tol: float = IND
     undet = undetermined_columns(H, req, nuis, tol, np.array([plausible_limit(p) for p in params]))
     det = [k for k in req if k not in undet]
     out = Determinability([params[k] for k in det])
+    out.confounded = _confounded(H, params, det, nuis)
     if not undet:
         return out
     basis = H[:, det + nuis]
@@ -107,4 +124,32 @@ def assess(H: np.ndarray, params: list[str], nuisance: int = 0, tol: float = IND
         share = np.abs(coef[:len(det)]) * np.linalg.norm(H[:, det], axis=0) / np.linalg.norm(col)
         order = np.argsort(-share)
         out.undetermined[params[k]] = [(params[det[i]], float(coef[i])) for i in order[:3] if share[i] > LIKE_SHARE]
+    return out
+
+
+def _confounded(H: np.ndarray, params: list[str], det: list[int], nuis: list[int]) -> dict:
+    """The determined columns whose σ the others inflate by :data:`CONFOUNDED` or more, each with
+    the determined parameters that carry its column (coefficients as in :meth:`Determinability.describe`).
+    From the Gram matrix of the unit columns: σ relative to alone is √((XᵀX)⁻¹)ₖₖ, and the
+    regression of a column on the others is the normal equations on that matrix."""
+    cols = det + nuis
+    if len(det) < 2 or H.shape[0] == 0:
+        return {}
+    norms = np.linalg.norm(H[:, cols], axis=0)
+    norms[norms == 0] = 1.0
+    X = H[:, cols] / norms
+    G = X.T @ X
+    ratio = np.sqrt(np.clip(np.diag(np.linalg.pinv(G, rcond=1e-12, hermitian=True)), 0.0, None))
+    out = {}
+    for i, k in enumerate(det):
+        if not ratio[i] >= CONFOUNDED:
+            continue
+        others = [j for j in range(len(cols)) if j != i]
+        c = np.linalg.lstsq(G[np.ix_(others, others)], G[others, i], rcond=1e-12)[0]  # unit columns
+        share = np.abs(c[:len(det) - 1])
+        order = np.argsort(-share)
+        names = [params[cols[others[j]]] for j in range(len(det) - 1)]
+        # one unit of parameter k is coefficient × (unit of the partner) of the combination
+        coef = c[:len(det) - 1] * norms[i] / norms[others[:len(det) - 1]]
+        out[params[k]] = (float(ratio[i]), [(names[j], float(coef[j])) for j in order[:3] if share[j] > LIKE_SHARE])
     return out

@@ -215,6 +215,10 @@ def determinability_block(fit) -> dict:
     if det is not None and det.undetermined:
         out["undetermined"] = {p: {"held_at": 0.0, "why": det.describe(p), "needs": needs(p)}
                                for p in det.undetermined}
+    if det is not None and det.confounded:
+        out["confounded"] = {p: {"sigma_ratio": r, "moves_with": [[q, c] for q, c in like],
+                                 "why": det.describe_confounded(p), "needs": needs(p)}
+                             for p, (r, like) in det.confounded.items()}
     if getattr(fit, "weak", None):
         out["weakly_determined"] = list(fit.weak)
     if getattr(fit, "implausible", None):
