@@ -8,6 +8,7 @@ import pytest
 
 from components.control.controller import CalibrationController
 from components.control.schedule import COUNTS_PER_REV, DEG, loads_schedule
+from components.errors import ScenarioError
 from components.simulation.run import run_scenario
 from components.simulation.scenario import Scenario, load_scenario
 from orchestrator.errors import SimulationFault
@@ -252,3 +253,25 @@ def test_tilted_base_table_effect_reaches_the_fmu():
     _, _, info = build_system(sc)
     assert info["table_parameters"]["base.tilt.x"] == pytest.approx(DEG / 60)
     assert info["table_parameters"]["base.tilt.y"] == pytest.approx(DEG / 120)
+
+
+@pytest.mark.parametrize("step,servo_rate,ok", [(0.00125, None, False), (0.001, None, True),
+                                                 (0.0025, 800.0, True), (0.002, 800.0, False)])
+def test_a_step_off_the_servo_grid_is_bad_input_before_the_run(step, servo_rate, ok):
+    """The table's servo steps by whole periods of servo.rate (the FMU's default 2000 Hz, or the
+    scenario's value): a step off that grid is refused by the scenario, naming the rate and the
+    nearest good steps, instead of a run its first step stops (exit 3). On the grid it builds."""
+    from components.simulation.run import build_system
+
+    text = "[[steps]]\nkind = \"dwell\"\nduration = 0.1\n"
+    kw = {"step": step, "controller_rate_hz": 1.0 / (4 * step)}
+    if servo_rate:
+        kw["table_parameters"] = {"servo.rate": servo_rate}
+    sc = scenario(text, **kw)
+    if ok:
+        build_system(sc)
+        return
+    period = 1.0 / (servo_rate or 2000.0)
+    with pytest.raises(ScenarioError, match=rf"step = {step:g} s: .* servo.rate = {1 / period:g} Hz, .*"
+                                            rf"whole number of its periods \({period:g} s\)"):
+        build_system(sc)

@@ -85,6 +85,21 @@ def table_fmu_parameters(sc: Scenario, fmu_axis: dict) -> dict:
     return out
 
 
+def _check_servo_step(sc: Scenario, rate) -> None:
+    """A table whose servo runs at a fixed rate (ours: the parameter servo.rate) steps by whole
+    servo periods only (its own check, to 1e-9 of the step): refused here as bad input, before a
+    run that its first step would stop."""
+    if not rate:
+        return
+    period = 1.0 / float(rate)
+    n = round(sc.step / period)
+    if n < 1 or abs(sc.step - n * period) > 1e-9 * sc.step:
+        near = sorted({max(1, math.floor(sc.step / period)), max(1, math.ceil(sc.step / period))})
+        raise ScenarioError(f"{sc.source}: [scenario] step = {sc.step:g} s: the turntable's servo runs at "
+                            f"servo.rate = {float(rate):g} Hz, so a step must be a whole number of its periods "
+                            f"({period:g} s): e.g. " + " or ".join(f"{k * period:g} s" for k in near))
+
+
 def build_system(sc: Scenario, record: list[str] | None = None):
     """(System, controller, info) for the scenario; ``record`` adds signals to record."""
     from orchestrator.system import Connection, System, UnitSpec
@@ -108,6 +123,7 @@ def build_system(sc: Scenario, record: list[str] | None = None):
         geo[a] = [float(v) for v in vals]
     sc.geometry_axes = geo
     tparams = table_fmu_parameters(sc, fmu_axis)
+    _check_servo_step(sc, tparams.get("servo.rate", tstart.get("servo.rate")))
     if "n_axes" in tstart and "n_axes" not in tparams:
         tparams["n_axes"] = len(axes)
     # encoder resolution and acceleration limit the controller assumes
