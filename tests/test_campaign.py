@@ -404,3 +404,33 @@ def test_existing_cluster_by_address_gives_the_same_records(campaign_file, two_w
                 p.wait(30)
             except subprocess.TimeoutExpired:
                 p.kill()
+
+
+def test_a_campaign_cluster_takes_a_free_port_not_8787():
+    """The campaign's local cluster serves HTTP on a port of its own: with 8787 taken (another
+    campaign, a notebook's cluster) it starts without a warning (there was one, "Port 8787 is
+    already in use", which also hung the command: test_cli_scripts)."""
+    import socket
+    import warnings
+
+    from components.campaign.execute import connect
+
+    taken = socket.socket()
+    try:
+        try:
+            taken.bind(("", 8787))
+            taken.listen(1)
+        except OSError:
+            pass  # already taken by something else: the same situation
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            client, cluster, slots = connect(workers=1)
+            try:
+                port = cluster.scheduler.http_server.port
+            finally:
+                client.close()
+                cluster.close()
+        assert slots == 1 and port != 8787
+        assert not [w for w in seen if "8787" in str(w.message)], [str(w.message) for w in seen]
+    finally:
+        taken.close()

@@ -182,7 +182,7 @@ def test_chunks_on_a_dask_cluster_give_the_same_bits(data, monkeypatch):
     model = result_from_fit(here, effects, data)
     diag_here = diagnose(data, model, forward=False, chunk_samples=SMALL)
     cache._GEOMETRY_COLUMNS.clear()
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
             Client(cluster) as watcher, get_task_stream(client=watcher) as stream:
         monkeypatch.setenv("CALBENCH_SCHEDULER", cluster.scheduler_address)
         there = calibrate(data, effects, chunk_samples=SMALL)

@@ -36,8 +36,10 @@ def connect(workers: int | None = None, scheduler: str | None = None):
         client = Client(scheduler, timeout="30s")
         cluster = None
     else:
+        # the scheduler's HTTP server starts whatever is asked (None is its default port, 8787,
+        # for which two campaigns started at once contend, with a warning): any free port
         cluster = LocalCluster(n_workers=max(1, int(workers or 1)), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR)
         client = Client(cluster)
     from components.campaign.isolate import warm
 
