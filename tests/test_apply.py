@@ -54,3 +54,56 @@ def test_the_corrected_log_keeps_the_raw_logs_format_unless_told(conformance, tm
                  "--format", "parquet"]) == 2
     assert "--out" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
 
+
+
+def _zero_result(tmp_path, conformance):
+    import dataclasses
+
+    assert main(["calibrate", str(conformance / "example"), "--out", str(tmp_path / "r.json")]) == 0
+    res = CalibrationResult.load(tmp_path / "r.json")
+    return res, dataclasses.replace(res, values={k: 0.0 for k in res.values})
+
+
+def test_a_zero_model_leaves_a_jittered_clocks_rates_as_they_are(conformance, tmp_path):
+    """Rates logged over a measured, jittered clock (imu.timing 'measured', ±20 % intervals):
+    correcting with a model whose every parameter is 0 returns them unchanged. The correction took
+    every interval as the nominal one, and a zero model changed the rates by up to 40 %."""
+    import dataclasses
+
+    import numpy as np
+
+    from components.logs.logfile import read_log
+    from components.model.correct import correct_log
+
+    log = read_log(conformance / "example")
+    rng = np.random.default_rng(1)
+    t = np.sort(log.time + rng.uniform(-0.2, 0.2, log.n) * log.dt)
+    jittered = dataclasses.replace(log, timing="measured", time=t, gyro=log.gyro_increment() / log.dt,
+                                   gyro_output="rate", acc=log.acc_increment() / log.dt, acc_output="specific_force")
+    _, zero = _zero_result(tmp_path, conformance)
+    out = correct_log(jittered, zero)
+    assert np.allclose(out.gyro, jittered.gyro, rtol=1e-12, atol=1e-15)
+    assert np.allclose(out.acc, jittered.acc, rtol=1e-12, atol=1e-12)
+
+
+def test_the_correction_in_pieces_is_the_correction_in_one(conformance, tmp_path):
+    """A long log is corrected a piece at a time, each with a margin for the lever arm's
+    differences (over three passes, coupled through the g-sensitivity): with a lever arm, a
+    g-sensitivity and a drift in the model, pieces of 997 samples give the bits of one piece."""
+    import dataclasses
+
+    import numpy as np
+
+    from components.logs.logfile import read_log
+    from components.model.correct import correct_log
+
+    log = read_log(conformance / "example")
+    res, _ = _zero_result(tmp_path, conformance)
+    values = {**res.values, "acc.lever.x.y": 0.05, "acc.lever.z.x": -0.03, "gyro.gsens.xz": 2e-6,
+              "acc.drift.y": 1e-7, "acc.k2.z": 4e-5}
+    model = dataclasses.replace(res, values=values, effects=list(dict.fromkeys(
+        list(res.effects) + ["acc.lever", "gyro.gsens", "acc.drift", "acc.k2"])))
+    whole = correct_log(log, model, pieces=10**9)
+    cut = correct_log(log, model, pieces=997)
+    assert np.array_equal(whole.gyro, cut.gyro) and np.array_equal(whole.acc, cut.acc)
+    assert not np.array_equal(whole.acc, log.acc)

@@ -4,6 +4,8 @@ The sensor model of components.model.effects maps the true input x (rate or spec
 output y = x + e(x) with small e. The correction inverts it per sample by fixed-point iteration
 x ← y − e(x), evaluated on the sample's mean rate / specific force (three passes reduce the
 residual of the inversion to (|e'|)³ ~ 1e-12 of the signal for navigation-grade errors).
+Each sample's own interval is used (a logger's measured clock: the rates were logged over it),
+and the drift terms count from the start of the first interval, as calibrate counts them.
 Lever arms use the angular acceleration from differences of the corrected gyro rates. Table
 effects are properties of the table, not of the IMU, and are not applied; a time offset is not
 re-timed (stated in the output's description).
@@ -57,21 +59,24 @@ def sensor_error(res: CalibrationResult, sensor: str, x: np.ndarray, f: np.ndarr
 
 
 def correct_increments(res: CalibrationResult, gyro_inc: np.ndarray, acc_inc: np.ndarray,
-                       dt: np.ndarray, temperature: np.ndarray | None, t0: float) -> tuple[np.ndarray, np.ndarray]:
-    """Corrected increments (N, 3) gyro [rad] and acc [m/s]."""
+                       dt: np.ndarray, temperature: np.ndarray | None, t0: float,
+                       elapsed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Corrected increments (N, 3) gyro [rad] and acc [m/s]; *dt* (N,) each sample's interval,
+    *elapsed* (N,) the time since the drift terms' origin at each interval's middle (default:
+    from the intervals, the first one's start the origin)."""
     dt = np.asarray(dt, float)[:, None]
     yg, ya = gyro_inc / dt, acc_inc / dt
     T = np.zeros(len(dt)) if temperature is None else np.asarray(temperature, float)
     T0 = res.temperature_ref if res.temperature_ref is not None else (T[0] if len(T) else 0.0)
     dT = T - T0
-    mid = np.cumsum(dt[:, 0]) - dt[:, 0] / 2  # time since the start at mid-interval
+    mid = np.cumsum(dt[:, 0]) - dt[:, 0] / 2 if elapsed is None else np.asarray(elapsed, float)
     lever = np.array([[res.value(f"acc.lever.{i}.{k}") for k in AX] for i in AX])
     xg, xa = yg.copy(), ya.copy()
     for _ in range(3):
         xg = yg - sensor_error(res, "gyro", xg, xa, dT, mid)
         fa = ya.copy()
         if lever.any():
-            alpha = np.gradient(xg, np.cumsum(dt[:, 0]), axis=0)
+            alpha = np.gradient(xg, mid + dt[:, 0] / 2, axis=0)
             for k in range(3):
                 r = lever[k]
                 fa[:, k] -= lever_acceleration(xg, alpha, r)[:, k]
@@ -79,18 +84,47 @@ def correct_increments(res: CalibrationResult, gyro_inc: np.ndarray, acc_inc: np
     return xg * dt, xa * dt
 
 
-def correct_log(log, res: CalibrationResult):
+# samples corrected at a time (a long log's work arrays are ~0.3 KB a sample), and the samples
+# each piece reads beyond its ends: the lever arm's angular acceleration differences a sample's
+# neighbours, and each of the three passes carries that one sample further
+CORRECT_SAMPLES = 1 << 16
+CORRECT_MARGIN = 8
+
+
+def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray, pieces: int):
+    """(gyro, acc) corrected increments of the whole log, *pieces* samples at a time, each with
+    CORRECT_MARGIN samples either side: the same values as in one piece."""
+    n = log.n
+    g_inc, a_inc = log.gyro_increment(), log.acc_increment()
+    g, a = np.empty((n, 3)), np.empty((n, 3))
+    T = log.temperature
+    T0 = res.temperature_ref if res.temperature_ref is not None else (float(T[0]) if T is not None and n else 0.0)
+    for lo in range(0, n, pieces):
+        hi = min(lo + pieces, n)
+        a0, b0 = max(lo - CORRECT_MARGIN, 0), min(hi + CORRECT_MARGIN, n)
+        piece = copy.copy(res)
+        piece.temperature_ref = T0
+        gp, ap = correct_increments(piece, g_inc[a0:b0], a_inc[a0:b0], dt[a0:b0],
+                                    None if T is None else T[a0:b0], 0.0, elapsed[a0:b0])
+        g[lo:hi], a[lo:hi] = gp[lo - a0:hi - a0], ap[lo - a0:hi - a0]
+    return g, a
+
+
+def correct_log(log, res: CalibrationResult, pieces: int = CORRECT_SAMPLES):
     """A copy of the measurement log with corrected IMU outputs (same output kinds; counts are
     written as increments, since corrected values are no longer whole counts)."""
-    g, a = correct_increments(res, log.gyro_increment(), log.acc_increment(),
-                              np.full(log.n, log.dt), log.temperature, 0.0)
+    # each sample's own interval (a logger's measured clock: the rates were logged over those),
+    # and the drift terms' time from the start of the first interval, as calibrate counts it
+    dt = log.intervals()
+    elapsed = (log.time - (log.time[0] - dt[0])) - dt / 2 if log.n else np.zeros(0)
+    g, a = _corrected(res, log, dt, elapsed, pieces)
     out = copy.copy(log)
     if log.gyro_output == "rate":
-        out.gyro = g / log.dt
+        out.gyro = g / dt[:, None]
     else:
         out.gyro, out.gyro_output, out.gyro_count_rad = g, "increment", None
     if log.acc_output == "specific_force":
-        out.acc = a / log.dt
+        out.acc = a / dt[:, None]
     else:
         out.acc, out.acc_output, out.acc_count_mps = a, "increment", None
     notes = [f"corrected with a calbench result ({', '.join(res.effects)})"]
