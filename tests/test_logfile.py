@@ -85,12 +85,20 @@ def test_ideal_vector_static_samples_match_forward_model(ideal):
 
 
 # ------------------------------------------------------------------ writing
-def test_roundtrip_bit_identical(ideal, tmp_path):
+@pytest.mark.parametrize("write_rows", [None, 997])
+def test_roundtrip_bit_identical(ideal, tmp_path, write_rows, monkeypatch):
+    """Also written 997 rows at a time (a long log is): the same values, the same CSV text."""
+    from components.logs import logfile
+
     ideal.extra["extra_note"] = np.arange(ideal.n, dtype=float) * 0.1  # extra columns survive too
     try:
+        write_log(tmp_path / "one", ideal, fmt="csv")
+        if write_rows:
+            monkeypatch.setattr(logfile, "WRITE_ROWS", write_rows)
         write_log(tmp_path / "rt", ideal, fmt="both")
     finally:
         del ideal.extra["extra_note"]
+    assert (tmp_path / "rt.csv").read_bytes() == (tmp_path / "one.csv").read_bytes()
     for f in ("rt.csv", "rt.parquet"):
         back = read_log(tmp_path / f)
         assert bits(back.time).tolist() == bits(ideal.time).tolist()

@@ -229,7 +229,6 @@ def write_log(stem: str | Path, log: MeasurementLog, fmt: str = "csv") -> list[P
     """Write ``<stem>.json`` and ``<stem>.csv`` (``fmt="csv"``), ``<stem>.parquet``
     (``"parquet"``) or both (``"both"``). Numbers are written in the shortest form that reads
     back to the same double (bit-exact round trip). The log is validated first."""
-    import pyarrow as pa
 
     if fmt not in ("csv", "parquet", "both"):
         raise ValueError(f"fmt {fmt!r}: expected 'csv', 'parquet' or 'both'")
@@ -239,31 +238,66 @@ def write_log(stem: str | Path, log: MeasurementLog, fmt: str = "csv") -> list[P
     log.validate(f"log for {stem}")
     stem.parent.mkdir(parents=True, exist_ok=True)
     cols = log.columns()
-    arrays = {}
-    for k, v in cols.items():
-        if k == "segment" or (isinstance(v, np.ndarray) and v.dtype == object):
-            uniq, inv = np.unique(np.asarray(v, dtype=object).astype(str), return_inverse=True)
-            arrays[k] = pa.DictionaryArray.from_arrays(pa.array(inv.astype(np.int32)),
-                                                       pa.array(uniq.tolist(), type=pa.string()))
-        else:
-            arrays[k] = pa.array(np.asarray(v))
-    table = pa.table(arrays)
+    # text columns (the segment labels) as a dictionary: their labels sorted, once
+    labels = {k: _labels_of(v) for k, v in cols.items()
+              if k == "segment" or (isinstance(v, np.ndarray) and v.dtype.kind in "OU")}
+    n = log.n
     out = []
     meta_path = Path(str(stem) + ".json")
     meta_path.write_text(json.dumps(log.metadata(), indent=1) + "\n", encoding="utf-8")
     out.append(meta_path)
     if fmt in ("csv", "both"):
-        out.append(_write_csv(Path(str(stem) + ".csv"), table))
+        out.append(_write_csv(Path(str(stem) + ".csv"), cols, labels, n))
     if fmt in ("parquet", "both"):
         import pyarrow.parquet as pq
 
         p = Path(str(stem) + ".parquet")
-        pq.write_table(table, p)
+        writer = None
+        try:
+            for rows in _row_slices(n):
+                table = _table_of(cols, labels, rows)
+                if writer is None:
+                    writer = pq.ParquetWriter(p, table.schema)
+                writer.write_table(table, row_group_size=WRITE_ROWS)
+        finally:
+            if writer is not None:
+                writer.close()
         out.append(p)
     return out
 
 
-def _write_csv(path: Path, table) -> Path:
+# rows converted and written at a time: a long log is never held twice (as its columns and as
+# an Arrow table beside them: 12 GB for an 8-hour log's apply)
+WRITE_ROWS = 1 << 20
+
+
+def _row_slices(n: int):
+    yield from (slice(a, min(a + WRITE_ROWS, n)) for a in range(0, n, WRITE_ROWS)) if n else (slice(0, 0),)
+
+
+def _labels_of(v) -> np.ndarray:
+    """The distinct labels of a text column as str, sorted (np.unique's order), a piece at a time."""
+    got: set = set()
+    for rows in _row_slices(len(v)):
+        got.update(np.unique(np.asarray(v[rows], dtype=object).astype(str)).tolist())
+    return np.array(sorted(got), dtype=str)
+
+
+def _table_of(cols: dict, labels: dict, rows: slice):
+    """The Arrow table of the samples *rows*; text columns as dictionaries of their *labels*."""
+    import pyarrow as pa
+
+    arrays = {}
+    for k, v in cols.items():
+        if k in labels:
+            codes = np.searchsorted(labels[k], np.asarray(v[rows], dtype=object).astype(str)).astype(np.int32)
+            arrays[k] = pa.DictionaryArray.from_arrays(pa.array(codes), pa.array(labels[k].tolist(), type=pa.string()))
+        else:
+            arrays[k] = pa.array(np.ascontiguousarray(v[rows]))
+    return pa.table(arrays)
+
+
+def _write_csv(path: Path, cols: dict, labels: dict, n: int) -> Path:
     import pyarrow as pa
     import pyarrow.csv as pcsv
 
@@ -272,19 +306,15 @@ def _write_csv(path: Path, table) -> Path:
     def needs_quote(s: str) -> bool:
         return bool(special.search(s)) or s != s.strip()
 
-    quote = False
-    for name in table.column_names:
-        col = table.column(name)
-        if pa.types.is_dictionary(col.type):
-            quote |= any(needs_quote(s) for c in col.chunks for s in c.dictionary.to_pylist())
-        elif pa.types.is_string(col.type):
-            quote |= any(needs_quote(s) for s in set(col.to_pylist()))
-    header = ",".join(f'"{n}"' if needs_quote(n) else n for n in table.column_names) + "\n"
+    quote = any(needs_quote(str(s)) for lab in labels.values() for s in lab)
+    header = ",".join(f'"{c}"' if needs_quote(c) else c for c in cols) + "\n"
     tmp = path.with_name(path.name + ".tmp")
     with pa.OSFile(str(tmp), "wb") as f:
         f.write(header.encode())
-        pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False, batch_size=1 << 16,
-                                                   quoting_style="needed" if quote else "none"))
+        for rows in _row_slices(n):
+            pcsv.write_csv(_table_of(cols, labels, rows), f,
+                           pcsv.WriteOptions(include_header=False, batch_size=1 << 16,
+                                             quoting_style="needed" if quote else "none"))
     tmp.replace(path)
     return path
 
