@@ -71,6 +71,23 @@ def test_white_analysis_names_a_noise_term_not_a_drift(null_logs):
         assert not any(f.endswith(".drift") for f in d.found), d.found
 
 
+def test_the_whitening_set_aside_on_disk_changes_nothing(null_logs, monkeypatch):
+    """A noise term tried keeps the whitening before it to go back to; on disk (as a long log's
+    is) the diagnosis is the same, number for number."""
+    from components.diagnosis import candidate_design
+
+    data = null_logs[0]
+    model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
+    kept = diagnose(data, model)
+    set_aside = []
+    real = candidate_design._set_aside
+    monkeypatch.setattr(candidate_design, "ASIDE_BYTES", 0)
+    monkeypatch.setattr(candidate_design, "_set_aside", lambda H: set_aside.append(1) or real(H))
+    on_disk = diagnose(data, model)
+    assert set_aside, "no whitening was set aside: the test does not reach rewhiten"
+    assert (on_disk.verdict, on_disk.found, on_disk.steps) == (kept.verdict, kept.found, kept.steps)
+
+
 def test_injected_noise_model_gives_no_verdict_and_an_honest_chi2(null_logs):
     noise = _injected()
     for data in null_logs:

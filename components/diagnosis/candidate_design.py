@@ -14,6 +14,7 @@ from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import whiten
+from components.logs.spill import is_spilled, pieces, spilled_array
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.plausibility import grade_factor
@@ -96,6 +97,9 @@ class CandidateDesign:
     def rewhiten(self, noise: NoiseModel | None) -> None:
         """Whiten the same rows with another noise model (a noise term added); back to the
         whitening before it without whitening again (a noise term tried and dropped)."""
+        # the whitening kept to go back to waits on disk when it is large (a long log's rows with
+        # every candidate: ~0.3 GB on an 8-hour log, beside the raw rows and the new whitening)
+        self.H = _set_aside(self.H)  # (let go of the copy in memory before the new one is made)
         state = (self.y, self.H, self.noise, self._compressed)
         if self._before is not None and self._before[2] is noise:
             self.y, self.H, self.noise, self._compressed = self._before
@@ -180,6 +184,21 @@ class CandidateDesign:
             return C
         U, s, _ = np.linalg.svd(C, full_matrices=False)
         return U[:, s > 1e-8 * s[0]]
+
+
+# a whitened design kept aside (rewhiten) goes to disk above this size [bytes]
+ASIDE_BYTES = 64 << 20
+
+
+def _set_aside(H: np.ndarray) -> np.ndarray:
+    """*H*, or above :data:`ASIDE_BYTES` a copy of it in a spilled array with its pages given back
+    (components.logs.spill; the same values)."""
+    if H.nbytes <= ASIDE_BYTES or is_spilled(H):
+        return H
+    out = spilled_array(H.shape)
+    for s in pieces(len(H), out):
+        out[s] = H[s]
+    return out
 
 
 # rows factored at a time by _qr_r (with the R so far on top: ~20 MB at 150 columns)
