@@ -349,3 +349,58 @@ z = "a"
     assert main(["import", str(m), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "rec.csv" in err and "Traceback" not in err
+
+
+def test_a_parquet_file_is_read_only_for_the_columns_the_mapping_names(original, tmp_path, monkeypatch):
+    """A long recording's Parquet file is read a named column at a time (never whole, nor the
+    columns no key names); its text column becomes labels sharing one string per distinct value
+    (one per row was ~50 bytes a sample); the imported log is the original, labels included."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    log, _ = original
+    cols = {"time_s": log.time, **{f"g{c}": log.gyro[:, k] for k, c in enumerate("xyz")},
+            **{f"a{c}": log.acc[:, k] for k, c in enumerate("xyz")},
+            **{f"ang_{a}": log.gimbal[a] for a in ("outer", "middle", "inner")},
+            "label": pa.array([str(s) for s in log.segment]), "unused": np.arange(log.n, dtype=float)}
+    pq.write_table(pa.table(cols), tmp_path / "rec.parquet")
+    read = []
+    real = pq.ParquetFile.read
+    monkeypatch.setattr(pq.ParquetFile, "read", lambda self, columns=None, **kw: read.append(columns) or
+                        real(self, columns=columns, **kw))
+    m = _mapping(tmp_path / "map.toml", f'''
+[imu]
+file = "rec.parquet"
+sample_rate_hz = {1.0 / log.dt}
+[imu.time]
+column = "time_s"
+[imu.gyro]
+output = "increment"
+unit = "rad"
+x = "gx"
+y = "gy"
+z = "gz"
+[imu.acc]
+output = "increment"
+unit = "m/s"
+x = "ax"
+y = "ay"
+z = "az"
+[labels]
+column = "label"
+[table]
+encoder_resolution = "exact"
+{_axes_toml(["ang_outer", "ang_middle", "ang_inner"], unit="rad")}
+{SITE}''')
+    assert main(["import", str(m), "--out", str(tmp_path / "imported"), "--format", "parquet"]) == 0
+    assert all(c is not None and len(c) == 1 for c in read) and ["unused"] not in read
+    back = read_log(tmp_path / "imported")
+    assert back.segment.tolist() == [str(s) for s in log.segment]
+    assert np.array_equal(back.gyro, log.gyro) and np.array_equal(back.time, log.time)
+
+    from components.logs.mapping import load_mapping
+    from components.logs.sources import Columns
+
+    mapping = load_mapping(m)
+    labels = Columns(mapping.imu).text(mapping.labels, "labels")
+    assert len({id(x) for x in labels}) == len(set(labels.tolist()))

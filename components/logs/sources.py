@@ -45,8 +45,10 @@ class Columns:
             shown = ", ".join(self.names()[:30])
             raise MappingError(f"{self.where}: {what}: no column {col!r}; the file has: {shown}")
         a = self.data[key]
-        if callable(a):          # HDF5 datasets are read when first used
-            a = self.data[key] = a()
+        if callable(a):
+            # HDF5 datasets and Parquet columns are read when used, and not kept: the caller
+            # converts them, and a long log's raw columns beside their conversions were twice it
+            a = a()
         a = np.asarray(a)
         if k is not None:
             if a.ndim != 2 or not 0 <= k < a.shape[1]:
@@ -111,14 +113,34 @@ def _csv(src: Source) -> dict:
 
 
 def _parquet(src: Source) -> dict:
+    """Each column read when first used (an hour of 1 kHz data has columns a mapping never names,
+    and the whole table beside its numpy copies was twice the file in memory); text as labels
+    that share one string per distinct value (components.logs.csv_log.labels), not one a row."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     try:
-        table = pq.read_table(src.path)
+        pf = pq.ParquetFile(src.path)
+        names = pf.schema_arrow.names
     except (pa.ArrowInvalid, OSError) as e:
         raise MappingError(f"{src.path}: not a readable Parquet file ({e})") from None
-    return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
+
+    def reader(name: str):
+        def read() -> np.ndarray:
+            from components.logs.csv_log import labels
+
+            try:
+                col = pf.read(columns=[name]).column(0)
+            except (pa.ArrowInvalid, OSError) as e:
+                raise MappingError(f"{src.path}: column {name!r} cannot be read ({e})") from None
+            if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
+                return labels(col.dictionary_encode())
+            if pa.types.is_dictionary(col.type):
+                return labels(col)
+            return col.to_numpy(zero_copy_only=False)
+        return read
+
+    return {name: reader(name) for name in names}
 
 
 def _mat(src: Source) -> dict:
