@@ -404,3 +404,44 @@ encoder_resolution = "exact"
     mapping = load_mapping(m)
     labels = Columns(mapping.imu).text(mapping.labels, "labels")
     assert len({id(x) for x in labels}) == len(set(labels.tolist()))
+
+
+def test_a_csv_column_used_twice_is_the_same_both_times(tmp_path):
+    """A CSV column is dropped from the parsed file once converted; a mapping that names it twice
+    (here one gyro column for two axes, one flipped) gets it again, the same values."""
+    n = 400
+    t = np.arange(n) * 0.005
+    w = np.sin(np.arange(n) * 0.01) * 10.0       # deg/s
+    _write_delimited(tmp_path / "imu.csv", ["t", "w", "one", "zero"], [t, w, np.ones(n), np.zeros(n)])
+    m = _mapping(tmp_path / "map.toml", f'''
+[imu]
+file = "imu.csv"
+sample_rate_hz = 200.0
+[imu.time]
+column = "t"
+[imu.gyro]
+output = "rate"
+unit = "deg/s"
+x = "w"
+y = "-w"
+z = "zero"
+[imu.acc]
+output = "specific_force"
+unit = "g"
+x = "zero"
+y = "zero"
+z = "one"
+[labels]
+[[labels.ranges]]
+from = 0.0
+to = 10.0
+label = "pos01"
+[segments]
+pos01 = {{ kind = "static" }}
+{SITE}''')
+    assert main(["import", str(m), "--out", str(tmp_path / "imported")]) == 0
+    back = read_log(tmp_path / "imported")
+    rate = np.radians(w)
+    assert np.allclose(back.gyro[:, 0] / back.dt if back.gyro_output == "increment" else back.gyro[:, 0], rate,
+                       rtol=1e-12, atol=0)
+    assert np.array_equal(back.gyro[:, 1], -back.gyro[:, 0]) and not back.gyro[:, 2].any()

@@ -96,26 +96,59 @@ def _is_number(x) -> bool:
 
 
 def _csv(src: Source) -> dict:
+    """The file parsed once (Arrow's reader); each column converted when first used and then
+    dropped from the parsed table (every column was copied to numpy at once, beside the table:
+    twice the file in memory); a column used again is parsed again, alone. Text as labels sharing
+    one string per distinct value."""
     import pyarrow as pa
     import pyarrow.csv as pcsv
 
-    try:
-        table = pcsv.read_csv(
-            src.path,
-            read_options=pcsv.ReadOptions(skip_rows=src.skip_rows, autogenerate_column_names=not src.header,
-                                          encoding="utf8"),
-            parse_options=pcsv.ParseOptions(delimiter=src.delimiter),
-            convert_options=pcsv.ConvertOptions(decimal_point=src.decimal, strings_can_be_null=False))
-    except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as e:
-        raise MappingError(f"{src.path}: cannot be read as {src.format.upper()} with delimiter {src.delimiter!r}, "
-                           f"{src.skip_rows} line(s) skipped, decimal {src.decimal!r} ({str(e).splitlines()[0]})") from None
-    return {name.strip(): table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
+    def parse(columns=None):
+        try:
+            return pcsv.read_csv(
+                src.path,
+                read_options=pcsv.ReadOptions(skip_rows=src.skip_rows, autogenerate_column_names=not src.header,
+                                              encoding="utf8"),
+                parse_options=pcsv.ParseOptions(delimiter=src.delimiter),
+                convert_options=pcsv.ConvertOptions(decimal_point=src.decimal, strings_can_be_null=False,
+                                                    include_columns=columns))
+        except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as e:
+            raise MappingError(f"{src.path}: cannot be read as {src.format.upper()} with delimiter {src.delimiter!r}, "
+                               f"{src.skip_rows} line(s) skipped, decimal {src.decimal!r} ({str(e).splitlines()[0]})") from None
+
+    held = {"table": parse()}
+
+    def taker(name: str):
+        def take() -> np.ndarray:
+            table = held["table"]
+            if name not in table.column_names:
+                return _array(parse([name]).column(0))
+            col = table.column(name)
+            held["table"] = table.drop_columns([name])
+            return _array(col)
+        return take
+
+    return {name.strip(): taker(name) for name in held["table"].column_names}
+
+
+def _array(col) -> np.ndarray:
+    """An Arrow column as numpy; text as labels sharing one string per distinct value
+    (components.logs.csv_log.labels; one per row was ~50 bytes a sample)."""
+    import pyarrow as pa
+
+    from components.logs.csv_log import labels
+
+    if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
+        return labels(col.dictionary_encode())
+    if pa.types.is_dictionary(col.type):
+        return labels(col)
+    return col.to_numpy(zero_copy_only=False)
 
 
 def _parquet(src: Source) -> dict:
     """Each column read when first used (an hour of 1 kHz data has columns a mapping never names,
     and the whole table beside its numpy copies was twice the file in memory); text as labels
-    that share one string per distinct value (components.logs.csv_log.labels), not one a row."""
+    (:func:`_array`)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -127,17 +160,11 @@ def _parquet(src: Source) -> dict:
 
     def reader(name: str):
         def read() -> np.ndarray:
-            from components.logs.csv_log import labels
-
             try:
                 col = pf.read(columns=[name]).column(0)
             except (pa.ArrowInvalid, OSError) as e:
                 raise MappingError(f"{src.path}: column {name!r} cannot be read ({e})") from None
-            if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
-                return labels(col.dictionary_encode())
-            if pa.types.is_dictionary(col.type):
-                return labels(col)
-            return col.to_numpy(zero_copy_only=False)
+            return _array(col)
         return read
 
     return {name: reader(name) for name in names}
