@@ -107,3 +107,34 @@ def test_the_correction_in_pieces_is_the_correction_in_one(conformance, tmp_path
     cut = correct_log(log, model, pieces=997)
     assert np.array_equal(whole.gyro, cut.gyro) and np.array_equal(whole.acc, cut.acc)
     assert not np.array_equal(whole.acc, log.acc)
+
+
+def test_a_parquet_log_rewritten_a_row_group_at_a_time_is_the_log_corrected_whole(conformance, tmp_path, monkeypatch):
+    """Parquet to Parquet, apply reads only what the correction needs (on disk, as a long log's)
+    and rewrites the file a row group at a time; its samples, every other column (an extra one
+    included) and its metadata are those of the correction of the whole log written as CSV."""
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from components.logs.logfile import read_log, write_log
+
+    raw = read_log(conformance / "example")
+    raw.extra["humidity"] = np.linspace(30.0, 40.0, raw.n)
+    write_log(tmp_path / "raw", raw, fmt="parquet")
+    pq.write_table(pq.read_table(tmp_path / "raw.parquet"), tmp_path / "raw.parquet", row_group_size=7000)
+    assert main(["calibrate", str(tmp_path / "raw"), "--out", str(tmp_path / "r.json")]) == 0
+    assert main(["apply", str(tmp_path / "raw.parquet"), "--result", str(tmp_path / "r.json"),
+                 "--out", str(tmp_path / "whole.csv")]) == 0
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
+    assert main(["apply", str(tmp_path / "raw.parquet"), "--result", str(tmp_path / "r.json"),
+                 "--out", str(tmp_path / "rows")]) == 0
+    monkeypatch.delenv("CALBENCH_SPILL_SAMPLES")
+    whole, rows = read_log(tmp_path / "whole.csv"), read_log(tmp_path / "rows.parquet")
+    assert pq.ParquetFile(tmp_path / "rows.parquet").num_row_groups > 1
+    for k in ("time", "gyro", "acc", "temperature"):
+        assert np.array_equal(getattr(whole, k), getattr(rows, k)), k
+    assert rows.segment.tolist() == whole.segment.tolist()
+    assert np.array_equal(rows.extra["humidity"], raw.extra["humidity"])
+    assert all(np.array_equal(rows.gimbal[a], whole.gimbal[a]) for a in whole.axis_names)
+    assert rows.metadata() == whole.metadata()
+    assert not np.array_equal(rows.acc, raw.acc)

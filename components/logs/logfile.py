@@ -51,6 +51,11 @@ from components.logs.spill import release, spill_threshold, spilled_array
 
 
 # ---------------------------------------------------------------------------- reading
+def sample_file(path: str | Path) -> Path:
+    """The samples' file (.csv or .parquet) of the log *path* names (either file or the stem)."""
+    return _pair(path)[0]
+
+
 def _pair(path: str | Path) -> tuple[Path, Path]:
     p = Path(path)
     if p.suffix.lower() in (".csv", ".parquet"):
@@ -264,6 +269,43 @@ def write_log(stem: str | Path, log: MeasurementLog, fmt: str = "csv") -> list[P
                 writer.close()
         out.append(p)
     return out
+
+
+def rewrite_parquet(src: str | Path, stem: str | Path, log: MeasurementLog, columns: list[str]) -> list[Path]:
+    """``<stem>.json`` (the metadata of *log*) and ``<stem>.parquet``: the Parquet log *src*
+    a row group at a time, its *columns* taken from *log* (the same samples, e.g. corrected),
+    every other column as it is: a long log rewritten without its other columns in memory."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    stem = Path(stem)
+    if stem.suffix.lower() in (".csv", ".parquet", ".json"):
+        stem = stem.with_suffix("")
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    meta_path = Path(str(stem) + ".json")
+    meta_path.write_text(json.dumps(log.metadata(), indent=1) + "\n", encoding="utf-8")
+    out = Path(str(stem) + ".parquet")
+    cols = log.columns()
+    pf = pq.ParquetFile(src)
+    if pf.metadata.num_rows != log.n:
+        raise LogFormatError(f"{src}: {pf.metadata.num_rows} rows; the log to write has {log.n}")
+    writer, row = None, 0
+    try:
+        for i in range(pf.num_row_groups):
+            table = pf.read_row_group(i)
+            rows = slice(row, row + table.num_rows)
+            for name in columns:
+                table = table.set_column(table.schema.get_field_index(name), name,
+                                         pa.array(np.ascontiguousarray(cols[name][rows], dtype=float)))
+            if writer is None:
+                writer = pq.ParquetWriter(out, table.schema)
+            writer.write_table(table)
+            release(*(cols[name] for name in columns))
+            row += table.num_rows
+    finally:
+        if writer is not None:
+            writer.close()
+    return [meta_path, out]
 
 
 # rows converted and written at a time: a long log is never held twice (as its columns and as

@@ -91,12 +91,14 @@ CORRECT_SAMPLES = 1 << 16
 CORRECT_MARGIN = 8
 
 
-def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray, pieces: int):
+def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray, pieces: int,
+               out=None, after_piece=None):
     """(gyro, acc) corrected increments of the whole log, *pieces* samples at a time, each with
-    CORRECT_MARGIN samples either side: the same values as in one piece."""
+    CORRECT_MARGIN samples either side: the same values as in one piece; into *out* (two (N, 3)
+    arrays) if given; ``after_piece()`` after each piece."""
     n = log.n
     g_inc, a_inc = log.gyro_increment(), log.acc_increment()
-    g, a = np.empty((n, 3)), np.empty((n, 3))
+    g, a = out if out is not None else (np.empty((n, 3)), np.empty((n, 3)))
     T = log.temperature
     T0 = res.temperature_ref if res.temperature_ref is not None else (float(T[0]) if T is not None and n else 0.0)
     for lo in range(0, n, pieces):
@@ -107,24 +109,34 @@ def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray,
         gp, ap = correct_increments(piece, g_inc[a0:b0], a_inc[a0:b0], dt[a0:b0],
                                     None if T is None else T[a0:b0], 0.0, elapsed[a0:b0])
         g[lo:hi], a[lo:hi] = gp[lo - a0:hi - a0], ap[lo - a0:hi - a0]
+        if log.gyro_output == "rate":
+            g[lo:hi] /= dt[lo:hi, None]
+        if log.acc_output == "specific_force":
+            a[lo:hi] /= dt[lo:hi, None]
+        if after_piece is not None:
+            after_piece()
     return g, a
 
 
-def correct_log(log, res: CalibrationResult, pieces: int = CORRECT_SAMPLES):
+def correct_log(log, res: CalibrationResult, pieces: int = CORRECT_SAMPLES, into=None, after_piece=None):
     """A copy of the measurement log with corrected IMU outputs (same output kinds; counts are
-    written as increments, since corrected values are no longer whole counts)."""
+    written as increments, since corrected values are no longer whole counts). *into*: the
+    (gyro, acc) arrays (N, 3) to write them in (a long log's on disk); ``after_piece()`` after
+    each piece of the correction."""
     # each sample's own interval (a logger's measured clock: the rates were logged over those),
     # and the drift terms' time from the start of the first interval, as calibrate counts it
     dt = log.intervals()
     elapsed = (log.time - (log.time[0] - dt[0])) - dt / 2 if log.n else np.zeros(0)
-    g, a = _corrected(res, log, dt, elapsed, pieces)
+    # (the corrected values in the log's output kinds: rates and forces over each interval,
+    # else increments)
+    g, a = _corrected(res, log, dt, elapsed, pieces, into, after_piece)
     out = copy.copy(log)
     if log.gyro_output == "rate":
-        out.gyro = g / dt[:, None]
+        out.gyro = g
     else:
         out.gyro, out.gyro_output, out.gyro_count_rad = g, "increment", None
     if log.acc_output == "specific_force":
-        out.acc = a / dt[:, None]
+        out.acc = a
     else:
         out.acc, out.acc_output, out.acc_count_mps = a, "increment", None
     notes = [f"corrected with a calbench result ({', '.join(res.effects)})"]
