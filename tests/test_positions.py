@@ -365,7 +365,7 @@ def test_the_result_corrects_a_log_with_calbenchs_own_correction(session):
     fit = _fit(session)
     t = session["time"]
     dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
-    g_inc, a_inc = correct_increments(fit.to_result(), session["gyro"], session["acc"], dt, None, 0.0)
+    g_inc, a_inc = correct_increments(fit.to_result(), session["gyro"], session["acc"], dt, None)
     seg, g = session["segment"], session["gravity"]
     raw = []
     for lab in sorted(set(seg)):

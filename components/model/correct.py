@@ -59,15 +59,17 @@ def sensor_error(res: CalibrationResult, sensor: str, x: np.ndarray, f: np.ndarr
 
 
 def correct_increments(res: CalibrationResult, gyro_inc: np.ndarray, acc_inc: np.ndarray,
-                       dt: np.ndarray, temperature: np.ndarray | None, t0: float,
+                       dt: np.ndarray, temperature: np.ndarray | None, temperature_ref: float | None = None,
                        elapsed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Corrected increments (N, 3) gyro [rad] and acc [m/s]; *dt* (N,) each sample's interval,
-    *elapsed* (N,) the time since the drift terms' origin at each interval's middle (default:
-    from the intervals, the first one's start the origin)."""
+    """Corrected increments (N, 3) gyro [rad] and acc [m/s]; *dt* (N,) each sample's interval;
+    *temperature_ref* the temperature the temperature terms count from (default: the result's,
+    else the first sample's); *elapsed* (N,) the time since the drift terms' origin at each
+    interval's middle (default: from the intervals, the first one's start the origin)."""
     dt = np.asarray(dt, float)[:, None]
     yg, ya = gyro_inc / dt, acc_inc / dt
     T = np.zeros(len(dt)) if temperature is None else np.asarray(temperature, float)
-    T0 = res.temperature_ref if res.temperature_ref is not None else (T[0] if len(T) else 0.0)
+    T0 = temperature_ref if temperature_ref is not None else (
+        res.temperature_ref if res.temperature_ref is not None else (T[0] if len(T) else 0.0))
     dT = T - T0
     mid = np.cumsum(dt[:, 0]) - dt[:, 0] / 2 if elapsed is None else np.asarray(elapsed, float)
     lever = np.array([[res.value(f"acc.lever.{i}.{k}") for k in AX] for i in AX])
@@ -93,9 +95,10 @@ CORRECT_MARGIN = 8
 
 def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray, pieces: int,
                out=None, after_piece=None):
-    """(gyro, acc) corrected increments of the whole log, *pieces* samples at a time, each with
-    CORRECT_MARGIN samples either side: the same values as in one piece; into *out* (two (N, 3)
-    arrays) if given; ``after_piece()`` after each piece."""
+    """(gyro, acc) of the whole log corrected, in its output kinds (rates and specific forces
+    over each interval, else increments), *pieces* samples at a time, each with CORRECT_MARGIN
+    samples either side: the same values as in one piece; into *out* (two (N, 3) arrays) if
+    given; ``after_piece()`` after each piece."""
     n = log.n
     g_inc, a_inc = log.gyro_increment(), log.acc_increment()
     g, a = out if out is not None else (np.empty((n, 3)), np.empty((n, 3)))
@@ -104,10 +107,8 @@ def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray,
     for lo in range(0, n, pieces):
         hi = min(lo + pieces, n)
         a0, b0 = max(lo - CORRECT_MARGIN, 0), min(hi + CORRECT_MARGIN, n)
-        piece = copy.copy(res)
-        piece.temperature_ref = T0
-        gp, ap = correct_increments(piece, g_inc[a0:b0], a_inc[a0:b0], dt[a0:b0],
-                                    None if T is None else T[a0:b0], 0.0, elapsed[a0:b0])
+        gp, ap = correct_increments(res, g_inc[a0:b0], a_inc[a0:b0], dt[a0:b0],
+                                    None if T is None else T[a0:b0], T0, elapsed[a0:b0])
         g[lo:hi], a[lo:hi] = gp[lo - a0:hi - a0], ap[lo - a0:hi - a0]
         if log.gyro_output == "rate":
             g[lo:hi] /= dt[lo:hi, None]
