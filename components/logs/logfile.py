@@ -237,20 +237,14 @@ def write_log(stem: str | Path, log: MeasurementLog, fmt: str = "csv") -> list[P
 
     if fmt not in ("csv", "parquet", "both"):
         raise ValueError(f"fmt {fmt!r}: expected 'csv', 'parquet' or 'both'")
-    stem = Path(stem)
-    if stem.suffix.lower() in (".csv", ".parquet", ".json"):
-        stem = stem.with_suffix("")
+    stem = log_stem(stem)
     log.validate(f"log for {stem}")
-    stem.parent.mkdir(parents=True, exist_ok=True)
     cols = log.columns()
     # text columns (the segment labels) as a dictionary: their labels sorted, once
     labels = {k: _labels_of(v) for k, v in cols.items()
               if k == "segment" or (isinstance(v, np.ndarray) and v.dtype.kind in "OU")}
     n = log.n
-    out = []
-    meta_path = Path(str(stem) + ".json")
-    meta_path.write_text(json.dumps(log.metadata(), indent=1) + "\n", encoding="utf-8")
-    out.append(meta_path)
+    out = [_write_metadata(stem, log)]
     if fmt in ("csv", "both"):
         out.append(_write_csv(Path(str(stem) + ".csv"), cols, labels, n))
     if fmt in ("parquet", "both"):
@@ -278,12 +272,8 @@ def rewrite_parquet(src: str | Path, stem: str | Path, log: MeasurementLog, colu
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    stem = Path(stem)
-    if stem.suffix.lower() in (".csv", ".parquet", ".json"):
-        stem = stem.with_suffix("")
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    meta_path = Path(str(stem) + ".json")
-    meta_path.write_text(json.dumps(log.metadata(), indent=1) + "\n", encoding="utf-8")
+    stem = log_stem(stem)
+    meta_path = _write_metadata(stem, log)
     out = Path(str(stem) + ".parquet")
     cols = log.columns()
     pf = pq.ParquetFile(src)
@@ -306,6 +296,20 @@ def rewrite_parquet(src: str | Path, stem: str | Path, log: MeasurementLog, colu
         if writer is not None:
             writer.close()
     return [meta_path, out]
+
+
+def log_stem(stem: str | Path) -> Path:
+    """The log's stem, whether given as the stem or as one of its files."""
+    stem = Path(stem)
+    return stem.with_suffix("") if stem.suffix.lower() in (".csv", ".parquet", ".json") else stem
+
+
+def _write_metadata(stem: Path, log: MeasurementLog) -> Path:
+    """``<stem>.json``: the metadata of *log* (its directory made)."""
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    path = Path(str(stem) + ".json")
+    path.write_text(json.dumps(log.metadata(), indent=1) + "\n", encoding="utf-8")
+    return path
 
 
 # rows converted and written at a time: a long log is never held twice (as its columns and as

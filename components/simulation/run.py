@@ -350,11 +350,9 @@ def truth_of(sc: Scenario, ctrl: CalibrationController, info: dict, rec) -> dict
 
 def write_outputs(result: RunResult, stem: str | Path, fmt: str = "csv") -> list[Path]:
     """``<stem>.csv``/``.parquet`` + ``<stem>.json`` (calbench-log/1) and ``<stem>.truth.json``."""
-    from components.logs.logfile import write_log
+    from components.logs.logfile import log_stem, write_log
 
-    stem = Path(stem)
-    if stem.suffix.lower() in (".csv", ".parquet", ".json"):
-        stem = stem.with_suffix("")
+    stem = log_stem(stem)
     paths = write_log(stem, result.log, fmt)
     from components.model.result import file_sha256
 
