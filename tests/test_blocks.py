@@ -50,12 +50,12 @@ def test_a_log_that_starts_moving_leaves_out_its_first_move():
 
 
 def test_jerk_near_is_the_largest_third_difference_within_its_window():
-    """_jerk_near from its definition, written as loops here: per block boundary k (the time of
+    """_JerkNear from its definition, written as loops here: per block boundary k (the time of
     sample k-1), the largest over samples j = k-4 ... k+2 (clipped to the log) of Σ_axes
     |a[j+1] − 3 a[j] + 3 a[j-1] − a[j-2]| (0 where the difference does not exist). Asked for at
     every boundary at once, one at a time and in windows of 5 (each computed from the angles
     around them only: the margins)."""
-    from components.estimation.blocks import _jerk_near
+    from components.estimation.blocks import _JerkNear
 
     rng = np.random.default_rng(3)
     for n, axes in ((1, 1), (3, 2), (4, 3), (9, 1), (60, 3)):
@@ -63,7 +63,7 @@ def test_jerk_near_is_the_largest_third_difference_within_its_window():
         d3 = [sum(abs(a[j + 1, i] - 3 * a[j, i] + 3 * a[j - 1, i] - a[j - 2, i]) for i in range(axes))
               if 2 <= j <= n - 2 else 0.0 for j in range(n)]
         expected = np.array([max(d3[min(max(j, 0), n - 1)] for j in range(k - 4, k + 3)) for k in range(n + 1)])
-        near = _jerk_near(a)
+        near = _JerkNear(a)
         assert len(near) == n + 1
         np.testing.assert_allclose(near[np.arange(n + 1)], expected, rtol=1e-12, atol=1e-12)
         for k in range(n + 1):

@@ -109,7 +109,7 @@ def observation_blocks(static: np.ndarray, angles: np.ndarray,
                 break
             first = b
     gb = make_blocks(static, samples_per_chunk, whole_moves=True, start=first)
-    ab = make_blocks(static, samples_per_chunk, whole_moves=False, start=first, cut_cost=_jerk_near(angles))
+    ab = make_blocks(static, samples_per_chunk, whole_moves=False, start=first, cut_cost=_JerkNear(angles))
     if valid is None or np.all(valid):
         return gb, ab
     return restrict(gb, valid), restrict(ab, valid)
@@ -159,11 +159,6 @@ class _JerkNear:
         near = _jerk_near_of(self.angles[lo:hi])[k - lo]
         release(self.angles)  # a spilled log's: each read maps a large stretch of the file
         return near
-
-
-def _jerk_near(angles: np.ndarray) -> _JerkNear:
-    """See :func:`_jerk_near_of` (evaluated where indexed: :class:`_JerkNear`)."""
-    return _JerkNear(angles)
 
 
 def _jerk_near_of(angles: np.ndarray) -> np.ndarray:
