@@ -123,9 +123,8 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
                for g, c in sensor_groups(meta).items()}
     place = {c: (g, j) for g, cs in sensor_groups(meta).items() for j, c in enumerate(cs)}
     cols: dict[str, np.ndarray] = {}
-    # a column at a time (the whole Arrow table beside its numpy copies held 3x the log at once),
-    # and a spilled column a row group at a time
-    for name in wanted_columns(header, meta, lean):
+    names = wanted_columns(header, meta, lean)
+    for name in names:
         typ = schema.field(name).type
         if name in numeric and not (pa.types.is_floating(typ) or pa.types.is_integer(typ)):
             raise LogFormatError(f"{path}: column {name!r} has type {typ}; expected numbers")
@@ -135,44 +134,58 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
                 raise LogFormatError(f"{path}: column 'segment' has type {typ}; expected text")
         if name in heavy and name not in place:
             cols[name] = spilled_array((n,))
+
+    def put(name, col, row):
+        if col.null_count and (name in numeric or name == "segment"):
+            i = row + int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
+            raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected "
+                                 + ("text" if name == "segment" else "a number"))
+        if name in place:
+            g, j = place[name]
+            stacked[g][row:row + len(col), j] = col.cast(pa.float64()).to_numpy()
+            cols[name] = stacked[g][:, j]
+        elif name in heavy:
+            cols[name][row:row + len(col)] = col.cast(pa.float64()).to_numpy()
+        elif name in numeric:
+            cols[name] = col.cast(pa.float64()).to_numpy()
+        elif name == "segment":
+            cols[name] = labels(col)
+        else:
+            cols[name] = col.to_numpy()
+
+    # the light columns a column at a time (the whole Arrow table beside its numpy copies held 3x
+    # the log at once)
+    for name in (c for c in names if c not in heavy):
+        put(name, _read_columns(pf, [name], path).column(0), 0)
+    # the spilled ones a row group at a time, the columns of one (N, k) array together: each page
+    # of the array is then written once (column after column over the whole log mapped each page
+    # k times, given back in between: 3.6 s of the 8-hour log's 5.7 s read)
+    spilled = [c for c in names if c in heavy]
+    together = [[c for c in cs if c in spilled] for cs in sensor_groups(meta).values()]
+    together = [cs for cs in together if cs] + [[c] for c in spilled if c not in place]
+    for cs in together:
         row = 0
-        for col in _pieces(pf, name, path, name in heavy):
-            if col.null_count and (name in numeric or name == "segment"):
-                i = row + int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
-                raise LogFormatError(f"{path}: row {i + 1}, column {name!r}: empty value; expected "
-                                     + ("text" if name == "segment" else "a number"))
-            if name in place:
-                g, j = place[name]
-                stacked[g][row:row + len(col), j] = col.cast(pa.float64()).to_numpy()
-                cols[name] = stacked[g][:, j]
-                release(stacked[g])
-            elif name in heavy:
-                cols[name][row:row + len(col)] = col.cast(pa.float64()).to_numpy()
-                release(cols[name])
-            elif name in numeric:
-                cols[name] = col.cast(pa.float64()).to_numpy()
-            elif name == "segment":
-                cols[name] = labels(col)
-            else:
-                cols[name] = col.to_numpy()
-            row += len(col)
-            del col
+        for i in range(pf.num_row_groups):
+            table = _read_columns(pf, cs, path, i)
+            for name in cs:
+                put(name, table.column(name), row)
+            row += table.num_rows
+            del table
+            release(*(stacked[place[c][0]] if c in place else cols[c] for c in cs))
     # Arrow's allocator keeps what it freed for reuse; the log is read, give it back
     pa.default_memory_pool().release_unused()
     return cols, stacked
 
 
-def _pieces(pf, name: str, path: Path, by_row_group: bool):
-    """The column *name* of the Parquet file: whole, or a row group at a time."""
+def _read_columns(pf, names: list[str], path: Path, row_group: int | None = None):
+    """The columns *names* of the Parquet file as a table: whole, or one row group."""
     import pyarrow as pa
 
-    groups = range(pf.num_row_groups) if by_row_group else [None]
-    for i in groups:
-        try:
-            table = pf.read(columns=[name]) if i is None else pf.read_row_group(i, columns=[name])
-        except (pa.ArrowInvalid, OSError) as e:
-            raise LogFormatError(f"{path}: column {name!r} cannot be read ({e})") from None
-        yield table.column(0)
+    try:
+        return pf.read(columns=names) if row_group is None else pf.read_row_group(row_group, columns=names)
+    except (pa.ArrowInvalid, OSError) as e:
+        what = f"column {names[0]!r}" if len(names) == 1 else f"row group {row_group}"
+        raise LogFormatError(f"{path}: {what} cannot be read ({e})") from None
 
 
 def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
