@@ -69,6 +69,7 @@ def make_thermal_log(stem: Path, hours: float, step: float, dwell: float) -> Pat
     import pyarrow.parquet as pq
 
     from components.cli.demo import SCENARIO
+    from components.logs.labels import SegmentLabels
     from components.logs.logfile import write_log
     from components.simulation.multi_imu import Variant, run_variants
     from components.simulation.scenario import scenario_from_dict
@@ -94,7 +95,8 @@ def make_thermal_log(stem: Path, hours: float, step: float, dwell: float) -> Pat
             log, _ = run_variants(sc, [Variant("imu", parameters={"temperature.mode": 2}, temperature_env=True)],
                                   profile)["imu"]
             log.time = log.time + offset
-            log.segment = np.array([f"r{k:02d}-{s}" for s in log.segment], dtype=object)
+            seg = log.segment
+            log.segment = SegmentLabels(seg.starts, seg.codes, [f"r{k:02d}-{s}" for s in seg.names], seg.n)
             log.description = f"thermal run: twenty-six positions repeated, ramp and soak 25-60 degC ({hours:g} h)"
             write_log(piece, log, fmt="parquet")
             table = pq.read_table(piece.with_suffix(".parquet"))

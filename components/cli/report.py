@@ -61,13 +61,11 @@ def _of_this_run(truth: dict, log) -> bool:
     """Is *truth* the run of *log*: the log's segment labels, run by run, the truth's schedule's,
     or else the same length within 1 % (a log cut or relabelled after the run)? Without segments
     in either, nothing to tell by: yes."""
-    import numpy as np
 
     segs = [str(s.get("label")) for s in truth.get("segments", []) if isinstance(s, dict)]
     if not segs or log.segment is None or not log.n:
         return True
-    lab = np.asarray(log.segment)
-    runs = [str(x) for x in lab[np.concatenate([[True], lab[1:] != lab[:-1]])]]
+    runs = [label for _, _, label in log.segment.runs()]
     sched = [x for i, x in enumerate(segs) if i == 0 or x != segs[i - 1]]
     if runs == sched[:len(runs)]:
         return True

@@ -240,7 +240,7 @@ def locate(comp: Comparison, data: LogData, plate: PlateAtSamples, rows: dict) -
     comp.per_segment = _per_segment(data, rows)
     masks = _condition_masks(data, plate, rows)
     comp.conditions = _conditions(rows, masks)
-    seg = np.asarray(data.segment)[rows["start"]].astype(str) if data.segment is not None else None
+    seg = data.segment[rows["start"]].astype(str) if data.segment is not None else None
     comp.misfits = misfits(rows, seg, masks)
 
 
@@ -248,7 +248,7 @@ def _per_segment(data: LogData, rows: dict) -> dict:
     """Per segment label and channel: RMS of the normalised block residuals (1 = noise)."""
     if data.segment is None:
         return {}
-    label = np.asarray(data.segment)[rows["start"]].astype(str)  # the blocks' labels, not every sample's
+    label = data.segment[rows["start"]].astype(str)  # the blocks' labels, not every sample's
     out: dict = {}
     for s in dict.fromkeys(label):
         sel = label == s

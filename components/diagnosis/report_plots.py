@@ -6,6 +6,7 @@ import io
 import numpy as np
 
 from components.diagnosis.misfit import CHANNELS
+from components.logs.labels import SegmentLabels
 
 # scatter plots with more points than this draw them as one embedded image in the SVG: each point
 # as a vector element was ~110 bytes, and an 8-hour log's page came to 78 MB
@@ -76,8 +77,8 @@ def residual_vs_time(comparison, model_name: str) -> str:
     fig, axes = plt.subplots(6, 1, figsize=(9, 8), sharex=True)
     bounds = None
     if comparison.segment is not None:
-        seg = np.asarray(comparison.segment, dtype=object)  # the labels, not a text array a sample
-        bounds = np.concatenate([[0], np.nonzero(seg[1:] != seg[:-1])[0] + 1, [len(seg)]])
+        seg = SegmentLabels.of(comparison.segment)
+        bounds = np.append(seg.starts, len(seg))
     for k, ax in enumerate(axes):
         sel = rows["channel"] == k
         tm = t[np.minimum((rows["start"][sel] + rows["stop"][sel]) // 2, len(t) - 1)]

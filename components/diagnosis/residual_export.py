@@ -14,9 +14,12 @@ Two files, because two different things are measured:
 """
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from components.diagnosis.misfit import CHANNELS
+from components.logs.labels import SegmentLabels
 
 
 def write_residuals(path: str, log, comparison) -> None:
@@ -29,13 +32,13 @@ def write_residuals(path: str, log, comparison) -> None:
             r[:, s] /= log.dt
         elif kind == "counts":
             r[:, s] /= w
-    seg = np.asarray(log.segment).astype(str) if log.segment is not None else np.full(log.n, "")
+    seg = iter(log.segment) if log.segment is not None else itertools.repeat("")
     limited = ~np.asarray(comparison.static, dtype=bool)
     left_out = (np.zeros(log.n, bool) if comparison.usable is None else ~np.asarray(comparison.usable, bool))
     with open(path, "w") as f:
         f.write("time,segment,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z,encoder_limited,left_out\n")
         for k in range(log.n):
-            f.write(f"{float(log.time[k])!r},{seg[k]}," + ",".join(repr(float(x)) for x in r[k])
+            f.write(f"{float(log.time[k])!r},{next(seg)}," + ",".join(repr(float(x)) for x in r[k])
                     + f",{int(limited[k])},{int(left_out[k])}\n")
 
 
@@ -44,7 +47,7 @@ def write_block_residuals(path: str, comparison) -> None:
     normalised residual z, and whether its segment × channel cell misfits beyond noise."""
     rows = comparison.rows
     t = np.asarray(comparison.time, dtype=float)
-    seg = (np.asarray(comparison.segment)[rows["start"]].astype(str) if comparison.segment is not None
+    seg = (SegmentLabels.of(comparison.segment)[rows["start"]].astype(str) if comparison.segment is not None
            else np.full(len(rows["z"]), ""))
     mis = comparison.misfits
     flagged = {(c.name, c.channel) for c in mis.flagged("segment")} if mis is not None else set()

@@ -9,6 +9,7 @@ import numpy as np
 
 from components.estimation import order_statistics
 from components.estimation.rest_angles import encoder_quantum
+from components.logs.labels import SegmentLabels
 from components.logs.spill import gathered, pieces, release
 from components.model.approach import run_sides
 from components.model.geometry import Stage, TableGeometry
@@ -25,7 +26,7 @@ class LogData:
     acc: np.ndarray     # (N, 3) increments [m/s]
     geometry: TableGeometry
     temperature: np.ndarray | None = None
-    segment: np.ndarray | None = None
+    segment: SegmentLabels | None = None  # (any array of str is taken as one)
     dt0: float | None = None
     source: dict = field(default_factory=dict)
     # count weight of a pulse output [rad, m/s] (gyro, accelerometer), None for other outputs:
@@ -54,6 +55,10 @@ class LogData:
     _interval: float | None = field(default=None, repr=False, compare=False)
     _static: np.ndarray | None = field(default=None, repr=False, compare=False)
     _sides: tuple | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self):
+        if self.segment is not None:
+            self.segment = SegmentLabels.of(self.segment)
 
     @property
     def sample_interval(self) -> float:
@@ -127,7 +132,7 @@ class LogData:
                 # every sample (the turns of such a log are not known apart from its rests)
                 kinds = self.segment_kinds if self.segment is not None else None
                 rests = [lab for lab, d in (kinds or {}).items() if d["kind"] == "static"]
-                st = np.isin(self.segment, rests) if rests else np.ones(len(self.time), bool)
+                st = self.segment.isin(rests) if rests else np.ones(len(self.time), bool)
             else:
                 # a piece at a time: a spilled log's angles are not brought into memory whole
                 a = self.angles

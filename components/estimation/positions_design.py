@@ -73,8 +73,7 @@ class PositionsDesign:
         self.dt_med = float(np.median(np.diff(t))) if n > 1 else 1.0
         dt = np.concatenate([[self.dt_med], np.diff(t)])
         self.dt_samples = dt
-        seg = np.asarray(data.segment).astype(str)
-        self.segs = split_segments(seg, data.usable, data.segment_kinds, t, self.dt_med, chunk_s, self.notes)
+        self.segs = split_segments(data.segment, data.usable, data.segment_kinds, t, self.dt_med, chunk_s, self.notes)
         self.turns = reduce_turns(self.segs, data.gyro, dt)
         self.sg, self.sa, self.noise_source = white_sigmas(noise, data.gyro, data.acc, self.segs.use, self.dt_med,
                                                            self.notes)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.errors import EstimationError
+from components.logs.labels import SegmentLabels
 from components.logs.segments import parse_segments
 from components.model.effects import DEFAULT_EFFECTS, parse_effects
 
@@ -25,9 +26,11 @@ def checked_log(time, gyro_inc, acc_inc, segment, valid):
     if t.ndim != 1 or yg.shape != (n, 3) or ya.shape != (n, 3):
         raise EstimationError(f"time (N,), gyro_inc (N, 3), acc_inc (N, 3) expected; got {t.shape}, "
                               f"{yg.shape}, {ya.shape}")
-    seg = np.asarray(segment).astype(str)
+    # (labels of any kind from the Python API are taken as their text)
+    seg = segment if isinstance(segment, SegmentLabels) else np.asarray(segment).astype(str).astype(object)
     if seg.shape != (n,):
         raise EstimationError(f"segment: expected one label per sample ({n}), got shape {seg.shape}")
+    seg = SegmentLabels.of(seg)
     ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
     if ok.shape != (n,):
         raise EstimationError(f"valid: expected one flag per sample ({n}), got shape {ok.shape}")
@@ -59,15 +62,9 @@ def parse_kinds(kinds: dict) -> dict:
     return parse_segments(kinds, "kinds", EstimationError)
 
 
-def _runs(labels: np.ndarray) -> list[tuple[str, int, int]]:
+def _runs(labels: SegmentLabels) -> list[tuple[str, int, int]]:
     """(label, start, stop) per run of equal labels."""
-    n = len(labels)
-    if n == 0:
-        return []
-    change = np.nonzero(labels[1:] != labels[:-1])[0] + 1
-    starts = np.concatenate([[0], change])
-    stops = np.concatenate([change, [n]])
-    return [(str(labels[a]), int(a), int(b)) for a, b in zip(starts, stops)]
+    return [(label, a, b) for a, b, label in SegmentLabels.of(labels).runs()]
 
 
 def _stretches(mask: np.ndarray, a: int, b: int) -> list[tuple[int, int]]:
@@ -111,7 +108,7 @@ class Segments:
     excluded: dict[str, int]  # label -> samples left out ('(valid = False)': masked)
 
 
-def split_segments(seg: np.ndarray, ok: np.ndarray, desc: dict, t: np.ndarray, dt_med: float, chunk_s: float,
+def split_segments(seg: SegmentLabels, ok: np.ndarray, desc: dict, t: np.ndarray, dt_med: float, chunk_s: float,
                    notes: list[str]) -> Segments:
     """The runs of ``seg`` as rests and turns (``desc`` from :func:`parse_kinds`); what is left
     out is counted in ``excluded`` and said in ``notes``."""
@@ -144,7 +141,7 @@ def split_segments(seg: np.ndarray, ok: np.ndarray, desc: dict, t: np.ndarray, d
     return Segments(names, labels, ranges, chunks, turns, use, excluded)
 
 
-def _items(seg: np.ndarray, desc: dict, notes: list[str]) -> tuple[list, dict[str, int]]:
+def _items(seg: SegmentLabels, desc: dict, notes: list[str]) -> tuple[list, dict[str, int]]:
     """[(kind, name, label, start, stop)] per run, and the samples of excluded runs per label."""
     runs = _runs(seg)
     count = {}

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import LogFormatError
+from components.logs.labels import SegmentLabels
 from components.logs.rules import NONFINITE, NUMBER, XYZ, check_columns, numeric_columns
 from components.logs.spill import release, spill_threshold, spilled_array
 
@@ -46,23 +47,18 @@ def sensor_groups(meta: dict) -> dict[str, list[str]]:
             "gimbal": [f"gimbal_{a}" for a in meta["axis_names"]]}
 
 
-def labels(col) -> np.ndarray:
-    """Object array of str from a (chunked) dictionary or string column."""
+def labels(col) -> SegmentLabels:
+    """The segment labels of a (chunked) dictionary or string column, as runs (an empty value
+    reads as the text 'None', as str(None))."""
     import pyarrow as pa
 
-    # each chunk straight into its place (chunks made and then joined were the 8-hour log's labels
-    # twice over, 240 MB of fresh pages more)
-    out = np.empty(len(col), dtype=object)
-    pos = 0
+    parts = []
     for ch in (col.chunks if hasattr(col, "chunks") else [col]):
-        if pa.types.is_dictionary(ch.type):
-            d = np.array(ch.dictionary.to_pylist() + [None], dtype=object)
-            idx = ch.indices.fill_null(len(ch.dictionary)).to_numpy()
-            np.take(d, idx, out=out[pos:pos + len(ch)])
-        else:
-            out[pos:pos + len(ch)] = ch.to_pylist()
-        pos += len(ch)
-    return out
+        if not pa.types.is_dictionary(ch.type):
+            ch = ch.dictionary_encode()
+        names = ch.dictionary.to_pylist() + [None]
+        parts.append(SegmentLabels.from_codes(ch.indices.fill_null(len(names) - 1).to_numpy(), names))
+    return SegmentLabels.concatenate(parts) if parts else SegmentLabels.of([])
 
 
 def read_csv(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dict]:
@@ -144,7 +140,8 @@ def _streamed(path: Path, meta: dict, header: list[str], numeric: list[str], rea
     stacked = {g: a[:row] for g, a in stacked.items()}
     cols = {c: stacked[g][:, j] for c, (g, j) in place.items()}
     cols.update({c: a[:row] for c, a in spilled.items()})
-    cols.update({c: np.concatenate(p) if p else np.zeros(0) for c, p in parts.items()})
+    cols.update({c: (SegmentLabels.concatenate(p) if c == "segment" else np.concatenate(p)) if p else np.zeros(0)
+                 for c, p in parts.items()})
     return cols, stacked
 
 

@@ -166,7 +166,7 @@ def describe(m: Mapping, notes: list[str]) -> str:
 def _labels(m: Mapping, cols: Columns, t: np.ndarray):
     if m.labels is not None:
         lab = cols.text(m.labels, "labels.column")
-        empty = np.array([not s for s in lab])
+        empty = np.asarray(lab == "", bool)
         if empty.any():
             raise MappingError(f"{cols.where}: labels.column: row {int(np.argmax(empty)) + 1}: empty label")
         return lab

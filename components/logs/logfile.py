@@ -36,6 +36,7 @@ import numpy as np
 
 from components.errors import LogFormatError
 from components.logs.csv_log import csv_row, labels, not_utf8, read_csv, sensor_groups, wanted_columns
+from components.logs.labels import SegmentLabels
 from components.logs.measurement import MeasurementLog
 from components.logs.rules import (  # noqa: F401  (FORMAT: re-exported)
     FORMAT,
@@ -235,7 +236,7 @@ def _check_labels(meta: dict, seg, where: str) -> None:
     kinds = meta.get("segment_kinds")
     if not kinds or seg is None:
         return
-    have = set(seg.tolist()) if hasattr(seg, "tolist") else set(seg)
+    have = set(SegmentLabels.of(seg).distinct())
     missing = [lab for lab, d in kinds.items() if d["kind"] != "excluded" and lab not in have]
     if missing:
         raise LogFormatError(f"{where}: key 'segments' describes label(s) {', '.join(map(repr, missing))} that no "
@@ -336,6 +337,8 @@ def _row_slices(n: int):
 
 def _labels_of(v) -> np.ndarray:
     """The distinct labels of a text column as str, sorted (np.unique's order), a piece at a time."""
+    if isinstance(v, SegmentLabels):
+        return np.array(v.distinct(), dtype=str)
     got: set = set()
     for rows in _row_slices(len(v)):
         got.update(np.unique(np.asarray(v[rows], dtype=object).astype(str)).tolist())
@@ -348,7 +351,12 @@ def _table_of(cols: dict, labels: dict, rows: slice):
 
     arrays = {}
     for k, v in cols.items():
-        if k in labels:
+        if k in labels and isinstance(v, SegmentLabels):
+            piece = v[rows]
+            codes = np.repeat(np.searchsorted(labels[k], piece.names.astype(str))[piece.codes], piece.lengths)
+            arrays[k] = pa.DictionaryArray.from_arrays(pa.array(codes.astype(np.int32)),
+                                                       pa.array(labels[k].tolist(), type=pa.string()))
+        elif k in labels:
             codes = np.searchsorted(labels[k], np.asarray(v[rows], dtype=object).astype(str)).astype(np.int32)
             arrays[k] = pa.DictionaryArray.from_arrays(pa.array(codes), pa.array(labels[k].tolist(), type=pa.string()))
         else:

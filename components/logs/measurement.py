@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import LogFormatError
+from components.logs.labels import SegmentLabels
 from components.logs.rules import FORMAT, FORMAT_V2, XYZ, check_columns, check_samples, parse_metadata
 from components.logs.spill import scaled
 
@@ -42,7 +43,7 @@ class MeasurementLog:
     description: str = ""
     command: dict[str, np.ndarray] = field(default_factory=dict)
     temperature: np.ndarray | None = None  # °C
-    segment: np.ndarray | None = None      # object array of str
+    segment: SegmentLabels | None = None   # a label a sample (any array of str is taken as one)
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     extra_metadata: dict = field(default_factory=dict)  # unknown keys of the JSON, kept
     source: str | None = None
@@ -57,6 +58,13 @@ class MeasurementLog:
     # (N, n_axes) the gimbal angles as one array when the reader filled them so (``gimbal``'s
     # arrays are then its columns): ``angles`` returns it instead of stacking a copy
     angle_matrix: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        if self.segment is not None and not isinstance(self.segment, SegmentLabels):
+            try:
+                self.segment = SegmentLabels.of(self.segment)
+            except ValueError as e:
+                raise LogFormatError(f"{self.source or 'log'}: column 'segment', {e}") from None
 
     # ----------------------------------------------------------------- derived
     @property
@@ -139,7 +147,7 @@ class MeasurementLog:
             if isinstance(item, str):
                 item = str(item)    # numpy's str_ too, so that messages show the plain label
                 if labels is None:
-                    labels = set(self.segment) if self.segment is not None else set()
+                    labels = set(self.segment.distinct()) if self.segment is not None else set()
                 if item not in labels:
                     raise LogFormatError(f"{self.source or 'log'}: exclude {item!r}: no segment has this label "
                                          f"(labels: {', '.join(sorted(map(str, labels))[:20]) or 'none'})")

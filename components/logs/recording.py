@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from components.logs.labels import SegmentLabels
 from components.logs.logfile import MeasurementLog
 from components.logs.rules import FORMAT, XYZ, parse_metadata
 
@@ -99,7 +100,10 @@ def log_from_recording(recording, metadata: dict | None = None, table: str = "ta
         else:
             f = lambda v: str(int(v))  # noqa: E731
         uniq, inv = np.unique(vals, return_inverse=True)
-        seg = np.array([f(v) for v in uniq], dtype=object)[inv]
+        names = [f(v) for v in uniq]
+        # as runs; labels that are not text are refused by the log, naming a sample
+        seg = SegmentLabels.from_codes(inv.ravel(), names) if all(isinstance(x, str) for x in names) \
+            else np.array(names, dtype=object)[inv]
     log = MeasurementLog(
         time=t_all[1:].copy(), gimbal=gimbal, command=command,
         gyro=np.column_stack([sig(f"{imu}.gyro.{c}") for c in XYZ]),

@@ -15,6 +15,7 @@ import re
 import numpy as np
 
 from components.errors import LogFormatError
+from components.logs.labels import SegmentLabels
 from components.logs.spill import pieces
 
 FORMAT = "calbench-log/1"
@@ -343,7 +344,7 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labe
                     raise LogFormatError(f"{where}: {row(i)}, column '{sensor}_{c}': {float(a[i])!r} is not a whole "
                                          f"number; expected integer counts (imu.{sensor}_output is 'counts')")
     seg = cols.get("segment")
-    if labels and seg is not None:
+    if labels and seg is not None and not isinstance(seg, SegmentLabels):  # (SegmentLabels are text)
         bad = np.array([not isinstance(s, str) for s in seg]) if seg.dtype == object else None
         if bad is not None and bad.any():
             i = int(np.argmax(bad))

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from components.errors import MappingError
+from components.logs.labels import SegmentLabels
 from components.logs.mapping import Channel, Source
 
 
@@ -49,6 +50,8 @@ class Columns:
             # HDF5 datasets and Parquet columns are read when used, and not kept: the caller
             # converts them, and a long log's raw columns beside their conversions were twice it
             a = a()
+        if isinstance(a, SegmentLabels) and k is None:
+            return a  # text, as runs (one label a sample as an object array: 8 bytes a sample)
         a = np.asarray(a)
         if k is not None:
             if a.ndim != 2 or not 0 <= k < a.shape[1]:
@@ -82,6 +85,8 @@ class Columns:
     def text(self, ch: Channel, what: str) -> np.ndarray:
         """A column of labels as text."""
         a = self.raw(ch, what)
+        if isinstance(a, SegmentLabels):
+            return a
         if a.dtype.kind in "SO":
             return np.array([x.decode() if isinstance(x, bytes) else str(x) for x in a], dtype=object)
         return a.astype(str).astype(object)

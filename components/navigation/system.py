@@ -30,6 +30,7 @@ import numpy as np
 
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.log_data import LogData
+from components.logs.labels import SegmentLabels
 from components.model.effects import effect_of, parameters_of
 from components.model.excitation import needs
 from components.model.result import CalibrationResult, schedule_of
@@ -86,7 +87,7 @@ class Config:
             want = [lab for lab in load_schedule(self.schedule).labels if not lab.startswith("move-")]
         except (ValueError, OSError):
             return []
-        have = {str(x) for x in set(segment) if not str(x).startswith("move-")}
+        have = {x for x in SegmentLabels.of(segment).distinct() if not x.startswith("move-")}
         if len(have) >= 0.8 * len(want):
             return []
         return [f"{source}: {len(have)} segment label(s) beside the moves, where configuration {self.name}'s "
@@ -104,11 +105,10 @@ def window_of(segment, pattern: str | None, n: int) -> tuple[int, int]:
     if pattern is None or segment is None:
         return 0, n
     rx = re.compile(pattern)
-    hit = np.array([bool(rx.search(str(s))) for s in segment])
-    idx = np.nonzero(hit)[0]
-    if len(idx) == 0:
+    hit = [(a, b) for a, b, label in SegmentLabels.of(segment).runs() if rx.search(label)]
+    if not hit:
         raise ValueError(f"no segment label matches {pattern!r}")
-    return int(idx[0]), int(idx[-1]) + 1
+    return hit[0][0], hit[-1][1]
 
 
 @dataclass
@@ -303,7 +303,7 @@ def rests_of(data: LogData) -> np.ndarray:
     if data.segment is None or not labels:
         raise ValueError("a log without table angles needs segments described as static (the rests the "
                          "filter aligns on and observes zero velocity in)")
-    return np.isin(np.asarray(data.segment).astype(str), labels) & data.usable
+    return data.segment.isin(labels) & data.usable
 
 
 def calibrate_system(log, config: Config, exclude: list | None = None,

@@ -37,11 +37,7 @@ def segments(data: LogData) -> list[Segment]:
     """Runs of equal segment labels, in log order."""
     if data.segment is None or len(data.segment) == 0:
         return []
-    seg = np.asarray(data.segment).astype(str)
-    change = np.nonzero(seg[1:] != seg[:-1])[0] + 1
-    starts = np.concatenate([[0], change])
-    stops = np.concatenate([change, [len(seg)]])
-    return [Segment(seg[a], int(a), int(b)) for a, b in zip(starts, stops)]
+    return [Segment(label, a, b) for a, b, label in data.segment.runs()]
 
 
 def angle_quantum(data: LogData) -> float:

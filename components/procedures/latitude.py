@@ -55,6 +55,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from components.logs.labels import SegmentLabels
 from components.model.result import CalibrationResult, schedule_of
 from components.procedures.common import angle_quantum, as_data, noise_sigma, sample_interval, segments
 
@@ -316,7 +317,7 @@ def _concat(logs):
                 gyro=cat("gyro"), acc=cat("acc"),
                 command={k: np.concatenate([lg.command[k] for lg in logs]) for k in first.command},
                 temperature=None if first.temperature is None else cat("temperature"),
-                segment=np.concatenate([np.asarray(lg.segment, object) for lg in logs]),
+                segment=SegmentLabels.concatenate([lg.segment for lg in logs]),
                 extra={k: np.concatenate([lg.extra[k] for lg in logs]) for k in first.extra},
                 description="seed 002 latitude/attitude procedure: adaptive spins", source=None)
 
