@@ -51,3 +51,21 @@ class EstimationError(CalbenchError, ValueError):
     """The data cannot give what was asked of an estimator (too few attitudes for the parameters,
     a segment description the data contradict): names the segment or parameter and what is
     needed."""
+
+
+def whole_number_from_environment(name: str, default: int, least: int = 0) -> int:
+    """The environment variable *name* as a whole number of at least *least*; *default* when it
+    is unset or empty; anything else a UserError naming the variable and what it takes."""
+    import os
+
+    v = os.environ.get(name)
+    if v is None or not v.strip():
+        return default
+    try:
+        n = int(v.strip())
+    except ValueError:
+        n = None
+    if n is None or n < least:
+        raise UserError(f"environment variable {name}={v!r}: expected a whole number of at least {least}, "
+                        f"written as digits (e.g. {max(least, 4)}), or unset for the default ({default})")
+    return n

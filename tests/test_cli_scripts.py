@@ -209,3 +209,13 @@ def test_a_warning_of_another_kind_is_passed_on_once(monkeypatch, capsys):
     t.join(20.0)
     assert not t.is_alive(), "main did not return after a UserWarning"
     assert outcome["code"] == 0 and outcome["seen"] == ["Port 8787 is already in use"]
+
+
+@pytest.mark.parametrize("name, value", [("CALBENCH_SPILL_SAMPLES", "1e6"), ("CALBENCH_SPILL_SAMPLES", "-1"),
+                                         ("CALBENCH_WORKERS", "abc"), ("CALBENCH_WORKERS", "0")])
+def test_a_bad_environment_variable_is_bad_input_named(logs, capsys, monkeypatch, name, value):
+    # (a traceback and exit 1 before, with --json printing nothing)
+    monkeypatch.setenv(name, value)
+    code, doc, text = _json_stdout(capsys, ["calibrate", str(logs / "example"), "--out", str(logs / "env.json")])
+    assert code == 2 and doc["exit_code"] == 2
+    assert f"environment variable {name}={value!r}" in doc["error"] and "Traceback" not in text

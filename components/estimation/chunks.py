@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components import progress
-from components.errors import UserError
+from components.errors import UserError, whole_number_from_environment
 from components.estimation.block_motion import BlockMotion
 from components.estimation.blocks import Blocks, observation_blocks
 from components.estimation.design import design, predict
@@ -122,8 +122,7 @@ def chunk_workers() -> int:
     """Processes the chunk work of a long log runs on: ``CALBENCH_WORKERS``, else every CPU."""
     if "fork" not in mp.get_all_start_methods():
         return 1  # the workers inherit the log by fork (not on Windows)
-    v = os.environ.get("CALBENCH_WORKERS")
-    return max(1, int(v)) if v not in (None, "") else (os.cpu_count() or 1)
+    return whole_number_from_environment("CALBENCH_WORKERS", os.cpu_count() or 1, least=1)
 
 
 def chunk_scheduler() -> str | None:

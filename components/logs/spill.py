@@ -19,6 +19,8 @@ import tempfile
 
 import numpy as np
 
+from components.errors import whole_number_from_environment
+
 # logs with more samples than this have their sensor columns spilled when read for the
 # estimators (70 minutes at 1 kHz; CALBENCH_SPILL_SAMPLES overrides, e.g. 0 for always)
 SPILL_SAMPLES = 1 << 22
@@ -26,8 +28,7 @@ PIECE = 1 << 18  # samples per piece of a pass over a spilled column (a (PIECE, 
 
 
 def spill_threshold() -> int:
-    v = os.environ.get("CALBENCH_SPILL_SAMPLES")
-    return int(v) if v not in (None, "") else SPILL_SAMPLES
+    return whole_number_from_environment("CALBENCH_SPILL_SAMPLES", SPILL_SAMPLES)
 
 
 def spilled_array(shape, dtype=np.float64) -> np.memmap:
