@@ -272,3 +272,18 @@ def test_report_truth_in_the_frame_the_result_estimates_in(conformance, tmp_path
     assert any(x.startswith("gyro.mis.yx: truth +20 arcsec") for x in lines), lines
     assert any(x.startswith("acc.mis.yx: truth +20 arcsec") for x in lines), lines
     assert not any(x.startswith("acc.mis.xy") for x in lines), lines
+
+
+@pytest.mark.parametrize("given, page", [("my.page.v2.html", "my.page.v2"), ("rep.mem", "rep.mem"), ("plain", "plain")])
+def test_report_writes_the_page_it_was_given(conformance, tmp_path, given, page):
+    """--out names the page: a dotted name keeps its parts (my.page.v2.html was written as
+    my.page.html, so rep.mem.html and rep.sp.html overwrote one another); the JSON twin beside it."""
+    from components.cli import main
+
+    model = tmp_path / "m.json"
+    assert main(["calibrate", str(conformance / "example"), "--out", str(model)]) == 0
+    assert main(["report", str(conformance / "example"), "--model", str(model), "--out", str(tmp_path / given),
+                 "--diagnose", "none", "--no-noise"]) == 0
+    written = sorted(p.name for p in tmp_path.iterdir() if p.suffix in (".html", ".json") and p.name != "m.json")
+    assert written == [f"{page}.html", f"{page}.json"]
+    assert json.loads((tmp_path / f"{page}.json").read_text())["comparison"]

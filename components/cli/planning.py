@@ -16,7 +16,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from components.errors import UserError
     from components.estimation.crb import cramer_rao, positions_cramer_rao
     from components.estimation.log_data import LogData
-    from components.logs.logfile import read_log
+    from components.logs.logfile import log_stem, read_log
     from components.model.effects import DEFAULT_EFFECTS, DEG, UG, effect_of, parse_effects
     from components.model.excitation import needs
     from components.model.noise import describe, from_terms, grade
@@ -40,8 +40,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         noise, _, _ = choose_noise(args.noise, None, base=noise)
     target = args.schedule
     # a .toml is a schedule (a log of the same stem beside it is not what was named)
-    is_log = Path(target).suffix.lower() != ".toml" and Path(target).with_suffix(".json").exists() and (
-        Path(target).with_suffix(".csv").exists() or Path(target).with_suffix(".parquet").exists())
+    stem = str(log_stem(target))  # ('run.v2' is a stem: its files are run.v2.json and run.v2.csv)
+    is_log = Path(target).suffix.lower() != ".toml" and Path(stem + ".json").exists() and (
+        Path(stem + ".csv").exists() or Path(stem + ".parquet").exists())
     if is_log:
         log = read_log(target)
     else:

@@ -168,7 +168,8 @@ def build_report(path: str | Path, *, title: str, comparison=None, diagnosis=Non
     parts.append(_h2("Provenance: the log and every model shown", "provenance"))
     parts.append("<pre>" + html.escape(json.dumps(provenance or {}, indent=1)) + "</pre>")
     parts.append("</body></html>")
-    html_path = path.with_suffix(".html")
+    # the suffixes added to the name, not put in place of its last dotted part ('page.v2')
+    html_path = Path(f"{path}.html")
     html_path.parent.mkdir(parents=True, exist_ok=True)
     html_path.write_text("".join(parts))
     diagnosed = [v for v in views if v.diagnosis is not None]
@@ -181,6 +182,6 @@ def build_report(path: str | Path, *, title: str, comparison=None, diagnosis=Non
             "truth_values": list(truth_values or []),  # the same as numbers (SI): parameter, truth, value, σ
             "noise": noise.model.to_dict() if noise is not None else None,
             "provenance": provenance or {}}
-    json_path = path.with_suffix(".json")
+    json_path = Path(f"{path}.json")
     json_path.write_text(json.dumps(twin, indent=1, default=float))
     return html_path, json_path
