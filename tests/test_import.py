@@ -351,7 +351,7 @@ z = "a"
     assert "rec.csv" in err and "Traceback" not in err
 
 
-def test_a_parquet_file_is_read_only_for_the_columns_the_mapping_names(original, tmp_path, monkeypatch):
+def test_a_parquet_file_is_read_only_for_the_columns_the_mapping_names(original, tmp_path, monkeypatch, capsys):
     """A long recording's Parquet file is read a named column at a time (never whole, nor the
     columns no key names); its text column becomes labels sharing one string per distinct value
     (one per row was ~50 bytes a sample); the imported log is the original, labels included."""
@@ -404,6 +404,12 @@ encoder_resolution = "exact"
     mapping = load_mapping(m)
     labels = Columns(mapping.imu).text(mapping.labels, "labels")
     assert len({id(x) for x in labels}) == len(set(labels.tolist()))
+    # an empty label (a null in the file) is refused as it is in a CSV source; it became the label 'None'
+    holed = [str(s) for s in log.segment]
+    holed[7] = None
+    pq.write_table(pa.table({**cols, "label": pa.array(holed, pa.string())}), tmp_path / "rec.parquet")
+    assert main(["import", str(m), "--out", str(tmp_path / "holed")]) == 2
+    assert "labels.column: row 8: empty label" in capsys.readouterr().err
 
 
 def test_a_csv_column_used_twice_is_the_same_both_times(tmp_path):

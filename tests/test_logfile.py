@@ -274,6 +274,9 @@ CASES = {
     "empty value": (_csv_case(lambda ls: _edit_col(ls, "acc_y", 44, "")), "csv",
                     r"data row 44 \(line 45\), column 'acc_y': empty value"),
     "blank line": (_csv_case(lambda ls: ls.insert(5, "\n")), "csv", r"data row 5 \(line 6\): blank line"),
+    # (an empty label was read as a label of its own, a segment of one sample)
+    "empty label": (_csv_case(lambda ls: _edit_col(ls, "segment", 60, "")), "csv",
+                    r"data row 60 \(line 61\), column 'segment': empty value; expected text"),
     "no samples": (_csv_case(lambda ls: ls[1:].clear() or ls[:1]), "csv", r"no samples"),
     "time not increasing": (_csv_case(_swap_time), "csv",
                             r"data row 50 \(line 51\), column 'time'.*strictly increasing"),

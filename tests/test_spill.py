@@ -237,3 +237,26 @@ def test_rows_gathered_from_a_spilled_column_a_piece_at_a_time_are_its_rows(monk
         assert got.shape == (len(index),) + shape[1:]
         assert np.array_equal(got, values[index])
     assert spill.gathered(on_disk, np.zeros(0, int)).shape == (0,) + shape[1:]
+
+
+@pytest.mark.parametrize("spilled", ["0", str(1 << 40)])
+def test_an_empty_label_is_refused_naming_its_row(tmp_path, monkeypatch, spilled):
+    """An empty text label in a Parquet log (and a null one) is an empty value, as in a CSV log;
+    the empty one was read as a label of its own (a segment of one sample in the schedule)."""
+    import pyarrow as pa
+
+    from components.errors import LogFormatError
+
+    src = _write(tmp_path, "src")
+    table = pq.read_table(src)
+    labels = [str(x) for x in table.column("segment").to_pylist()]
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", spilled)
+    for name, value in (("empty", ""), ("null", None)):
+        holed = list(labels)
+        holed[9000] = value
+        path = tmp_path / f"{name}.parquet"
+        pq.write_table(table.set_column(table.column_names.index("segment"), "segment", pa.array(holed, pa.string())),
+                       path, row_group_size=7000)
+        (tmp_path / f"{name}.json").write_text(src.with_suffix(".json").read_text())
+        with pytest.raises(LogFormatError, match=r"row 9001, column 'segment': empty value; expected text"):
+            read_log(path, lean=True)

@@ -49,14 +49,14 @@ def sensor_groups(meta: dict) -> dict[str, list[str]]:
 
 def labels(col) -> SegmentLabels:
     """The segment labels of a (chunked) dictionary or string column, as runs (an empty value
-    reads as the text 'None', as str(None))."""
+    reads as the empty label, which a log refuses)."""
     import pyarrow as pa
 
     parts = []
     for ch in (col.chunks if hasattr(col, "chunks") else [col]):
         if not pa.types.is_dictionary(ch.type):
             ch = ch.dictionary_encode()
-        names = ch.dictionary.to_pylist() + [None]
+        names = ch.dictionary.to_pylist() + [""]
         parts.append(SegmentLabels.from_codes(ch.indices.fill_null(len(names) - 1).to_numpy(), names))
     return SegmentLabels.concatenate(parts) if parts else SegmentLabels.of([])
 
