@@ -8,6 +8,7 @@ mapping file and the key, or the input file and the column or row."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -451,3 +452,74 @@ pos01 = {{ kind = "static" }}
     assert np.allclose(back.gyro[:, 0] / back.dt if back.gyro_output == "increment" else back.gyro[:, 0], rate,
                        rtol=1e-12, atol=0)
     assert np.array_equal(back.gyro[:, 1], -back.gyro[:, 0]) and not back.gyro[:, 2].any()
+
+
+_PLAIN_MAPPING = '''[imu]
+file = "rec.csv"
+sample_rate_hz = 200.0
+[imu.time]
+column = "t"
+[imu.gyro]
+output = "rate"
+unit = "rad/s"
+x = "g"
+y = "g"
+z = "g"
+[imu.acc]
+output = "specific_force"
+unit = "m/s2"
+x = "a"
+y = "a"
+z = "a"
+'''
+
+
+@pytest.mark.parametrize("edit, words", [
+    # an empty cell was "np.float64(nan) is not finite"; a NaN written as such is said as a number
+    (lambda ls: ls.__setitem__(5, ls[5].replace(",0,", ",,")), r"rec.csv: column 'g': row 5: empty value; expected a number"),
+    (lambda ls: ls.__setitem__(5, ls[5].replace(",0,", ",nan,")), r"imu.gyro.x: row 5: nan is not finite"),
+    # a blank line was skipped, and every later row number was one off the file's
+    (lambda ls: ls.insert(4, ""), r"rec.csv: data row 4 \(line 5\): blank line; expected a sample on every line"),
+    # times said as numbers, not numpy's reprs
+    (lambda ls: ls.__setitem__(6, "0.01" + ls[6][ls[6].index(","):]), r"imu.time: row 6: 0.01 s after 0.025 s"),
+])
+def test_import_bad_cells_are_said_plainly_at_the_files_row(tmp_path, capsys, edit, words):
+    t = np.arange(1, 11) * 0.005
+    _write_delimited(tmp_path / "rec.csv", ["t", "g", "a"], [t, np.zeros(10), np.ones(10)])
+    lines = (tmp_path / "rec.csv").read_text().splitlines()
+    edit(lines)
+    (tmp_path / "rec.csv").write_text("\n".join(lines) + "\n")
+    m = _mapping(tmp_path / "map.toml", _PLAIN_MAPPING + SITE)
+    assert main(["import", str(m), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(words, err), err
+    assert "np.float64" not in err and "Traceback" not in err
+
+
+def test_import_takes_blank_lines_at_the_end_of_a_csv(tmp_path, capsys):
+    t = np.arange(1, 11) * 0.005
+    _write_delimited(tmp_path / "rec.csv", ["t", "g", "a", "ang"], [t, np.zeros(10), np.ones(10), np.zeros(10)])
+    (tmp_path / "rec.csv").write_text((tmp_path / "rec.csv").read_text() + "\n\n")
+    m = _mapping(tmp_path / "map.toml", _PLAIN_MAPPING + SITE + '''
+[table]
+encoder_resolution = "exact"
+[[table.axes]]
+name = "outer"
+axis = [0, 0, 1]
+column = "ang"
+unit = "rad"
+''')
+    assert main(["import", str(m), "--out", str(tmp_path / "o")]) == 0
+    assert read_log(tmp_path / "o").n == 10
+
+
+def test_import_names_an_empty_number_in_a_parquet_source(tmp_path, capsys):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = np.arange(1, 11) * 0.005
+    g = pa.array([0.0] * 7 + [None] + [0.0] * 2, pa.float64())
+    pq.write_table(pa.table({"t": t, "g": g, "a": np.ones(10)}), tmp_path / "rec.parquet")
+    m = _mapping(tmp_path / "map.toml", _PLAIN_MAPPING.replace("rec.csv", "rec.parquet") + SITE)
+    assert main(["import", str(m), "--out", str(tmp_path / "o")]) == 2
+    assert "rec.parquet: column 'g': row 8: empty value; expected a number" in capsys.readouterr().err

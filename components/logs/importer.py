@@ -33,7 +33,7 @@ def _sensor_values(cols: Columns, sensor, name: str, kind_rates: tuple) -> tuple
     if sensor.output == "counts":
         if not np.all(v == np.round(v)):
             i, k = np.argwhere(v != np.round(v))[0]
-            raise MappingError(f"{cols.where}: imu.{name}.{AX[k]}: row {i + 1}: {v[i, k]!r} is not a whole number of "
+            raise MappingError(f"{cols.where}: imu.{name}.{AX[k]}: row {i + 1}: {float(v[i, k])!r} is not a whole number of "
                                "counts (output = 'counts' means pulse counts per sample)")
         return v, "counts"
     return v * sensor.unit_si, (kind_rates[0] if sensor.output in ("rate", "specific_force") else "increment")
@@ -48,7 +48,7 @@ def import_log(m: Mapping) -> Imported:
         raise MappingError(f"{cols.where}: fewer than two samples")
     if np.any(np.diff(t) <= 0):
         i = int(np.argmax(np.diff(t) <= 0)) + 1
-        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {t[i]!r} s after {t[i - 1]!r} s; expected strictly "
+        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected strictly "
                            "increasing times")
     nominal = 1.0 / m.sample_rate_hz
     _check_rate(m, t, nominal)
@@ -208,7 +208,7 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict):
     tt = tc.values(m.table_time, "table.time.column") * m.table_time_si
     if np.any(np.diff(tt) <= 0):
         i = int(np.argmax(np.diff(tt) <= 0)) + 1
-        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {tt[i]!r} s after {tt[i - 1]!r} s; expected strictly "
+        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected strictly "
                            "increasing times")
     ang = np.column_stack([_counted(m, tc.values(a.channel, f"table.axes.{a.name}") * a.unit_si, notes)
                            for a in m.axes])

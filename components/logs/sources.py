@@ -79,7 +79,7 @@ class Columns:
         bad = ~np.isfinite(a)
         if bad.any():
             i = int(np.argmax(bad))
-            raise MappingError(f"{self.where}: {what}: row {i + 1}: {a[i]!r} is not finite")
+            raise MappingError(f"{self.where}: {what}: row {i + 1}: {float(a[i])!r} is not finite")
         return (a - ch.offset) * ch.scale * ch.sign
 
     def text(self, ch: Channel, what: str) -> np.ndarray:
@@ -114,31 +114,59 @@ def _csv(src: Source) -> dict:
                 src.path,
                 read_options=pcsv.ReadOptions(skip_rows=src.skip_rows, autogenerate_column_names=not src.header,
                                               encoding="utf8"),
-                parse_options=pcsv.ParseOptions(delimiter=src.delimiter),
+                # blank lines kept as rows, so that one is said and the rows counted are the file's
+                parse_options=pcsv.ParseOptions(delimiter=src.delimiter, ignore_empty_lines=False),
+                # only an empty cell is empty ('nan', 'NA' are what they say: a NaN, a text)
                 convert_options=pcsv.ConvertOptions(decimal_point=src.decimal, strings_can_be_null=False,
-                                                    include_columns=columns))
+                                                    null_values=[""], include_columns=columns))
         except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as e:
             raise MappingError(f"{src.path}: cannot be read as {src.format.upper()} with delimiter {src.delimiter!r}, "
                                f"{src.skip_rows} line(s) skipped, decimal {src.decimal!r} ({str(e).splitlines()[0]})") from None
 
-    held = {"table": parse()}
+    table = parse()
+    rows = _without_trailing_blank_lines(table, src)
+    held = {"table": table.slice(0, rows)}
 
     def taker(name: str):
         def take() -> np.ndarray:
             table = held["table"]
             if name not in table.column_names:
-                return _array(parse([name]).column(0))
+                return _array(parse([name]).column(0).slice(0, rows), f"{src.path}: column {name!r}")
             col = table.column(name)
             held["table"] = table.drop_columns([name])
-            return _array(col)
+            return _array(col, f"{src.path}: column {name!r}")
         return take
 
     return {name.strip(): taker(name) for name in held["table"].column_names}
 
 
-def _array(col) -> np.ndarray:
+def _without_trailing_blank_lines(table, src: Source) -> int:
+    """The data rows of a parsed CSV *table* without the blank lines at its end (an editor's extra
+    newline); a blank line between samples is a MappingError naming its row and line."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    blank = None
+    for col in table.columns:
+        empty = pc.is_null(col)
+        if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
+            empty = pc.or_(empty, pc.equal(col, ""))
+        blank = empty if blank is None else pc.and_(blank, empty)
+    if blank is None or not pc.any(blank).as_py():
+        return table.num_rows
+    blank = blank.to_numpy(zero_copy_only=False)
+    rows = len(blank) - int(np.argmin(blank[::-1])) if not blank.all() else 0
+    if blank[:rows].any():
+        i = int(np.argmax(blank[:rows]))
+        raise MappingError(f"{src.path}: data row {i + 1} (line {i + 1 + src.skip_rows + bool(src.header)}): blank "
+                           "line; expected a sample on every line")
+    return rows
+
+
+def _array(col, what: str) -> np.ndarray:
     """An Arrow column as numpy; text as labels sharing one string per distinct value
-    (components.logs.csv_log.labels; one per row was ~50 bytes a sample)."""
+    (components.logs.csv_log.labels; one per row was ~50 bytes a sample). An empty value of a
+    column of numbers is a MappingError naming *what* (file and column) and the row."""
     import pyarrow as pa
 
     from components.logs.csv_log import labels
@@ -147,6 +175,9 @@ def _array(col) -> np.ndarray:
         return labels(col.dictionary_encode())
     if pa.types.is_dictionary(col.type):
         return labels(col)
+    if col.null_count and not pa.types.is_null(col.type):
+        i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
+        raise MappingError(f"{what}: row {i + 1}: empty value; expected a number")
     return col.to_numpy(zero_copy_only=False)
 
 
@@ -169,7 +200,7 @@ def _parquet(src: Source) -> dict:
                 col = pf.read(columns=[name]).column(0)
             except (pa.ArrowInvalid, OSError) as e:
                 raise MappingError(f"{src.path}: column {name!r} cannot be read ({e})") from None
-            return _array(col)
+            return _array(col, f"{src.path}: column {name!r}")
         return read
 
     return {name: reader(name) for name in names}
