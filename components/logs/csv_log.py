@@ -168,7 +168,7 @@ def _no_empty_value(path: Path, header: list[str], numeric: list[str], table, na
     present = [c for c in numeric if c in table.schema.names]
     if all(table.column(table.schema.names.index(c))[i].as_py() is None for c in present):
         raise LogFormatError(f"{path}: {csv_row(row0 + i)}: blank line; expected {len(header)} fields "
-                             "(blank lines are not allowed between samples)")
+                             "(a log has no blank line, between samples or after the last)")
     raise LogFormatError(f"{path}: {csv_row(row0 + i)}, column {name!r}: empty value; expected a number")
 
 

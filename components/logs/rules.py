@@ -288,7 +288,7 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labe
     segment labels are str (the readers make them so; a log built in Python may not)."""
     t = cols["time"]
     if len(t) == 0:
-        raise LogFormatError(f"{where}: no samples; expected one row per IMU sample after the header")
+        raise LogFormatError(f"{where}: no samples; expected one row per IMU sample (after the header line, in a CSV file)")
     for name, a in cols.items():
         if name == "segment" or name not in numeric_columns(list(cols), meta):
             continue
