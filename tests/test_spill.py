@@ -260,3 +260,21 @@ def test_an_empty_label_is_refused_naming_its_row(tmp_path, monkeypatch, spilled
         (tmp_path / f"{name}.json").write_text(src.with_suffix(".json").read_text())
         with pytest.raises(LogFormatError, match=r"row 9001, column 'segment': empty value; expected text"):
             read_log(path, lean=True)
+
+
+@pytest.mark.parametrize("spilled", ["0", str(1 << 40)])
+def test_a_damaged_parquet_log_is_refused_not_read_as_zeros(tmp_path, monkeypatch, spilled):
+    """calbench writes its Parquet pages with checksums and checks them as it reads: bytes zeroed
+    inside the file (a bad copy, a disk error) are an error naming the file; without checksums
+    they decoded to zeros and 6e-322s in one column, and calibrate went on with exit 0."""
+    from components.errors import LogFormatError
+
+    write_log(tmp_path / "written", read_log(_write(tmp_path, "src")), fmt="parquet")
+    src = tmp_path / "written.parquet"
+    raw = bytearray(src.read_bytes())
+    mid = len(raw) // 2
+    raw[mid:mid + 2000] = bytes(2000)
+    src.write_bytes(bytes(raw))
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", spilled)
+    with pytest.raises(LogFormatError, match=r"written\.parquet: .*cannot be read"):
+        read_log(src, lean=True)

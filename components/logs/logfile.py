@@ -108,7 +108,10 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
     try:
         names = pq.read_schema(path).names
         # (read_dictionary naming a column the file lacks is a KeyError, not "no such column")
-        pf = pq.ParquetFile(path, read_dictionary=["segment"] if "segment" in names else None)
+        # pages written with a checksum (calbench writes them) are checked as they are read: a
+        # damaged file is an error, not a log with zeros in it
+        pf = pq.ParquetFile(path, read_dictionary=["segment"] if "segment" in names else None,
+                            page_checksum_verification=True)
         schema = pf.schema_arrow
     except (pa.ArrowInvalid, OSError) as e:
         raise LogFormatError(f"{path}: not a readable Parquet file ({e})") from None
@@ -274,7 +277,7 @@ def write_log(stem: str | Path, log: MeasurementLog, fmt: str = "csv") -> list[P
             for rows in _row_slices(n):
                 table = _table_of(cols, labels, rows)
                 if writer is None:
-                    writer = pq.ParquetWriter(p, table.schema)
+                    writer = pq.ParquetWriter(p, table.schema, write_page_checksum=True)
                 writer.write_table(table, row_group_size=WRITE_ROWS)
         finally:
             if writer is not None:
@@ -294,7 +297,7 @@ def rewrite_parquet(src: str | Path, stem: str | Path, log: MeasurementLog, colu
     meta_path = _write_metadata(stem, log)
     out = Path(str(stem) + ".parquet")
     cols = log.columns()
-    pf = pq.ParquetFile(src)
+    pf = pq.ParquetFile(src, page_checksum_verification=True)
     if pf.metadata.num_rows != log.n:
         raise LogFormatError(f"{src}: {pf.metadata.num_rows} rows; the log to write has {log.n}")
     writer, row = None, 0
@@ -306,7 +309,7 @@ def rewrite_parquet(src: str | Path, stem: str | Path, log: MeasurementLog, colu
                 table = table.set_column(table.schema.get_field_index(name), name,
                                          pa.array(np.ascontiguousarray(cols[name][rows], dtype=float)))
             if writer is None:
-                writer = pq.ParquetWriter(out, table.schema)
+                writer = pq.ParquetWriter(out, table.schema, write_page_checksum=True)
             writer.write_table(table)
             release(*(cols[name] for name in columns))
             row += table.num_rows

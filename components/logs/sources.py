@@ -189,7 +189,7 @@ def _parquet(src: Source) -> dict:
     import pyarrow.parquet as pq
 
     try:
-        pf = pq.ParquetFile(src.path)
+        pf = pq.ParquetFile(src.path, page_checksum_verification=True)
         names = pf.schema_arrow.names
     except (pa.ArrowInvalid, OSError) as e:
         raise MappingError(f"{src.path}: not a readable Parquet file ({e})") from None
