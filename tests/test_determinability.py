@@ -134,7 +134,7 @@ def test_the_command_line_names_what_it_holds_and_never_prints_zero_sigma(exampl
 def test_a_one_sample_log_needs_the_noise_and_then_has_no_dof(example, tmp_path, capsys):
     write_log(tmp_path / "one", _cut(example, 1))
     assert main(["calibrate", str(tmp_path / "one"), "--out", str(tmp_path / "r.json")]) == 2
-    assert "white-noise level cannot be estimated" in capsys.readouterr().err
+    assert "one.csv: the white-noise level cannot be estimated" in capsys.readouterr().err  # (the file named)
     assert main(["calibrate", str(tmp_path / "one"), "--out", str(tmp_path / "r.json"), "--noise", "navigation"]) == 0
     out = capsys.readouterr().out
     assert "chi2/dof: none (0 dof" in out

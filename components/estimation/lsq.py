@@ -136,7 +136,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
                        else white_noise_sigma(data.acc, static & data.usable, quant[3:]), float)
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
-        raise EstimationError("the white-noise level cannot be estimated from this log (it has no two usable "
+        where = f"{data.source['log']}: " if (data.source or {}).get("log") else ""
+        raise EstimationError(f"{where}the white-noise level cannot be estimated from this log (it has no two usable "
                               "samples in a row at rest): give the noise (--noise: a grade, a noise file or "
                               "NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
     sg = noise_floor(raw_g, GYRO_SCALE * dt_mean)
