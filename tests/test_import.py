@@ -323,13 +323,8 @@ def test_mapping_mistakes_are_one_clear_error(tmp_path, edit, match):
         import_log(load_mapping(m))
 
 
-def test_a_non_number_and_backwards_time_name_their_row(tmp_path, capsys):
-    t = np.arange(1, 11) * 0.005
-    _write_delimited(tmp_path / "rec.csv", ["t", "g", "a"], [t, np.zeros(10), np.ones(10)])
-    lines = (tmp_path / "rec.csv").read_text().splitlines()
-    lines[4] = lines[4].replace("0,1", "x,1")
-    (tmp_path / "rec.csv").write_text("\n".join(lines) + "\n")
-    m = _mapping(tmp_path / "map.toml", '''[imu]
+# a recording of one gyro and one accelerometer column, in SI, for the bad-cell cases
+_PLAIN_MAPPING = '''[imu]
 file = "rec.csv"
 sample_rate_hz = 200.0
 [imu.time]
@@ -346,7 +341,16 @@ unit = "m/s2"
 x = "a"
 y = "a"
 z = "a"
-''' + SITE)
+'''
+
+
+def test_a_non_number_and_backwards_time_name_their_row(tmp_path, capsys):
+    t = np.arange(1, 11) * 0.005
+    _write_delimited(tmp_path / "rec.csv", ["t", "g", "a"], [t, np.zeros(10), np.ones(10)])
+    lines = (tmp_path / "rec.csv").read_text().splitlines()
+    lines[4] = lines[4].replace("0,1", "x,1")
+    (tmp_path / "rec.csv").write_text("\n".join(lines) + "\n")
+    m = _mapping(tmp_path / "map.toml", _PLAIN_MAPPING + SITE)
     assert main(["import", str(m), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "rec.csv" in err and "Traceback" not in err
@@ -452,26 +456,6 @@ pos01 = {{ kind = "static" }}
     assert np.allclose(back.gyro[:, 0] / back.dt if back.gyro_output == "increment" else back.gyro[:, 0], rate,
                        rtol=1e-12, atol=0)
     assert np.array_equal(back.gyro[:, 1], -back.gyro[:, 0]) and not back.gyro[:, 2].any()
-
-
-_PLAIN_MAPPING = '''[imu]
-file = "rec.csv"
-sample_rate_hz = 200.0
-[imu.time]
-column = "t"
-[imu.gyro]
-output = "rate"
-unit = "rad/s"
-x = "g"
-y = "g"
-z = "g"
-[imu.acc]
-output = "specific_force"
-unit = "m/s2"
-x = "a"
-y = "a"
-z = "a"
-'''
 
 
 @pytest.mark.parametrize("edit, words", [
