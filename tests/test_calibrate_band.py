@@ -12,8 +12,8 @@ def test_calibrate_says_when_chi2_is_outside_its_band(conformance, tmp_path, cap
     capsys.readouterr()
     assert main(["calibrate", log, "--out", str(tmp_path / "t.json"), "--noise", "tactical"]) == 0
     assert "below what a correct model gives" in capsys.readouterr().out
-    assert main(["calibrate", log, "--out", str(tmp_path / "q.json"), "--noise", "gyro.noise.arw=1e-9",
-                 "--noise", "acc.noise.vrw=1e-9"]) == 0
+    assert main(["calibrate", log, "--out", str(tmp_path / "q.json"), "--noise", "gyro.noise.arw=1e-9 rad/sqrt(s)",
+                 "--noise", "acc.noise.vrw=1e-9 m/s/sqrt(s)"]) == 0
     assert "above what a correct model gives" in capsys.readouterr().out
     assert main(["calibrate", log, "--out", str(tmp_path / "r.json")]) == 0
     out = capsys.readouterr().out

@@ -44,7 +44,12 @@ def test_noise_file_goes_into_calibrate_and_the_result(noise_file, conformance, 
 @pytest.mark.parametrize("spec, message", [
     ("acc.noise.bogus=1", "unknown term 'acc.noise.bogus'"),
     ("acc.noise.bi=10 furlongs", "expected a number"),
-    ("gyro.noise.arw=-1", "expected a magnitude >= 0"),
+    ("gyro.noise.arw=-1 deg/sqrt(h)", "expected a magnitude >= 0"),
+    # (each of these was a traceback and exit 1)
+    ("acc.noise.bi.w=10 ug", "expected <gyro|acc>.noise.<arw|vrw|q|bi|rrw|bi_tau_min|bi_tau_max>[.x|.y|.z]"),
+    ("acc.noise.bi.x.y=10 ug", "expected <gyro|acc>.noise."),
+    # a datasheet number without its unit: 0.005 rad/sqrt(s) is 17 deg/sqrt(h)
+    ("gyro.noise.arw=0.005", "a number without its unit; write it with one, e.g. gyro.noise.arw='0.005 deg/sqrt(h)'"),
     ("nonsense", "expected identify, white, navigation, tactical"),
     ("missing.json", "cannot read a JSON noise file"),
 ])
@@ -52,3 +57,27 @@ def test_bad_noise_specification_is_one_clear_error(spec, message, conformance, 
     rc = main(["calibrate", str(conformance / "example"), "--out", str(tmp_path / "r.json"), "--noise", spec])
     err = capsys.readouterr().err
     assert rc == 2 and message in err and "Traceback" not in err, err
+
+
+def test_the_flicker_range_given_by_hand(conformance, tmp_path, capsys):
+    """bi_tau_min / bi_tau_max [s] bound the bias instability's flicker range by hand, as a noise
+    file's flicker_range_s does (bi_tau_max crashed; a range could be given only in a file): the
+    same noise model, the same result; a range upside down is one clear error."""
+    from components.diagnosis.noise_choice import choose_noise
+    from components.model.noise import NoiseModel
+
+    given = ["gyro.noise.arw=0.005 deg/sqrt(h)", "gyro.noise.bi=0.1 deg/h", "gyro.noise.bi_tau_min=10",
+             "gyro.noise.bi_tau_max=1 h", "acc.noise.vrw=20 ug/sqrt(Hz)", "acc.noise.bi=30 ug",
+             "acc.noise.bi_tau_min=10 s", "acc.noise.bi_tau_max=3600"]
+    by_hand, _, _ = choose_noise(given, None)
+    assert all(ch.flicker_range == (10.0, 3600.0) for ch in by_hand.channels)
+    doc = by_hand.to_dict()
+    assert doc["channels"]["gyro_x"]["flicker_range_s"] == [10.0, 3600.0]
+    back = NoiseModel.from_dict(doc)
+    assert back.channels == by_hand.channels
+    g = by_hand.channels[0]
+    assert math.isclose(g.bias_instability, 0.1 * math.pi / 180 / 3600, rel_tol=1e-12)
+    rc = main(["calibrate", str(conformance / "example"), "--out", str(tmp_path / "r.json"),
+               "--noise", "gyro.noise.bi_tau_min=100", "--noise", "gyro.noise.bi_tau_max=10"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "expected 0 < bi_tau_min < bi_tau_max" in err and "Traceback" not in err, err

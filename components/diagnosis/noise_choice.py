@@ -41,6 +41,11 @@ def _term(spec: str) -> tuple[str, float]:
         raise UserError(f"--noise {spec!r}: unknown term {name!r}; expected one of {', '.join(NOISE_TERM_UNITS)} "
                         "(optionally with .x/.y/.z)")
     si, units = NOISE_TERM_UNITS[base]
+    if _is_float(value) and float(value) != 0 and si != "s":
+        # taken as SI, 0.005 for an ARW is 17 deg/sqrt(h): a datasheet number without its unit is
+        # almost never SI (0 is 0 in any unit; time constants are seconds)
+        raise UserError(f"--noise {spec!r}: a number without its unit; write it with one, e.g. "
+                        f"{name}='{value} {next(iter(units))}' (units: {', '.join(units)}; SI: {si})")
     try:
         v = quantity(float(value) if _is_float(value) else value, name, "--noise", units, si)
     except QuantityError as e:
@@ -142,7 +147,10 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             said = [lead + IDENTIFIED]
         elif "=" in s:
             name, v = _term(s)
-            noise = from_terms({name: v}, noise, "given by hand")
+            try:
+                noise = from_terms({name: v}, noise, "given by hand")
+            except ValueError as e:
+                raise UserError(f"--noise {spec!r}: {e}") from None
             said.append(f"{name} = {v:.4g} (SI, given)")
         elif s.endswith(".json"):
             noise = load_noise_file(s)

@@ -95,6 +95,7 @@ class ChannelNoise:
             return self.avar(tau)
         flat = replace(self, bias_instability=0.0)
         lo, hi = self.flicker_range
+        lo = float(np.min(tau)) if lo is None else lo
         terms = flicker_terms(self.bias_instability, lo, max(float(np.max(tau)), 2 * lo) if hi is None else hi)
         return flat.avar(tau) + sum((gm_avar(s, T, tau) for s, T in terms), np.zeros_like(tau))
 
@@ -240,9 +241,9 @@ class NoiseModel:
             if fr is not None:
                 if not (isinstance(fr, list) and len(fr) == 2):
                     raise ValueError(f"{where}.flicker_range_s: expected [lowest, highest] time constant [s]")
-                lo = _magnitude(fr[0], f"{where}.flicker_range_s")
+                lo = None if fr[0] is None else _magnitude(fr[0], f"{where}.flicker_range_s")
                 hi = None if fr[1] is None else _magnitude(fr[1], f"{where}.flicker_range_s")
-                if lo <= 0 or (hi is not None and hi <= lo):
+                if (lo is not None and lo <= 0) or (None not in (lo, hi) and hi <= lo):
                     raise ValueError(f"{where}.flicker_range_s: {fr}; expected 0 < lowest < highest")
                 fr = (lo, hi)
             chans.append(ChannelNoise(gauss_markov=tuple(pairs), flicker_range=fr, **kw))
@@ -277,23 +278,36 @@ def describe(noise: NoiseModel | None) -> str:
 # FMU noise parameter / --noise name -> ChannelNoise field
 TERM_OF_NAME = {"arw": "white", "vrw": "white", "q": "quantization", "bi": "bias_instability",
                 "rrw": "random_walk"}
+# --noise name -> the end of the bias instability's flicker range it sets (time constants [s])
+RANGE_OF_NAME = {"bi_tau_min": 0, "bi_tau_max": 1}
 
 
 def from_terms(terms: dict, base: NoiseModel | None = None, source: str = "given") -> NoiseModel:
     """A model from named terms in SI, ``{"gyro.noise.arw": N, "acc.noise.bi.y": B, ...}`` (a name
-    without an axis sets all three), on top of *base* (default: no noise)."""
+    without an axis sets all three), on top of *base* (default: no noise). ``bi_tau_min`` and
+    ``bi_tau_max`` [s] bound the bias instability's flicker range (unbounded: the log's)."""
     chans = list(base.channels) if base is not None else [ChannelNoise()] * 6
     for name, v in terms.items():
         parts = name.split(".")
         if len(parts) not in (3, 4) or parts[0] not in ("gyro", "acc") or parts[1] != "noise" \
-                or parts[2] not in TERM_OF_NAME or (len(parts) == 4 and parts[3] not in AXES):
-            raise ValueError(f"noise term {name!r}: expected <gyro|acc>.noise.<arw|vrw|q|bi|rrw>[.x|.y|.z]")
+                or parts[2] not in (*TERM_OF_NAME, *RANGE_OF_NAME) or (len(parts) == 4 and parts[3] not in AXES):
+            raise ValueError(f"noise term {name!r}: expected <gyro|acc>.noise.<arw|vrw|q|bi|rrw|bi_tau_min|"
+                             "bi_tau_max>[.x|.y|.z]")
         if (parts[0] == "gyro") != (parts[2] != "vrw") and parts[2] in ("arw", "vrw"):
             raise ValueError(f"noise term {name!r}: the gyro's white noise is 'arw', the accelerometer's 'vrw'")
         off = 0 if parts[0] == "gyro" else 3
         axes = [AXES.index(parts[3])] if len(parts) == 4 else [0, 1, 2]
         for a in axes:
-            chans[off + a] = replace(chans[off + a], **{TERM_OF_NAME[parts[2]]: float(v)})
+            ch = chans[off + a]
+            if parts[2] in RANGE_OF_NAME:
+                rng = list(ch.flicker_range or (None, None))
+                rng[RANGE_OF_NAME[parts[2]]] = float(v)
+                if (rng[0] is not None and rng[0] <= 0) or (None not in rng and rng[1] <= rng[0]):
+                    raise ValueError(f"noise term {name!r}: the flicker range {rng[0]}-{rng[1]} s; expected "
+                                     "0 < bi_tau_min < bi_tau_max")
+                chans[off + a] = replace(ch, flicker_range=tuple(rng))
+            else:
+                chans[off + a] = replace(ch, **{TERM_OF_NAME[parts[2]]: float(v)})
     return NoiseModel(tuple(chans), source)
 
 

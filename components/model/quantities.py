@@ -17,7 +17,7 @@ UNITS = {
     "m/s2": {"m/s2": 1.0, "ug": UG, "mg": 1e-3 * G0, "g": G0},
     "1": {"1": 1.0, "ppm": 1e-6},
     "m": {"m": 1.0, "mm": 1e-3, "cm": 1e-2},
-    "s": {"s": 1.0, "ms": 1e-3, "us": 1e-6},
+    "s": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0, "h": 3600.0},
 }
 # noise parameter -> (SI unit, readable units)
 NOISE_UNITS = {
@@ -35,7 +35,8 @@ NOISE_UNITS = {
 # the terms of a noise model given by hand (calbench --noise): the FMU's densities without their
 # correlation times, plus the quantization of a pulse output
 NOISE_TERM_UNITS = {k: v for k, v in NOISE_UNITS.items() if not k.endswith("_tau")}
-NOISE_TERM_UNITS.update({"gyro.noise.q": ("rad", UNITS["rad"]),
+NOISE_TERM_UNITS.update({"gyro.noise.bi_tau_min": ("s", UNITS["s"]), "acc.noise.bi_tau_min": ("s", UNITS["s"]),
+                         "gyro.noise.q": ("rad", UNITS["rad"]),
                          "acc.noise.q": ("m/s", {"m/s": 1.0, "mm/s": 1e-3, "um/s": 1e-6})})
 
 
