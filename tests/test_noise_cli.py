@@ -81,3 +81,25 @@ def test_the_flicker_range_given_by_hand(conformance, tmp_path, capsys):
                "--noise", "gyro.noise.bi_tau_min=100", "--noise", "gyro.noise.bi_tau_max=10"])
     err = capsys.readouterr().err
     assert rc == 2 and "expected 0 < bi_tau_min < bi_tau_max" in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("samples", [10, 150])
+def test_a_log_too_short_to_identify_noise_is_told_so(conformance, tmp_path, capsys, samples):
+    """Ten samples at rest gave an identification with exit 0: a quantization 'present' on an
+    increment output and white-noise bounds below the true level. Below MIN_STATIC_SAMPLES static
+    samples the terms cannot be told apart, and noise says so, naming what to give instead."""
+    import dataclasses
+
+    from components.diagnosis.noise_id import MIN_STATIC_SAMPLES
+    from components.logs.logfile import read_log, write_log
+
+    assert samples < MIN_STATIC_SAMPLES
+    log = read_log(conformance / "example")
+    cut = dataclasses.replace(log, time=log.time[:samples], gimbal={k: v[:samples] for k, v in log.gimbal.items()},
+                              gyro=log.gyro[:samples], acc=log.acc[:samples], temperature=log.temperature[:samples],
+                              segment=log.segment[:samples], command={})
+    write_log(tmp_path / "short", cut)
+    rc = main(["noise", str(tmp_path / "short")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "too few to tell the noise terms apart" in err and "--noise" in err, err
+    assert "Traceback" not in err

@@ -84,6 +84,11 @@ class NoiseIdentification:
         return lines
 
 
+# static samples below which no noise term is identified: the Allan deviation then spans too few
+# octaves with too few degrees of freedom to tell quantization, white noise and the slow terms apart
+MIN_STATIC_SAMPLES = 200
+
+
 def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BASIC, bootstrap: int = 30,
                    seed: int = 0, chunk_s: float = 1.0, slow: bool = True) -> NoiseIdentification:
     """The composite noise of *data*'s six channels around the calibrated *model*
@@ -108,6 +113,12 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     # Gauss–Markov sum can realise)
     used = first_runs(runs, ALLAN_SAMPLES)
     total = sum(b - a for a, b in used)
+    if total < MIN_STATIC_SAMPLES:
+        # (ten samples gave a quantization 'present' on an increment output and upper bounds
+        # below the true white level, with exit 0)
+        raise ValueError(f"the static runs hold {total} samples ({total * dt:.3g} s): too few to tell the noise "
+                         f"terms apart (at least {MIN_STATIC_SAMPLES}); give the noise with --noise (a grade, a "
+                         "noise file, NAME=VALUE terms)")
     upto = used[-1][1]
     if len(used) < len(runs):
         notes.append(f"quantization and white noise from the first {total} static samples (the log's first "
