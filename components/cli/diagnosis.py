@@ -241,7 +241,10 @@ def _cmd_add(args: argparse.Namespace) -> int:
     if noise_terms:
         noise, report = add_noise_terms(data, model, noise, noise_terms)
         for name, r in report.items():
-            print(f"{name:18s} {r['value']:.4g} ± {r['sigma']:.2g} (SI; likelihood ratio {r['likelihood_ratio']:.1f}"
+            # a term whose likelihood is highest at zero has no σ there (the boundary): said so, not '± nan'
+            value = f"{r['value']:.4g} ± {r['sigma']:.2g}" if r["sigma"] == r["sigma"] else \
+                f"{r['value']:.4g} (its likelihood highest at zero: no σ)"
+            print(f"{name:18s} {value} (SI; likelihood ratio {r['likelihood_ratio']:.1f}"
                   f"{', not significant' if not r['present'] else ''})")
     fit = calibrate(data, effects, temperature_ref=model.temperature_ref, noise=noise)
     # identified here (--noise identify) or by the model's own identification: identified again
