@@ -103,3 +103,21 @@ def test_a_log_too_short_to_identify_noise_is_told_so(conformance, tmp_path, cap
     err = capsys.readouterr().err
     assert rc == 2 and "too few to tell the noise terms apart" in err and "--noise" in err, err
     assert "Traceback" not in err
+
+
+def test_an_identification_without_a_white_level_says_so_where_the_noise_is_said(conformance):
+    """Counts far coarser than a sample's noise hide its white level; the slow terms are then not
+    estimated and σ resting on them come out too small. A pulse log's default identification ran
+    unasked and said nothing of it (σ off by up to 98 of themselves, exit 0); now the line that
+    says it. The noise-free conformance log has no white level (beyond its numbers' last digits on
+    the x channels)."""
+    from components.diagnosis.noise_choice import choose_noise
+    from components.estimation.log_data import LogData
+    from components.logs.logfile import read_log
+    from components.model.effects import DEFAULT_EFFECTS
+
+    data = LogData.from_log(read_log(conformance / "ideal"))
+    _, said, ident = choose_noise(["identify"], data, effects=list(DEFAULT_EFFECTS), bootstrap=0)
+    assert "no white-noise level found on gyro_y, gyro_z, acc_y, acc_z" in said, said
+    assert "give the noise with --noise" in said
+    assert any(n.startswith("no white") for n in ident.notes)

@@ -144,7 +144,9 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             except ValueError as e:
                 raise UserError(f"--noise identify: {e}") from None
             noise = ident.model
-            said = [lead + IDENTIFIED]
+            # what the identification could not do is said with it (a pulse log's default is
+            # identified without being asked: the user would not otherwise learn of it)
+            said = [lead + IDENTIFIED + "".join(f" (note: {n})" for n in ident.notes if n.startswith("no white"))]
         elif "=" in s:
             name, v = _term(s)
             try:

@@ -143,7 +143,10 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                             temperature_ref=model.temperature_ref)
             rows = fit.rows
         else:
-            notes.append("no white-noise level on every channel: the slow terms were not estimated")
+            none = ", ".join(CHANNELS[k] for k in range(6) if not white[k] > 0)
+            notes.append(f"no white-noise level found on {none} (on a pulse output, counts much coarser than a "
+                         "sample's noise hide it): the slow terms were not estimated, and σ that rest on them may be "
+                         "too small; give the noise with --noise (a datasheet's terms, a grade or a noise file)")
     # the slow terms are tested on every channel: 1 % for the whole identification (Bonferroni),
     # not for each of its tests (12 tests at 1 % each name a term that is not there on 11 % of
     # logs, and a term named by chance comes at several times any true size, with the σ of every
