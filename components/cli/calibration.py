@@ -33,6 +33,13 @@ def _print_result(res) -> None:
             note = chi2_band_note(f["chi2_per_dof"], f["dof"], above=True)
             if note:
                 print(f"note: {note}")
+            hidden = res.noise.get("no_white_level")
+            if hidden and note and "above" in note:
+                # counts that hide the IMU's white level: the floor that stood in for it is why
+                print(f"WARNING: no white-noise level on {', '.join(hidden)}: the pulse counts are too coarse for "
+                      "this log to show it, and the fit took none, so these sigma are too small (by as much as "
+                      "chi2/dof says); give the noise: --noise with the datasheet's terms (e.g. "
+                      "gyro.noise.arw='0.005 deg/sqrt(h)'), a grade, or a noise file from a longer log of this IMU")
     if weak:
         print(f"weakly determined (sigma above 10 x the magnitude expected of an IMU of this noise grade): "
               f"{', '.join(sorted(weak))}")

@@ -12,7 +12,6 @@ from components.estimation.blocks import samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.log_data import LogData
-from components.estimation.lsq import refuse_hidden_white
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.whitening import whiten
 from components.logs.spill import is_spilled, pieces, spilled_array
@@ -63,7 +62,6 @@ class CandidateDesign:
         if noise is not None and noise.coloured:
             white = noise.white_sigma(dt)
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
-        refuse_hidden_white(data, np.nan_to_num(np.concatenate([sg, sa])))
         sg, sa = noise_floor(sg, GYRO_SCALE * dt), noise_floor(sa, ACC_SCALE * dt)
         rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
         y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0)

@@ -39,7 +39,6 @@ from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamp
 from components.estimation.design import SIGNAL_SCALE, noise_floor
 from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
-from components.estimation.lsq import refuse_hidden_white
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
 from components.logs.spill import empty_like_log, gathered, pieces, release
@@ -169,8 +168,6 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     # residual's differences are rounding, below a billionth of Earth's rate or gravity a sample
     # (the best IMU's noise is ~1e-4 of it), and its χ² weighs them against a numerical floor
     scale = SIGNAL_SCALE * dt
-    refuse_hidden_white(data, np.nan_to_num(sigma) if noise is None else
-                        np.maximum(np.nan_to_num(sigma), noise.white_sigma(dt)))
     noise_free = ~(np.isfinite(sigma) & (sigma > 1e-9 * scale))
     sigma = noise_floor(sigma, scale)
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)

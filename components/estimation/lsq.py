@@ -55,6 +55,7 @@ class Fit:
     determinability: Determinability | None = None
     weak: list = field(default_factory=list)
     implausible: dict = field(default_factory=dict)
+    hidden_white: list = field(default_factory=list)  # pulse channels without a white level (hidden_white)
 
     @property
     def sigma(self) -> np.ndarray:
@@ -69,21 +70,15 @@ class Fit:
         return dict(zip(self.parameters, self.value))
 
 
-def refuse_hidden_white(data: LogData, white: np.ndarray) -> None:
-    """A pulse output's channel whose white level is 0 (not given, not identified, and its sample
-    differences mostly 0) is refused: its counts hide the level, and a numerical floor in its
-    place made σ too small by up to a hundred times (2\" counts at 100 Hz: 98σ off, with exit 0).
-    A channel of another output with no scatter is noise-free (a simulation, a conformance
-    vector) and keeps the floor."""
+def hidden_white(data: LogData, white: np.ndarray) -> list[str]:
+    """The channels of a pulse output whose white level is 0 (not given, not identified, and
+    their sample differences mostly 0): either the IMU has none (a noise-free simulation: its
+    counts' quantization is then the whole noise, and the fit is right) or its counts are too
+    coarse for this log to show it, and a numerical floor stands in for it: σ too small by up to a
+    hundred times (2\" counts at 100 Hz: 98σ off). Which of the two, χ²/dof tells (in its band,
+    or far above it); calibrate says so (components.cli.calibration)."""
     counted = np.repeat([w is not None and w > 0 for w in data.count_weight], 3)
-    hidden = counted & ~(white > 0)
-    if hidden.any():
-        names = ", ".join(n for n, h in zip(("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"), hidden) if h)
-        where = f"{data.source['log']}: " if (data.source or {}).get("log") else ""
-        raise EstimationError(f"{where}no white-noise level on {names}: its pulse counts are too coarse for this "
-                              "log to show it (sample differences mostly 0, none identified); give the noise "
-                              "(--noise: the datasheet's terms such as gyro.noise.arw='0.005 deg/sqrt(h)', a grade, "
-                              "or a noise file from `calbench noise` on a longer log of this IMU)")
+    return [n for n, h in zip(("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"), counted & ~(white > 0)) if h]
 
 
 def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
@@ -157,8 +152,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         raise EstimationError(f"{where}the white-noise level cannot be estimated from this log (it has no two usable "
                               "samples in a row at rest): give the noise (--noise: a grade, a noise file or "
                               "NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
-    refuse_hidden_white(data, np.concatenate([raw_g, raw_a]) if noise is None else
-                        np.maximum(np.concatenate([raw_g, raw_a]), noise.white_sigma(dt_mean)))
+    no_white = hidden_white(data, np.concatenate([raw_g, raw_a]) if noise is None else
+                            np.maximum(np.concatenate([raw_g, raw_a]), noise.white_sigma(dt_mean)))
     sg = noise_floor(raw_g, GYRO_SCALE * dt_mean)
     sa = noise_floor(raw_a, ACC_SCALE * dt_mean)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
@@ -237,6 +232,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     fit = Fit(params, value, cov, chi2, len(y) - len(params), sg, sa, geo, dt_median,
               float(temperature_ref or 0.0), it, rows)
     fit.rest_sigma = q
+    fit.hidden_white = no_white
     fit.noise = noise if noise is not None and noise.coloured else None
     fit.determinability = det
     factor = grade_factor({"gyro": float(np.median(sg)) / np.sqrt(dt_mean), "acc": float(np.median(sa)) / np.sqrt(dt_mean)})
