@@ -112,10 +112,6 @@ class SegmentLabels:
         """The labels some sample carries, sorted."""
         return sorted(self.names[np.unique(self.codes)].tolist())
 
-    def code_of(self, label) -> int | None:
-        hit = np.flatnonzero(self.names == str(label))
-        return int(hit[0]) if len(hit) else None
-
     def isin(self, labels) -> np.ndarray:
         """(n,) bool: the sample's label is one of *labels*."""
         want = {str(x) for x in labels}

@@ -211,10 +211,10 @@ def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
     known = {"time", "temperature", "segment", "mask"} | {f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ} | \
         {f"{p}_{a}" for p in ("gimbal", "command") for a in axes}
     seg = cols.get("segment")
-    empty = seg.code_of("") if isinstance(seg, SegmentLabels) else None
-    if empty is not None and np.any(seg.codes == empty):
-        i = int(seg.starts[np.argmax(seg.codes == empty)])
-        raise LogFormatError(f"{data}: {row(i)}, column 'segment': empty value; expected text")
+    # (by the runs' labels, not a code: a dictionary may hold the empty text under more than one)
+    empty = np.flatnonzero(seg.names[seg.codes] == "") if isinstance(seg, SegmentLabels) else []
+    if len(empty):
+        raise LogFormatError(f"{data}: {row(int(seg.starts[empty[0]]))}, column 'segment': empty value; expected text")
     _check_labels(meta, seg, str(meta_path))
     log = MeasurementLog(
         time=cols["time"],
