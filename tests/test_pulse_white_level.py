@@ -146,3 +146,10 @@ def test_counts_that_hide_the_white_level_are_said_to(tmp_path, capsys):
     import json
 
     assert "gyro_x" in json.loads((tmp_path / "r.json").read_text())["noise"]["no_white_level"]
+    # compare on that model says it too, when its χ²/dof is above the band
+    assert main(["compare", str(tmp_path / "coarse"), "--model", str(tmp_path / "r.json"), "--json",
+                 str(tmp_path / "c.json")]) in (0, 1)
+    out = capsys.readouterr().out
+    summary = json.loads((tmp_path / "c.json").read_text())
+    assert "gyro_x" in summary["no_white_level"], summary.get("no_white_level")
+    assert ("WARNING: no white-noise level on" in out) == (summary["chi2_per_dof"] > 1 + 3.3 * (2 / summary["dof"]) ** 0.5)

@@ -35,11 +35,7 @@ def _print_result(res) -> None:
                 print(f"note: {note}")
             hidden = res.noise.get("no_white_level")
             if hidden and note and "above" in note:
-                # counts that hide the IMU's white level: the floor that stood in for it is why
-                print(f"WARNING: no white-noise level on {', '.join(hidden)}: the pulse counts are too coarse for "
-                      "this log to show it, and the fit took none, so these sigma are too small (by as much as "
-                      "chi2/dof says); give the noise: --noise with the datasheet's terms (e.g. "
-                      "gyro.noise.arw='0.005 deg/sqrt(h)'), a grade, or a noise file from a longer log of this IMU")
+                print(hidden_white_warning(hidden))
     if weak:
         print(f"weakly determined (sigma above 10 x the magnitude expected of an IMU of this noise grade): "
               f"{', '.join(sorted(weak))}")
@@ -47,6 +43,15 @@ def _print_result(res) -> None:
         print(f"IMPLAUSIBLE {p}: {why}")
     for line in confounded_lines(det, res.parameters):
         print(line)
+
+
+def hidden_white_warning(channels: list[str]) -> str:
+    """The line for pulse channels without a white level when χ²/dof is above its band: the
+    counts hide the IMU's white level, and the floor that stood in for it is why."""
+    return (f"WARNING: no white-noise level on {', '.join(channels)}: the pulse counts are too coarse for this log "
+            "to show it, and none was taken, so the sigma are too small (by as much as chi2/dof says); give the "
+            "noise: --noise with the datasheet's terms (e.g. gyro.noise.arw='0.005 deg/sqrt(h)'), a grade, or a "
+            "noise file from a longer log of this IMU")
 
 
 def confounded_lines(det: dict, parameters) -> list[str]:

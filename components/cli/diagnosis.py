@@ -41,6 +41,10 @@ def _print_comparison(c, coloured: bool = False) -> None:
     if note:
         # too good to be true: the noise model, not the model, is what is wrong
         print(note)
+    if c.no_white_level and "above" in (chi2_band_note(c.chi2_per_dof, c.dof, above=True) or ""):
+        from components.cli.calibration import hidden_white_warning
+
+        print(hidden_white_warning(c.no_white_level))
     if c.misfits is not None:
         # only what is significant given how many cells were looked at (components.diagnosis.misfit)
         print("where it fails: " + "\n                ".join(c.misfits.lines()))

@@ -39,6 +39,7 @@ from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamp
 from components.estimation.design import SIGNAL_SCALE, noise_floor
 from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
+from components.estimation.lsq import hidden_white
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
 from components.logs.spill import empty_like_log, gathered, pieces, release
@@ -76,6 +77,8 @@ class Comparison:
     # (N,) the samples that enter estimates (LogData.usable): the sample after a gap, a masked or
     # excluded one, has a residual here but enters no statistic (None: every sample)
     usable: np.ndarray | None = None
+    # pulse channels without a white level (components.estimation.lsq.hidden_white)
+    no_white_level: list = field(default_factory=list)
 
     @property
     def static_usable(self) -> np.ndarray:
@@ -91,7 +94,8 @@ class Comparison:
         return {"chi2_per_dof": self.chi2_per_dof, "dof": self.dof,
                 "channels": self.channels, "segments": self.per_segment,
                 "conditions": self.conditions,
-                "misfits": self.misfits.to_json() if self.misfits is not None else None}
+                "misfits": self.misfits.to_json() if self.misfits is not None else None,
+                "no_white_level": list(self.no_white_level)}
 
 
 def _blocks_rows(data: LogData, geo, blocks, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
@@ -169,6 +173,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     # (the best IMU's noise is ~1e-4 of it), and its χ² weighs them against a numerical floor
     scale = SIGNAL_SCALE * dt
     noise_free = ~(np.isfinite(sigma) & (sigma > 1e-9 * scale))
+    raw = np.nan_to_num(sigma)
     sigma = noise_floor(sigma, scale)
     rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
     if noise is not None and noise.coloured:
@@ -197,6 +202,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
                       dof, rows, usable=data.usable)
     comp.coloured = noise is not None and noise.coloured
+    comp.no_white_level = hidden_white(data, raw if noise is None else np.maximum(raw, noise.white_sigma(dt)))
     locate(comp, data, plate, rows)
     return comp
 
