@@ -251,7 +251,7 @@ class MeasurementLog:
         meta = parse_metadata(self.metadata(), where)
         cols = self.columns()
         check_columns(list(cols), meta, where)
-        check_samples(cols, meta, where, lambda i: f"sample {i + 1}", labels=True)
+        check_samples(cols, meta, where, lambda i: f"sample {i + 1}")
 
 
 def _to_increment(x: np.ndarray, kind: str, dt, weight: float | None) -> np.ndarray:

@@ -15,7 +15,6 @@ import re
 import numpy as np
 
 from components.errors import LogFormatError
-from components.logs.labels import SegmentLabels
 from components.logs.spill import pieces
 
 FORMAT = "calbench-log/1"
@@ -283,9 +282,9 @@ def check_columns(header: list[str], meta: dict, where: str) -> None:
                                      f"metadata's table.axes does not name (axes: {', '.join(axes)})")
 
 
-def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labels: bool = False) -> None:
-    """Rules on the values; ``row(i)`` labels the 0-based sample i. ``labels``: check that the
-    segment labels are str (the readers make them so; a log built in Python may not)."""
+def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row) -> None:
+    """Rules on the values; ``row(i)`` labels the 0-based sample i. (Segment labels that are not
+    text are refused where a log takes them: MeasurementLog, components.logs.labels.)"""
     t = cols["time"]
     if len(t) == 0:
         raise LogFormatError(f"{where}: no samples; expected one row per IMU sample (after the header line, in a CSV file)")
@@ -343,10 +342,5 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row, labe
                     i = s.start + int(np.argmax(frac))
                     raise LogFormatError(f"{where}: {row(i)}, column '{sensor}_{c}': {float(a[i])!r} is not a whole "
                                          f"number; expected integer counts (imu.{sensor}_output is 'counts')")
-    seg = cols.get("segment")
-    if labels and seg is not None and not isinstance(seg, SegmentLabels):  # (SegmentLabels are text)
-        bad = np.array([not isinstance(s, str) for s in seg]) if seg.dtype == object else None
-        if bad is not None and bad.any():
-            i = int(np.argmax(bad))
-            raise LogFormatError(f"{where}: {row(i)}, column 'segment': {seg[i]!r}; expected text")
+
 
