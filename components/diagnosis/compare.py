@@ -39,9 +39,9 @@ from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamp
 from components.estimation.design import SIGNAL_SCALE, noise_floor
 from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
-from components.estimation.lsq import hidden_white
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
+from components.logs.labels import SegmentLabels
 from components.logs.spill import empty_like_log, gathered, pieces, release
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
@@ -61,7 +61,7 @@ def model_geometry(data: LogData, model: CalibrationResult):
 @dataclass
 class Comparison:
     time: np.ndarray
-    segment: np.ndarray | None
+    segment: SegmentLabels | None  # the log's (LogData.segment)
     static: np.ndarray
     residual: np.ndarray           # (N, 6) SI increments
     predicted: np.ndarray          # (N, 6)
@@ -77,7 +77,7 @@ class Comparison:
     # (N,) the samples that enter estimates (LogData.usable): the sample after a gap, a masked or
     # excluded one, has a residual here but enters no statistic (None: every sample)
     usable: np.ndarray | None = None
-    # pulse channels without a white level (components.estimation.lsq.hidden_white)
+    # pulse channels without a white level (LogData.without_white_level)
     no_white_level: list = field(default_factory=list)
 
     @property
@@ -202,7 +202,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
                       dof, rows, usable=data.usable)
     comp.coloured = noise is not None and noise.coloured
-    comp.no_white_level = hidden_white(data, raw if noise is None else np.maximum(raw, noise.white_sigma(dt)))
+    comp.no_white_level = data.without_white_level(raw, noise)
     locate(comp, data, plate, rows)
     return comp
 

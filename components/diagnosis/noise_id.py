@@ -51,6 +51,8 @@ class NoiseIdentification:
     channels: list = field(default_factory=list)
     static_runs: int = 0
     notes: list = field(default_factory=list)
+    # the note of the channels it found no white level on (none: every channel has one)
+    no_white_note: str | None = None
 
     def table(self) -> list[str]:
         """The identified terms per channel in readable units, with σ; absent terms with their
@@ -136,6 +138,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     chans = [f.noise for f in fast]
     out_channels = []
     rows = None
+    no_white_note = None
     if slow:
         white = np.array([c.white for c in chans]) * math.sqrt(dt)
         if np.all(white > 0):
@@ -144,9 +147,10 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
             rows = fit.rows
         else:
             none = ", ".join(CHANNELS[k] for k in range(6) if not white[k] > 0)
-            notes.append(f"no white-noise level found on {none} (on a pulse output, counts much coarser than a "
-                         "sample's noise hide it): the slow terms were not estimated, and σ that rest on them may be "
-                         "too small; give the noise with --noise (a datasheet's terms, a grade or a noise file)")
+            no_white_note = (f"no white-noise level found on {none} (on a pulse output, counts much coarser than a "
+                             "sample's noise hide it): the slow terms were not estimated, and σ that rest on them may "
+                             "be too small; give the noise with --noise (a datasheet's terms, a grade or a noise file)")
+            notes.append(no_white_note)
     # the slow terms are tested on every channel: 1 % for the whole identification (Bonferroni),
     # not for each of its tests (12 tests at 1 % each name a term that is not there on 11 % of
     # logs, and a term named by chance comes at several times any true size, with the σ of every
@@ -182,7 +186,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                 if "interval" in c.slow.get(t, {}):  # a slow term present in the likelihood stage
                     iv[name] = c.slow[t]["interval"]
     model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
-    return NoiseIdentification(model_out, out_channels, len(runs), notes)
+    return NoiseIdentification(model_out, out_channels, len(runs), notes, no_white_note)
 
 
 def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[str], *, chunk_s: float = 1.0):

@@ -14,6 +14,7 @@ from components.logs.spill import gathered, pieces, release
 from components.model.approach import run_sides
 from components.model.geometry import Stage, TableGeometry
 from components.model.motion import Motion, interpolate_angles, motion_from_profile
+from components.model.noise import CHANNELS
 
 
 @dataclass
@@ -107,6 +108,18 @@ class LogData:
         if noise is not None:
             q = np.where([c.quantization > 0 for c in noise.channels], 0.0, q)
         return q
+
+    def without_white_level(self, white: np.ndarray, noise=None) -> list[str]:
+        """The channels of a pulse output (CHANNELS names) whose white level is 0: in *white*
+        (per channel, from the data) and in *noise*'s white part if given. Either the IMU has
+        none (a noise-free simulation: its counts' quantization is the whole noise, and a fit is
+        right) or its counts are too coarse for this log to show it, and a numerical floor
+        stands in for it: σ too small by up to a hundred times (2" counts at 100 Hz: 98σ off).
+        χ²/dof tells which (in its band, or far above it); calibrate and compare say so."""
+        if noise is not None:
+            white = np.maximum(white, noise.white_sigma(self.sample_interval))
+        counted = np.repeat([w is not None and w > 0 for w in self.count_weight], 3)
+        return [name for name, hidden in zip(CHANNELS, counted & ~(np.asarray(white) > 0)) if hidden]
 
     @property
     def usable(self) -> np.ndarray:

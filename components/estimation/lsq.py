@@ -55,7 +55,7 @@ class Fit:
     determinability: Determinability | None = None
     weak: list = field(default_factory=list)
     implausible: dict = field(default_factory=dict)
-    hidden_white: list = field(default_factory=list)  # pulse channels without a white level (hidden_white)
+    hidden_white: list = field(default_factory=list)  # LogData.without_white_level
 
     @property
     def sigma(self) -> np.ndarray:
@@ -68,17 +68,6 @@ class Fit:
 
     def values(self) -> dict[str, float]:
         return dict(zip(self.parameters, self.value))
-
-
-def hidden_white(data: LogData, white: np.ndarray) -> list[str]:
-    """The channels of a pulse output whose white level is 0 (not given, not identified, and
-    their sample differences mostly 0): either the IMU has none (a noise-free simulation: its
-    counts' quantization is then the whole noise, and the fit is right) or its counts are too
-    coarse for this log to show it, and a numerical floor stands in for it: σ too small by up to a
-    hundred times (2\" counts at 100 Hz: 98σ off). Which of the two, χ²/dof tells (in its band,
-    or far above it); calibrate says so (components.cli.calibration)."""
-    counted = np.repeat([w is not None and w > 0 for w in data.count_weight], 3)
-    return [n for n, h in zip(("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"), counted & ~(white > 0)) if h]
 
 
 def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadrature: int = 3,
@@ -152,8 +141,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         raise EstimationError(f"{where}the white-noise level cannot be estimated from this log (it has no two usable "
                               "samples in a row at rest): give the noise (--noise: a grade, a noise file or "
                               "NAME=VALUE terms such as gyro.noise.arw='0.002 deg/sqrt(h)')")
-    no_white = hidden_white(data, np.concatenate([raw_g, raw_a]) if noise is None else
-                            np.maximum(np.concatenate([raw_g, raw_a]), noise.white_sigma(dt_mean)))
+    no_white = data.without_white_level(np.concatenate([raw_g, raw_a]), noise)
     sg = noise_floor(raw_g, GYRO_SCALE * dt_mean)
     sa = noise_floor(raw_a, ACC_SCALE * dt_mean)
     q = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)

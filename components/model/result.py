@@ -169,7 +169,7 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
         # how far the table rests from its encoder readings (estimated from the moves)
         noise["rest_angle_sigma_rad"] = [float(x) for x in fit.rest_sigma]
     if getattr(fit, "hidden_white", None):
-        # pulse channels without a white level: a numerical floor stood in (lsq.hidden_white)
+        # pulse channels without a white level: a numerical floor stood in (LogData.without_white_level)
         noise["no_white_level"] = list(fit.hidden_white)
     if getattr(fit, "noise", None) is not None:
         noise["model"] = f"composite noise model ({fit.noise.source}): rows whitened with it"
