@@ -6,7 +6,6 @@ import io
 import numpy as np
 
 from components.diagnosis.misfit import CHANNELS
-from components.logs.labels import SegmentLabels
 
 # scatter plots with more points than this draw them as one embedded image in the SVG: each point
 # as a vector element was ~110 bytes, and an 8-hour log's page came to 78 MB
@@ -77,7 +76,7 @@ def residual_vs_time(comparison, model_name: str) -> str:
     fig, axes = plt.subplots(6, 1, figsize=(9, 8), sharex=True)
     bounds = None
     if comparison.segment is not None:
-        seg = SegmentLabels.of(comparison.segment)
+        seg = comparison.segment
         bounds = np.append(seg.starts, len(seg))
     for k, ax in enumerate(axes):
         sel = rows["channel"] == k

@@ -19,7 +19,6 @@ import itertools
 import numpy as np
 
 from components.diagnosis.misfit import CHANNELS
-from components.logs.labels import SegmentLabels
 
 
 def write_residuals(path: str, log, comparison) -> None:
@@ -47,7 +46,7 @@ def write_block_residuals(path: str, comparison) -> None:
     normalised residual z, and whether its segment × channel cell misfits beyond noise."""
     rows = comparison.rows
     t = np.asarray(comparison.time, dtype=float)
-    seg = (SegmentLabels.of(comparison.segment)[rows["start"]].astype(str) if comparison.segment is not None
+    seg = (comparison.segment[rows["start"]].astype(str) if comparison.segment is not None
            else np.full(len(rows["z"]), ""))
     mis = comparison.misfits
     flagged = {(c.name, c.channel) for c in mis.flagged("segment")} if mis is not None else set()

@@ -64,7 +64,7 @@ def parse_kinds(kinds: dict) -> dict:
 
 def _runs(labels: SegmentLabels) -> list[tuple[str, int, int]]:
     """(label, start, stop) per run of equal labels."""
-    return [(label, a, b) for a, b, label in SegmentLabels.of(labels).runs()]
+    return [(label, a, b) for a, b, label in labels.runs()]
 
 
 def _stretches(mask: np.ndarray, a: int, b: int) -> list[tuple[int, int]]:

@@ -171,10 +171,8 @@ def _array(col, what: str) -> np.ndarray:
 
     from components.logs.csv_log import labels
 
-    if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
-        return labels(col.dictionary_encode())
-    if pa.types.is_dictionary(col.type):
-        return labels(col)
+    if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) or pa.types.is_dictionary(col.type):
+        return labels(col)  # (which encodes text as a dictionary itself)
     if col.null_count and not pa.types.is_null(col.type):
         i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
         raise MappingError(f"{what}: row {i + 1}: empty value; expected a number")
