@@ -62,7 +62,8 @@ def test_bad_noise_specification_is_one_clear_error(spec, message, conformance, 
 def test_the_flicker_range_given_by_hand(conformance, tmp_path, capsys):
     """bi_tau_min / bi_tau_max [s] bound the bias instability's flicker range by hand, as a noise
     file's flicker_range_s does (bi_tau_max crashed; a range could be given only in a file): the
-    same noise model, the same result; a range upside down is one clear error."""
+    terms in SI against the units converted by hand, the model its noise file reads back as; a
+    range upside down is one clear error."""
     from components.diagnosis.noise_choice import choose_noise
     from components.model.noise import NoiseModel
 
@@ -75,8 +76,12 @@ def test_the_flicker_range_given_by_hand(conformance, tmp_path, capsys):
     assert doc["channels"]["gyro_x"]["flicker_range_s"] == [10.0, 3600.0]
     back = NoiseModel.from_dict(doc)
     assert back.channels == by_hand.channels
-    g = by_hand.channels[0]
+    # the units converted independently: 0.1 deg/h, 0.005 deg/sqrt(h), 30 ug, 20 ug/sqrt(Hz)
+    g, a = by_hand.channels[0], by_hand.channels[3]
     assert math.isclose(g.bias_instability, 0.1 * math.pi / 180 / 3600, rel_tol=1e-12)
+    assert math.isclose(g.white, 0.005 * math.pi / 180 / 60, rel_tol=1e-12)
+    assert math.isclose(a.bias_instability, 30e-6 * 9.80665, rel_tol=1e-12)
+    assert math.isclose(a.white, 20e-6 * 9.80665, rel_tol=1e-12)
     rc = main(["calibrate", str(conformance / "example"), "--out", str(tmp_path / "r.json"),
                "--noise", "gyro.noise.bi_tau_min=100", "--noise", "gyro.noise.bi_tau_max=10"])
     err = capsys.readouterr().err

@@ -152,4 +152,7 @@ def test_counts_that_hide_the_white_level_are_said_to(tmp_path, capsys):
     out = capsys.readouterr().out
     summary = json.loads((tmp_path / "c.json").read_text())
     assert "gyro_x" in summary["no_white_level"], summary.get("no_white_level")
-    assert ("WARNING: no white-noise level on" in out) == (summary["chi2_per_dof"] > 1 + 3.3 * (2 / summary["dof"]) ** 0.5)
+    from scipy.stats import chi2
+
+    above = summary["chi2_per_dof"] > chi2.isf(0.0005, summary["dof"]) / summary["dof"]  # the 99.9 % band
+    assert ("WARNING: no white-noise level on" in out) == above
