@@ -30,6 +30,7 @@ import numpy as np
 
 from components.estimation.blocks import white_noise_sigma
 from components.estimation.log_data import LogData
+from components.logs.labels import SegmentLabels
 from components.model.effects import effect_of, parameters_of
 from components.model.excitation import needs
 from components.model.result import CalibrationResult, schedule_of
@@ -86,7 +87,7 @@ class Config:
             want = [lab for lab in load_schedule(self.schedule).labels if not lab.startswith("move-")]
         except (ValueError, OSError):
             return []
-        have = {x for x in segment.distinct() if not x.startswith("move-")}
+        have = {x for x in SegmentLabels.of(segment).distinct() if not x.startswith("move-")}  # (any labels)
         if len(have) >= 0.8 * len(want):
             return []
         return [f"{source}: {len(have)} segment label(s) beside the moves, where configuration {self.name}'s "
@@ -104,7 +105,7 @@ def window_of(segment, pattern: str | None, n: int) -> tuple[int, int]:
     if pattern is None or segment is None:
         return 0, n
     rx = re.compile(pattern)
-    hit = [(a, b) for a, b, label in segment.runs() if rx.search(label)]
+    hit = [(a, b) for a, b, label in SegmentLabels.of(segment).runs() if rx.search(label)]
     if not hit:
         raise ValueError(f"no segment label matches {pattern!r}")
     return hit[0][0], hit[-1][1]
