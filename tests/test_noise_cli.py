@@ -110,12 +110,13 @@ def test_a_log_too_short_to_identify_noise_is_told_so(conformance, tmp_path, cap
     assert "Traceback" not in err
 
 
-def test_an_identification_without_a_white_level_says_so_where_the_noise_is_said(conformance):
-    """Counts far coarser than a sample's noise hide its white level; the slow terms are then not
-    estimated and σ resting on them come out too small. A pulse log's default identification ran
-    unasked and said nothing of it (σ off by up to 98 of themselves, exit 0); now the line that
-    says it. The noise-free conformance log has no white level (beyond its numbers' last digits on
-    the x channels)."""
+def test_a_noise_free_log_gets_no_white_level_beyond_its_numbers_last_digits(conformance):
+    """The noise-free conformance log: its static runs show no white level on most channels, and
+    the whole log's block sums are then asked (test_pulse_white_level). They must not invent
+    one: what they read is the scatter of the numbers' last digits, below 1e-12 of a sample's
+    increment (about 7e-7 rad and 0.1 m/s), and the noise line says where it was read."""
+    import numpy as np
+
     from components.diagnosis.noise_choice import choose_noise
     from components.estimation.log_data import LogData
     from components.logs.logfile import read_log
@@ -123,6 +124,9 @@ def test_an_identification_without_a_white_level_says_so_where_the_noise_is_said
 
     data = LogData.from_log(read_log(conformance / "ideal"))
     _, said, ident = choose_noise(["identify"], data, effects=list(DEFAULT_EFFECTS), bootstrap=0)
-    assert "no white-noise level found on gyro_y, gyro_z, acc_y, acc_z" in said, said
-    assert "give the noise with --noise" in said
-    assert any(n.startswith("no white") for n in ident.notes)
+    hidden = [c for c in ident.channels if "white" not in c.fast.present]
+    assert hidden, [c.fast.present for c in ident.channels]
+    dt = data.sample_interval
+    for c, inc in zip(ident.channels, np.hstack([data.gyro, data.acc]).T):
+        assert c.noise.white * np.sqrt(dt) < 1e-12 * np.sqrt(np.mean(inc**2)), (c.name, c.noise.white)
+    assert "from the whole log's block sums" in said, said

@@ -120,10 +120,46 @@ def test_the_white_level_beside_coarse_counts_is_kept(tmp_path):
     assert abs(fit.chi2 / fit.dof - 1) < 2.58 * math.sqrt(2 / fit.dof), fit.chi2 / fit.dof
 
 
+def test_counts_that_hide_the_white_level_at_rest_have_it_read_from_the_whole_log(tmp_path):
+    """Counts of 10 µrad (2") and 1 mm/s at 200 Hz beside white noise of 0.005 deg/√h and
+    20 µg/√Hz (6e-9 rad and 1e-6 m/s a sample, a thousandth of a count): the sample differences are
+    mostly 0 and the 30 s rests' Allan variance shows quantization and the floor, not the white
+    level. Over a rest the counts' remainder stays within a count while white noise accumulates,
+    so the whole log's block sums show it. Before, a numerical floor (7e-20 rad) stood in for
+    it: χ²/dof 11.2 and σ off by up to 98 of themselves on a helper's log. Each white level
+    must be present and within 3.5 of its σ of the truth (0.3 % family-wise over six channels),
+    calibrate's χ²/dof within its 99 % band, and nothing warned."""
+    from components.cli import main
+    from components.logs.logfile import write_log
+
+    path = tmp_path / "twelve.toml"
+    path.write_text(SCHEDULE)
+    d = _scenario(path, 6)
+    d["imu"]["count_weight"] = {"gyro": "10 urad", "acc": "1 mm/s"}
+    d["imu"]["noise"] = {"gyro.noise.arw": "0.005 deg/sqrt(h)", "acc.noise.vrw": "20 ug/sqrt(Hz)"}
+    log = run_scenario(scenario_from_dict(d, source="test"), progress=False).log
+    data = LogData.from_log(log)
+    noise, said, ident = choose_noise(None, data)
+    hidden = [c.name for c in ident.channels if "white" not in c.fast.present]
+    assert hidden, "the rests' Allan variance showed every white level: this log does not test the block stage"
+    for k, truth in enumerate([5 * ARW] * 3 + [4 * VRW] * 3):
+        c = ident.channels[k]
+        assert "white" in c.present, (c.name, c.present, ident.notes)
+        assert abs(c.noise.white - truth) < 3.5 * c.sigma["white"], (c.name, c.noise.white, truth, c.sigma)
+    assert "from the whole log's block sums" in " ".join(ident.notes)
+    write_log(tmp_path / "coarse", log)
+    assert main(["calibrate", str(tmp_path / "coarse"), "--out", str(tmp_path / "r.json")]) == 0
+    import json
+
+    fit = json.loads((tmp_path / "r.json").read_text())["fit"]
+    assert abs(fit["chi2_per_dof"] - 1) < 2.58 * math.sqrt(2 / fit["dof"]), fit
+    assert "no_white_level" not in json.loads((tmp_path / "r.json").read_text())["noise"]
+
+
 def test_counts_that_hide_the_white_level_are_said_to(tmp_path, capsys):
-    """Counts of 10 µrad (2") and 1 mm/s on this white noise (2e-8 rad a sample): the sample
-    differences are mostly 0 and no white level is identified; a numerical floor (7e-20 rad)
-    stands in for it. calibrate said only that χ²/dof was above its band (helper's log: σ off by
+    """Counts of 10 µrad (2") and 1 mm/s on this white noise (2e-8 rad a sample, 1.6 µrad over
+    a rest beside the counts' 2.9 µrad): neither the rests nor the whole log's block sums show the
+    white level, and a numerical floor (7e-20 rad) stands in for it. calibrate said only that χ²/dof was above its band (helper's log: σ off by
     up to 98 of themselves, exit 0); now the noise line and a warning name the channels and what
     to give, and the result records them. A noise-free pulse output has no white level either,
     rightly (test_supplier_pulse): there χ²/dof is in its band and nothing is said."""

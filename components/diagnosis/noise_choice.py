@@ -146,7 +146,7 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             noise = ident.model
             # what the identification could not do is said with it (a pulse log's default is
             # identified without being asked: the user would not otherwise learn of it)
-            said = [lead + IDENTIFIED + (f" (note: {ident.no_white_note})" if ident.no_white_note else "")]
+            said = [lead + IDENTIFIED + (f" (note: {ident.white_note})" if ident.white_note else "")]
         elif "=" in s:
             name, v = _term(s)
             try:

@@ -26,7 +26,7 @@ from components import progress
 from components.estimation.allan import first_runs, static_runs
 from components.estimation.chunks import forked_map
 from components.estimation.log_data import LogData
-from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel
+from components.estimation.noise_fit import BASIC, PRESENT_SIGMAS, ChannelFit, identify_channel, white_ceiling
 from components.estimation.noise_likelihood import family_critical, fit_slow_terms
 from components.estimation.whitening import channel_rows
 from components.logs.spill import release
@@ -51,8 +51,9 @@ class NoiseIdentification:
     channels: list = field(default_factory=list)
     static_runs: int = 0
     notes: list = field(default_factory=list)
-    # the note of the channels it found no white level on (none: every channel has one)
-    no_white_note: str | None = None
+    # what it says of the white levels the static runs could not show (read from the block
+    # sums, or not found): the noise line says it (None: every channel's from the static runs)
+    white_note: str | None = None
 
     def table(self) -> list[str]:
         """The identified terms per channel in readable units, with σ; absent terms with their
@@ -138,19 +139,18 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     chans = [f.noise for f in fast]
     out_channels = []
     rows = None
-    no_white_note = None
+    # channels whose static runs showed no white level (pulse counts much coarser than a sample's
+    # noise hide it at short τ, and the Allan variance has no τ long enough to read it beside the
+    # floor): the whole log's block sums show it as the scatter that accumulates over a rest where
+    # the counts' remainder does not, so the likelihood stage measures it, as the scale of the
+    # blocks' independent variance from the most the Allan variance allows (its ceiling)
+    hidden = [k for k in range(6) if not chans[k].white > 0]
     if slow:
-        white = np.array([c.white for c in chans]) * math.sqrt(dt)
-        if np.all(white > 0):
-            fit = calibrate(data, list(model.effects), chunk_s=chunk_s, sigma_gyro=white[:3], sigma_acc=white[3:],
-                            temperature_ref=model.temperature_ref)
-            rows = fit.rows
-        else:
-            none = ", ".join(CHANNELS[k] for k in range(6) if not white[k] > 0)
-            no_white_note = (f"no white-noise level found on {none} (on a pulse output, counts much coarser than a "
-                             "sample's noise hide it): the slow terms were not estimated, and σ that rest on them may "
-                             "be too small; give the noise with --noise (a datasheet's terms, a grade or a noise file)")
-            notes.append(no_white_note)
+        white = np.array([c.white if k not in hidden else white_ceiling(fast[k].allan)
+                          for k, c in enumerate(chans)]) * math.sqrt(dt)
+        fit = calibrate(data, list(model.effects), chunk_s=chunk_s, sigma_gyro=white[:3], sigma_acc=white[3:],
+                        temperature_ref=model.temperature_ref)
+        rows = fit.rows
     # the slow terms are tested on every channel: 1 % for the whole identification (Bonferroni),
     # not for each of its tests (12 tests at 1 % each name a term that is not there on 11 % of
     # logs, and a term named by chance comes at several times any true size, with the σ of every
@@ -170,13 +170,36 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
+    read_from_blocks = []
     for k, (ch, report) in enumerate(slow_fits):
         sigma, present = dict(fast[k].sigma), list(fast[k].present)
         if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
             present = [t for t in present if t in ("quantization", "white")] + \
                 [t for t in slow_terms[k] if report[t]["present"]]
             sigma.update({t: report[t]["sigma"] for t in slow_terms[k]})
+            if k in hidden:
+                # (at most the ceiling: white_ceiling)
+                level = white[k] / math.sqrt(dt) * math.sqrt(min(report["block_variance_scale"], 1.0))
+                # σ of N from that of log N² (half of it); present as in the Allan stage, above
+                # three σ (a noise-free pulse output's scale runs to the edge of its reach)
+                sd = level * report["block_variance_log_sigma"] / 2.0
+                if np.isfinite(sd) and level > PRESENT_SIGMAS * sd:
+                    ch = replace(ch, white=level)
+                    present.append("white")
+                    sigma["white"] = sd
+                    read_from_blocks.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
+    said = []
+    if read_from_blocks:
+        said.append(f"white noise on {', '.join(read_from_blocks)} from the whole log's block sums (the static "
+                    "runs' Allan variance cannot show it beside the counts' quantization)")
+    none = [CHANNELS[k] for k, c in enumerate(out_channels) if not c.noise.white > 0]
+    if none:
+        said.append(f"no white-noise level found on {', '.join(none)} (on a pulse output, counts much coarser "
+                    "than a sample's noise hide it)" + ("" if rows is not None else ": the slow terms were not "
+                    "estimated") + ", and σ that rest on it may be too small; give the noise with --noise (a "
+                    "datasheet's terms, a grade or a noise file)")
+    notes += said
     sig, iv = {}, {}
     for k, c in enumerate(out_channels):
         for t in c.present:
@@ -186,7 +209,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                 if "interval" in c.slow.get(t, {}):  # a slow term present in the likelihood stage
                     iv[name] = c.slow[t]["interval"]
     model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
-    return NoiseIdentification(model_out, out_channels, len(runs), notes, no_white_note)
+    return NoiseIdentification(model_out, out_channels, len(runs), notes, "; ".join(said) or None)
 
 
 def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[str], *, chunk_s: float = 1.0):

@@ -108,6 +108,15 @@ def white_beside_quantization(rate: np.ndarray, runs: list[tuple[int, int]], dt:
     return math.sqrt(max(float(av.avar[k]) - 3.0 * quantization**2 / tau**2, 0.0) * tau), tau
 
 
+def white_ceiling(av: AllanVariance, confidence: float = 0.99) -> float:
+    """The largest white level N [rate/√Hz] the Allan variance *av* allows: every term's share
+    is non-negative, so N²/τ ≤ AVAR(τ) at each τ, taken at the upper end of each τ's *confidence*
+    interval (its degrees of freedom). Where the static runs cannot show the white level beside a
+    pulse output's quantization, the whole-log likelihood reads it up to this: block scatter
+    beyond it is not the sensor's white noise but something the model misses in the moves."""
+    return math.sqrt(float(np.min(av.tau * av.interval(confidence)[1] ** 2)))
+
+
 def _fitted_range(av: AllanVariance, known: dict) -> np.ndarray:
     return beyond_quantization(av, known["quantization"]) if known.get("quantization") \
         else np.ones(len(av.tau), bool)

@@ -181,11 +181,22 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     # within 3σ; free, 36 of 36, RMS z 0.89). Where that curvature is not positive (the corner
     # on a flat stretch of the likelihood), the corner is held.
     k = len(active)
-    cov = _inverse_curvature(lambda z: nll(active, z), x, f)[:k, :k]
+    whole = _inverse_curvature(lambda z: nll(active, z), x, f)
+    cov = whole[:k, :k]
     if not np.all(np.isfinite(np.diag(cov))):
         cov = _inverse_curvature(lambda z: nll(active, np.concatenate([z, x[k:]])), x[:k], f)
-    # (the values the likelihood used: clipped as in loglik and model)
-    report: dict = {"block_variance_scale": variance_scale(x[-1])}
+    # (the values the likelihood used: clipped as in loglik and model); the scale's σ in log: on
+    # a pulse channel whose counts hide the white level it is that level's measurement
+    # (components.diagnosis.noise_id), so where the whole curvature is not positive it is taken
+    # with the floor's corner held, then with everything else held
+    v_var = whole[-1, -1]
+    if not v_var > 0 and len(x) > k + 1:
+        v_var = _inverse_curvature(lambda z: nll(active, np.concatenate([z[:k], x[k:-1], z[k:]])),
+                                   np.concatenate([x[:k], x[-1:]]), f)[-1, -1]
+    if not v_var > 0:
+        v_var = _inverse_curvature(lambda z: nll(active, np.concatenate([x[:-1], z])), x[-1:], f)[0, 0]
+    report: dict = {"block_variance_scale": variance_scale(x[-1]),
+                    "block_variance_log_sigma": math.sqrt(v_var) if v_var > 0 else float("nan")}
     if "bias_instability" in active:
         report["flicker_corner_s"] = out.flicker_range[0]
     f_none = optimise([])[1]
