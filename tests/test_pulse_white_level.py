@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 import tomllib
 
+import pytest
+
 from components.diagnosis.noise_choice import choose_noise
 from components.estimation.log_data import LogData
 from components.estimation.lsq import calibrate
@@ -120,7 +122,24 @@ def test_the_white_level_beside_coarse_counts_is_kept(tmp_path):
     assert abs(fit.chi2 / fit.dof - 1) < 2.58 * math.sqrt(2 / fit.dof), fit.chi2 / fit.dof
 
 
-def test_counts_that_hide_the_white_level_at_rest_have_it_read_from_the_whole_log(tmp_path):
+@pytest.fixture(scope="module")
+def coarse(tmp_path_factory):
+    """(the run, the log's path) of counts of 10 µrad (2") and 1 mm/s at 200 Hz beside white noise
+    of 0.005 deg/√h and 20 µg/√Hz: 6e-9 rad and 1e-6 m/s a sample, a thousandth of a count."""
+    from components.logs.logfile import write_log
+
+    tmp = tmp_path_factory.mktemp("coarse")
+    path = tmp / "twelve.toml"
+    path.write_text(SCHEDULE)
+    d = _scenario(path, 6)
+    d["imu"]["count_weight"] = {"gyro": "10 urad", "acc": "1 mm/s"}
+    d["imu"]["noise"] = {"gyro.noise.arw": "0.005 deg/sqrt(h)", "acc.noise.vrw": "20 ug/sqrt(Hz)"}
+    run = run_scenario(scenario_from_dict(d, source="test"), progress=False)
+    write_log(tmp / "coarse", run.log)
+    return run, tmp / "coarse"
+
+
+def test_counts_that_hide_the_white_level_at_rest_have_it_read_from_the_whole_log(coarse, tmp_path):
     """Counts of 10 µrad (2") and 1 mm/s at 200 Hz beside white noise of 0.005 deg/√h and
     20 µg/√Hz (6e-9 rad and 1e-6 m/s a sample, a thousandth of a count): the sample differences are
     mostly 0 and the 30 s rests' Allan variance shows quantization and the floor, not the white
@@ -130,15 +149,9 @@ def test_counts_that_hide_the_white_level_at_rest_have_it_read_from_the_whole_lo
     must be present and within 3.5 of its σ of the truth (0.3 % family-wise over six channels),
     calibrate's χ²/dof within its 99 % band, and nothing warned."""
     from components.cli import main
-    from components.logs.logfile import write_log
 
-    path = tmp_path / "twelve.toml"
-    path.write_text(SCHEDULE)
-    d = _scenario(path, 6)
-    d["imu"]["count_weight"] = {"gyro": "10 urad", "acc": "1 mm/s"}
-    d["imu"]["noise"] = {"gyro.noise.arw": "0.005 deg/sqrt(h)", "acc.noise.vrw": "20 ug/sqrt(Hz)"}
-    log = run_scenario(scenario_from_dict(d, source="test"), progress=False).log
-    data = LogData.from_log(log)
+    run, log_path = coarse
+    data = LogData.from_log(run.log)
     noise, said, ident = choose_noise(None, data)
     hidden = [c.name for c in ident.channels if "white" not in c.fast.present]
     assert hidden, "the rests' Allan variance showed every white level: this log does not test the block stage"
@@ -146,14 +159,49 @@ def test_counts_that_hide_the_white_level_at_rest_have_it_read_from_the_whole_lo
         c = ident.channels[k]
         assert "white" in c.present, (c.name, c.present, ident.notes)
         assert abs(c.noise.white - truth) < 3.5 * c.sigma["white"], (c.name, c.noise.white, truth, c.sigma)
-    assert "from the whole log's block sums" in " ".join(ident.notes)
-    write_log(tmp_path / "coarse", log)
-    assert main(["calibrate", str(tmp_path / "coarse"), "--out", str(tmp_path / "r.json")]) == 0
+    assert "from the whole log's block sums" in said, said
+    assert main(["calibrate", str(log_path), "--out", str(tmp_path / "r.json")]) == 0
     import json
 
     fit = json.loads((tmp_path / "r.json").read_text())["fit"]
     assert abs(fit["chi2_per_dof"] - 1) < 2.58 * math.sqrt(2 / fit["dof"]), fit
     assert "no_white_level" not in json.loads((tmp_path / "r.json").read_text())["noise"]
+
+
+def test_noise_given_by_hand_on_counts_takes_their_quantization_from_the_count_weights(coarse, tmp_path, capsys):
+    """The datasheet's white levels, given by hand, know nothing of the counts: a rest's block
+    sums were weighed by the white noise alone (the true noise given as a file on a helper's
+    2" log: χ²/dof 6.8). The count weights add one count's w/√12 to each pulse channel, and with
+    the true terms χ²/dof is in its 99 % band; a quantization the user names (here 0) is kept,
+    and then it is far above."""
+    import json
+
+    from components.cli import main
+
+    run, log_path = coarse
+    given = ["--noise", "gyro.noise.arw=0.005 deg/sqrt(h)", "--noise", "acc.noise.vrw=20 ug/sqrt(Hz)"]
+    assert main(["calibrate", str(log_path), *given, "--out", str(tmp_path / "r.json")]) == 0
+    out = capsys.readouterr().out
+    assert "with the counts' quantization from the log's count weights (gyro 2.06 arcsec/√12, acc 1 mm/s/√12)" \
+        in out, out
+    r = json.loads((tmp_path / "r.json").read_text())
+    chans = r["noise"]["composite"]["channels"]
+    for name, w in (("gyro_x", 1e-5), ("acc_z", 1e-3)):
+        assert chans[name]["quantization"]["value"] == pytest.approx(w / math.sqrt(12), rel=1e-12)
+    # not above its 99 % band (σ not too small); below it by up to ~10 %: the model takes the
+    # remainders at the blocks' ends as independent, and a thousandth of a count of noise a sample
+    # barely dithers them (at rest they step through the counts as the input's rate has them)
+    band = 2.58 * math.sqrt(2 / r["fit"]["dof"])
+    assert 0.85 < r["fit"]["chi2_per_dof"] < 1 + band, r["fit"]
+    truth = run.truth["effects"]
+    for name, p in r["parameters"].items():   # each within 4 σ: 0.15 % family-wise over 24
+        assert abs(p["value"] - truth.get(name, 0.0)) < 4 * p["sigma"], (name, p, truth.get(name, 0.0))
+    assert main(["calibrate", str(log_path), *given, "--noise", "gyro.noise.q=0", "--noise", "acc.noise.q=0",
+                 "--out", str(tmp_path / "q0.json")]) == 0
+    r0 = json.loads((tmp_path / "q0.json").read_text())
+    # (white noise alone is stored as its levels, with no composite block)
+    assert "quantization" not in r0["noise"].get("composite", {}).get("channels", {}).get("gyro_x", {}), r0["noise"]
+    assert r0["fit"]["chi2_per_dof"] > 1 + 10 * math.sqrt(2 / r0["fit"]["dof"]), r0["fit"]
 
 
 def test_counts_that_hide_the_white_level_are_said_to(tmp_path, capsys):
