@@ -71,6 +71,41 @@ def test_white_analysis_names_a_noise_term_not_a_drift(null_logs):
         assert not any(f.endswith(".drift") for f in d.found), d.found
 
 
+BOTH_COLOURED = {"gyro.noise.arw": "0.005 deg/sqrt(h)", "gyro.noise.bi": "0.1 deg/h", "gyro.noise.bi_tau": 10.0,
+                 "gyro.noise.bi_tau_max": 3600.0, "gyro.noise.rrw": "0.1 deg/h/sqrt(h)",
+                 "acc.noise.vrw": "20 ug/sqrt(Hz)", "acc.noise.bi": "30 ug", "acc.noise.bi_tau": 10.0,
+                 "acc.noise.bi_tau_max": 3600.0, "acc.noise.rrw": "30 ug/sqrt(h)"}
+
+
+def test_a_gyro_wander_beside_a_larger_accelerometer_one_is_not_called_a_drift():
+    """Both sensors coloured (a helper's log, no drift injected): under white analysis the
+    accelerometer random walk out-gains every effect, but the gyro wander it cannot explain read
+    as gyro.drift (-1.73 ± 0.17 deg/h/h, the verdict). An effect must stay significant with each
+    sensor's best noise term in the model, not only with the best one overall."""
+    data = LogData.from_log(_run(11, noise=BOTH_COLOURED))
+    model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
+    d = diagnose(data, model)
+    assert d.verdict_kind == "noise", (d.verdict, d.found)
+    assert not any(f.endswith(".drift") for f in d.found), d.found
+    assert any(f.startswith("gyro.noise.") for f in d.found), d.found
+
+
+def test_a_real_gyro_drift_beside_coloured_noise_is_still_named():
+    """The same noise with a gyro drift of 30 deg/h/h: under the true noise its σ is 2.2 deg/h/h
+    (its 95 %-power threshold at the first Holm level about 11), so it must be named. The noise
+    terms it is weighed against are fitted beside its columns: fitted without them, a gyro floor
+    took the drift up as wander and the verdict was a noise term."""
+    d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
+    d["imu"]["effects"].pop("acc.k2.z")
+    d["imu"]["effects"]["gyro.drift.z"] = "30 deg/h/h"
+    d["imu"]["noise"] = dict(BOTH_COLOURED)
+    d["scenario"]["seed"] = 11
+    data = LogData.from_log(run_scenario(scenario_from_dict(d, source="test_noise_loop"), progress=False).log)
+    model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
+    dg = diagnose(data, model)
+    assert "gyro.drift" in dg.found, (dg.verdict, dg.found)
+
+
 def test_the_whitening_set_aside_on_disk_changes_nothing(null_logs, monkeypatch):
     """A noise term tried keeps the whitening before it to go back to; on disk (as a long log's
     is) the diagnosis is the same, number for number."""

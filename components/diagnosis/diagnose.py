@@ -21,9 +21,10 @@ long before the log can tell which of the two it is.
 Stochastic or deterministic: beside the effects, the noise terms the model lacks (components.diagnosis.noise_terms)
 (``gyro.noise.bi``, ``gyro.noise.rrw``, ``acc.noise.bi``, ``acc.noise.rrw``) are candidates too,
 each fitted by maximum likelihood on the base model's rows. When the best of them explains the
-residual better than the best effect (Akaike: Δℓ against the number of parameters) and no effect
-stays significant with the term in the noise model, the verdict is that the noise model is too
-simple, not a missing effect: a slow wander from bias instability is not called a drift, and a
+residual better than the best effect (Akaike: Δℓ against the number of parameters) and none of
+the best significant effects stays significant with each sensor's best noise term in the noise
+model — the terms fitted beside the effect's own columns, so that they do not take its misfit up
+as wander — the verdict is that the noise model is too simple, not a missing effect: a slow wander from bias instability is not called a drift, and a
 large systematic misfit that a huge random walk could take up is still called an effect. Forward selection adds the verdict (an effect, or a noise term to the
 noise model) and ranks again, so several are named in turn. Two candidates whose new columns are nearly the same
 (largest canonical correlation > 0.98) cannot be told apart on this schedule; the diagnosis says
@@ -48,6 +49,9 @@ from components.model.noise import NoiseModel
 from components.model.plausibility import expected_magnitude, plausible_limit
 from components.model.result import CalibrationResult
 
+# the significant effects, best first, tried against the noise terms before the verdict is a noise
+# term (each costs a fit of the terms and a ranking)
+SURVIVAL_CHECKS = 3
 # candidates whose new columns have a canonical correlation above this cannot be told apart on
 # the schedule (the ranking says so and how to separate them)
 TWINS = 0.98
@@ -189,11 +193,18 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
             # a noise term fitted on a systematic misfit takes it up as a huge wander and can
             # out-gain the effect; a physical effect stays significant with the term in the
             # noise model, a wander the term explains does not
-            surviving = _surviving_effects(design, base, available, alpha, best_noise["model"], noise_now)
-            if surviving:
-                noise_wins = False
-                if winner.effect not in surviving:
-                    winner = next((c for c in ranking if c.effect == surviving[0]), winner)
+            for cand in [c for c in ranking if c.passes][:SURVIVAL_CHECKS]:
+                # the terms fitted beside the effect's columns: fitted without them, a term takes
+                # the effect's own misfit up as wander (a gyro floor fitted on a 10 deg/h/h drift
+                # left it insignificant), and a real effect would never survive
+                beside = noise_candidates(design, base + available[cand.effect], noise_now, noise_terms, alpha)
+                if not any(n["significant"] for n in beside):
+                    noise_wins, winner = False, cand
+                    break
+                if cand.effect in _surviving_effects(design, base, available, alpha,
+                                                     _with_best_terms(beside, noise_now), noise_now):
+                    noise_wins, winner = False, cand
+                    break
         if noise_wins:
             # the residual is better explained by a noise term than by any effect
             found.append(best_noise["term"])
@@ -223,6 +234,25 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
                     kinds[0] if kinds else None, noise_now, unseeable, forward, untested)
     annotate(out)
     return out
+
+
+def _with_best_terms(stochastic: list, current: NoiseModel | None) -> NoiseModel:
+    """The noise model *current* with, for each sensor, its best significant noise term (the
+    candidates *stochastic*, best first): what an effect must stay significant under to be called one. The
+    best term alone was not enough: an accelerometer random walk out-gains a gyro floor, and
+    with it in the model a gyro wander still read as gyro.drift (verdict on a coloured-noise log
+    with no drift under the white default)."""
+    best = {}
+    for n in stochastic:
+        if n["significant"]:
+            best.setdefault(n["term"].split(".")[0], n)
+    first = next(iter(best.values()))
+    chans = [first["model"].channels[k] if "gyro" not in best else best["gyro"]["model"].channels[k]
+             for k in range(3)] + \
+            [first["model"].channels[k] if "acc" not in best else best["acc"]["model"].channels[k] for k in range(3, 6)]
+    terms = " + ".join(n["term"] for n in best.values())
+    return NoiseModel(tuple(chans), (current.source + "; " if current is not None else "") + f"+ {terms}",
+                      first["model"].sigmas)
 
 
 def _surviving_effects(design: CandidateDesign, base: list[str], available: dict, alpha: float,
