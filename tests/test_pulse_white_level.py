@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import tomllib
 
+import numpy as np
 import pytest
 
 from components.diagnosis.noise_choice import choose_noise
@@ -166,6 +167,33 @@ def test_counts_that_hide_the_white_level_at_rest_have_it_read_from_the_whole_lo
     fit = json.loads((tmp_path / "r.json").read_text())["fit"]
     assert abs(fit["chi2_per_dof"] - 1) < 2.58 * math.sqrt(2 / fit["dof"]), fit
     assert "no_white_level" not in json.loads((tmp_path / "r.json").read_text())["noise"]
+
+
+def test_white_noise_on_counts_that_hide_the_level_takes_its_ceiling_not_a_floor(coarse):
+    """``--noise white`` on those counts (and the default on a count log without table angles,
+    which has no block sums in time): the static runs show no white level beside the
+    quantization, and 0 was taken (σ from a numerical floor). Now the most the Allan variance
+    allows: every level above 0, at least the truth (a ceiling), and calibrate's σ not too small
+    (χ²/dof not above its 99.9 % band)."""
+    from scipy.stats import chi2
+
+    run, _ = coarse
+    data = LogData.from_log(run.log)
+    noise, said, _ = choose_noise(["white"], data)
+    assert "the most their Allan variance allows" in said, said
+    from components.estimation.allan import static_runs
+    from components.estimation.noise_fit import white_beside_quantization
+
+    runs, dt = static_runs(data.static & data.usable), data.sample_interval
+    hidden = 0
+    for k, (inc, truth) in enumerate(zip(np.hstack([data.gyro, data.acc]).T, [5 * ARW] * 3 + [4 * VRW] * 3)):
+        assert noise.channels[k].white > 0, k
+        if not white_beside_quantization(inc / dt, runs, dt, noise.channels[k].quantization)[0] > 0:
+            hidden += 1   # the ceiling: at least the truth (at 99 % for each τ)
+            assert noise.channels[k].white >= truth, (k, noise.channels[k].white, truth)
+    assert hidden, "no channel hidden: this log does not test the ceiling"
+    fit = calibrate(data, list(DEFAULT_EFFECTS), noise=noise)
+    assert fit.chi2 / fit.dof < chi2.isf(0.0005, fit.dof) / fit.dof, fit.chi2 / fit.dof
 
 
 def test_noise_given_by_hand_on_counts_takes_their_quantization_from_the_count_weights(coarse, tmp_path, capsys):

@@ -202,9 +202,9 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
     if data is None or not any(data.count_weight):
         return None, WHITE
     from components.diagnosis.noise_id import ALLAN_SAMPLES
-    from components.estimation.allan import first_runs, static_runs
+    from components.estimation.allan import first_runs, pooled_allan, static_runs
     from components.estimation.blocks import white_noise_sigma
-    from components.estimation.noise_fit import white_beside_quantization
+    from components.estimation.noise_fit import white_beside_quantization, white_ceiling
 
     use = data.static & data.usable
     runs = first_runs(static_runs(use), ALLAN_SAMPLES)
@@ -223,13 +223,21 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
             continue
         taus = []
         for a in range(3):
-            n, tau = white_beside_quantization(np.asarray(inc[:upto, a], float) / dt, runs, dt, float(q[3 * s + a]))
+            rate = np.asarray(inc[:upto, a], float) / dt
+            n, tau = white_beside_quantization(rate, runs, dt, float(q[3 * s + a]))
+            if not n > 0:
+                # no τ rises above the quantization: the most the Allan variance allows, so that
+                # σ come out on the wide side, never from a numerical floor (σ up to a hundred
+                # times too small on 2" counts); the whole log's block sums read it better
+                # (--noise identify, on a log with table angles)
+                n = white_ceiling(pooled_allan(rate, runs, dt))
             chans.append(ChannelNoise(white=n, quantization=float(q[3 * s + a])))
             taus.append(tau)
         read = sorted({f"{t:.3g} s" for t in taus if np.isfinite(t)})
         hidden = sum(not np.isfinite(t) for t in taus)
         parts = ([f"from the Allan variance at τ = {', '.join(read)} beside it"] if read else []) \
-            + ([f"below what the counts show on {hidden} axes (set to 0)"] if hidden else [])
+            + ([f"below what the counts show on {hidden} axes: the most their Allan variance allows (σ on the "
+                "wide side)"] if hidden else [])
         said.append(f"{sensor}: quantization {data.count_weight[s]:.3g}/√12 (its count weight) and white noise "
                     + "; ".join(parts))
     text = "white noise, on the pulse outputs with the counts' quantization as a term of its own (" \
