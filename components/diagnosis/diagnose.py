@@ -22,9 +22,9 @@ Stochastic or deterministic: beside the effects, the noise terms the model lacks
 (``gyro.noise.bi``, ``gyro.noise.rrw``, ``acc.noise.bi``, ``acc.noise.rrw``) are candidates too,
 each fitted by maximum likelihood on the base model's rows. When the best of them explains the
 residual better than the best effect (Akaike: Δℓ against the number of parameters) and none of
-the best significant effects stays significant with each sensor's best noise term in the noise
-model — the terms fitted beside the effect's own columns, so that they do not take its misfit up
-as wander — the verdict is that the noise model is too simple, not a missing effect: a slow wander from bias instability is not called a drift, and a
+the best significant effects stays significant both with that term in the noise model and with
+each sensor's best noise term — these fitted beside the effect's own columns, so that they do
+not take its misfit up as wander — the verdict is that the noise model is too simple, not a missing effect: a slow wander from bias instability is not called a drift, and a
 large systematic misfit that a huge random walk could take up is still called an effect. Forward selection adds the verdict (an effect, or a noise term to the
 noise model) and ranks again, so several are named in turn. Two candidates whose new columns are nearly the same
 (largest canonical correlation > 0.98) cannot be told apart on this schedule; the diagnosis says
@@ -193,10 +193,14 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
             # a noise term fitted on a systematic misfit takes it up as a huge wander and can
             # out-gain the effect; a physical effect stays significant with the term in the
             # noise model, a wander the term explains does not
-            for cand in [c for c in ranking if c.passes][:SURVIVAL_CHECKS]:
-                # the terms fitted beside the effect's columns: fitted without them, a term takes
-                # the effect's own misfit up as wander (a gyro floor fitted on a 10 deg/h/h drift
-                # left it insignificant), and a real effect would never survive
+            # two checks, both needed: under the best term as fitted (without the effect: a
+            # wander it explains leaves no effect; without this one, 2 of 100 navigation-grade
+            # null logs under white analysis named acc.drift), and under each sensor's best term
+            # (the best alone is often the other sensor's), these fitted beside the effect's
+            # columns — fitted without them a term takes the effect's own misfit up as wander
+            # (a gyro floor took a real 30 deg/h/h drift), and the effect would never survive
+            surviving = _surviving_effects(design, base, available, alpha, best_noise["model"], noise_now)
+            for cand in [c for c in ranking if c.passes and c.effect in surviving][:SURVIVAL_CHECKS]:
                 beside = noise_candidates(design, base + available[cand.effect], noise_now, noise_terms, alpha)
                 if not any(n["significant"] for n in beside):
                     noise_wins, winner = False, cand
