@@ -24,9 +24,11 @@ each fitted by maximum likelihood on the base model's rows. When the best of the
 residual better than the best effect (Akaike: Δℓ against the number of parameters) and none of
 the best significant effects stays significant both with that term in the noise model and with
 each sensor's best noise term — these fitted beside the effect's own columns, so that they do
-not take its misfit up as wander — the verdict is that the noise model is too simple, not a missing effect: a slow wander from bias instability is not called a drift, and a
-large systematic misfit that a huge random walk could take up is still called an effect. Forward selection adds the verdict (an effect, or a noise term to the
-noise model) and ranks again, so several are named in turn. Two candidates whose new columns are nearly the same
+not take its misfit up as wander — the verdict is that the noise model is too simple, not a
+missing effect: a slow wander from bias instability is not called a drift, and a large
+systematic misfit that a huge random walk could take up is still called an effect. Forward
+selection adds the verdict (an effect, or a noise term to the noise model) and ranks again, so
+several are named in turn. Two candidates whose new columns are nearly the same
 (largest canonical correlation > 0.98) cannot be told apart on this schedule; the diagnosis says
 so and proposes a schedule change that separates them.
 """
@@ -191,14 +193,14 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
         noise_wins = best_noise is not None and best_noise["aic_gain"] > max(effect_gain, 0.0)
         if noise_wins and winner is not None:
             # a noise term fitted on a systematic misfit takes it up as a huge wander and can
-            # out-gain the effect; a physical effect stays significant with the term in the
-            # noise model, a wander the term explains does not
-            # two checks, both needed: under the best term as fitted (without the effect: a
-            # wander it explains leaves no effect; without this one, 2 of 100 navigation-grade
-            # null logs under white analysis named acc.drift), and under each sensor's best term
-            # (the best alone is often the other sensor's), these fitted beside the effect's
-            # columns — fitted without them a term takes the effect's own misfit up as wander
-            # (a gyro floor took a real 30 deg/h/h drift), and the effect would never survive
+            # out-gain the effect; a physical effect stays significant with the terms in the
+            # noise model, a wander they explain does not. Two checks, both needed: under the
+            # best term as fitted (without the effect: a wander it explains leaves no effect;
+            # without this check, 2 of 100 navigation-grade null logs under white analysis named
+            # acc.drift), and under each sensor's best term (the best alone is often the other
+            # sensor's), these fitted beside the effect's columns (fitted without them a term
+            # takes the effect's own misfit up as wander: a gyro floor took a real 30 deg/h/h
+            # drift, and the effect would never survive)
             surviving = _surviving_effects(design, base, available, alpha, best_noise["model"], noise_now)
             for cand in [c for c in ranking if c.passes and c.effect in surviving][:SURVIVAL_CHECKS]:
                 beside = noise_candidates(design, base + available[cand.effect], noise_now, noise_terms, alpha)
@@ -242,10 +244,10 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
 
 def _with_best_terms(stochastic: list, current: NoiseModel | None) -> NoiseModel:
     """The noise model *current* with, for each sensor, its best significant noise term (the
-    candidates *stochastic*, best first): what an effect must stay significant under to be called one. The
-    best term alone was not enough: an accelerometer random walk out-gains a gyro floor, and
-    with it in the model a gyro wander still read as gyro.drift (verdict on a coloured-noise log
-    with no drift under the white default)."""
+    candidates *stochastic*, best first): what an effect must stay significant under to be
+    called one. The best term alone was not enough: an accelerometer random walk out-gains a gyro
+    floor, and with it in the model a gyro wander still read as gyro.drift (the verdict on a
+    coloured-noise log with no drift under the white default)."""
     best = {}
     for n in stochastic:
         if n["significant"]:
