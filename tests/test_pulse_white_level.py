@@ -181,14 +181,14 @@ def test_white_noise_on_counts_that_hide_the_level_takes_its_ceiling_not_a_floor
     data = LogData.from_log(run.log)
     noise, said, _ = choose_noise(["white"], data)
     assert "the most their Allan variance allows" in said, said
-    from components.estimation.allan import static_runs
+    from components.estimation.allan import pooled_allan, static_runs
     from components.estimation.noise_fit import white_beside_quantization
 
     runs, dt = static_runs(data.static & data.usable), data.sample_interval
     hidden = 0
     for k, (inc, truth) in enumerate(zip(np.hstack([data.gyro, data.acc]).T, [5 * ARW] * 3 + [4 * VRW] * 3)):
         assert noise.channels[k].white > 0, k
-        if not white_beside_quantization(inc / dt, runs, dt, noise.channels[k].quantization)[0] > 0:
+        if not white_beside_quantization(pooled_allan(inc / dt, runs, dt), noise.channels[k].quantization)[0] > 0:
             hidden += 1   # the ceiling: at least the truth (at 99 % for each τ)
             assert noise.channels[k].white >= truth, (k, noise.channels[k].white, truth)
     assert hidden, "no channel hidden: this log does not test the ceiling"

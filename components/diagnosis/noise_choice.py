@@ -223,14 +223,14 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
             continue
         taus = []
         for a in range(3):
-            rate = np.asarray(inc[:upto, a], float) / dt
-            n, tau = white_beside_quantization(rate, runs, dt, float(q[3 * s + a]))
+            av = pooled_allan(np.asarray(inc[:upto, a], float) / dt, runs, dt)
+            n, tau = white_beside_quantization(av, float(q[3 * s + a]))
             if not n > 0:
                 # no τ rises above the quantization: the most the Allan variance allows, so that
                 # σ come out on the wide side, never from a numerical floor (σ up to a hundred
                 # times too small on 2" counts); the whole log's block sums read it better
                 # (--noise identify, on a log with table angles)
-                n = white_ceiling(pooled_allan(rate, runs, dt))
+                n = white_ceiling(av)
             chans.append(ChannelNoise(white=n, quantization=float(q[3 * s + a])))
             taus.append(tau)
         read = sorted({f"{t:.3g} s" for t in taus if np.isfinite(t)})

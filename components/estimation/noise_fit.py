@@ -90,16 +90,14 @@ def beyond_quantization(av: AllanVariance, quantization: float) -> np.ndarray:
     return keep if np.count_nonzero(keep) >= 2 else np.ones(len(av.tau), bool)
 
 
-def white_beside_quantization(rate: np.ndarray, runs: list[tuple[int, int]], dt: float,
-                               quantization: float) -> tuple[float, float]:
+def white_beside_quantization(av: AllanVariance, quantization: float) -> tuple[float, float]:
     """(white level N [rate/√Hz], the τ [s] it was read at) of a channel whose *quantization* Q
-    is known, from the pooled Allan variance of its *rate* on the static *runs*: at the shortest τ
+    is known, from the pooled Allan variance *av* of its rate on the static runs: at the shortest τ
     where the measured variance is at least :data:`QUANTIZATION_DOMINANCE` times Q's alone,
     N² = (AVAR(τ) − 3Q²/τ²) τ. Sample differences cannot give it when the counts are coarser than
     a sample's noise (most are 0; see the module docstring); the shortest such τ keeps the slow
     terms' share small. (0, nan) where no τ rises above the quantization: the white noise is
-    below what the counts can show."""
-    av = pooled_allan(rate, runs, dt)
+    below what the counts can show (white_ceiling bounds it from the same *av*)."""
     above = np.flatnonzero(av.avar >= QUANTIZATION_DOMINANCE * basis("quantization", av.tau) * quantization**2)
     if not len(above):
         return 0.0, float("nan")
