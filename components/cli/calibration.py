@@ -28,13 +28,13 @@ def _print_result(res) -> None:
             print(f"chi2/dof: none ({f['dof']} dof: {f.get('note', 'no degrees of freedom left')})")
         else:
             print(f"chi2/dof = {f['chi2_per_dof']:.3f} ({f['dof']} dof), {f['iterations']} iteration(s)")
-            from components.diagnosis.misfit import chi2_band_note
+            from components.diagnosis.misfit import chi2_band, chi2_band_note
 
             note = chi2_band_note(f["chi2_per_dof"], f["dof"], above=True)
             if note:
                 print(f"note: {note}")
             hidden = res.noise.get("no_white_level")
-            if hidden and note and "above" in note:
+            if hidden and f["chi2_per_dof"] > chi2_band(f["dof"])[1]:
                 print(hidden_white_warning(hidden))
     if weak:
         print(f"weakly determined (sigma above 10 x the magnitude expected of an IMU of this noise grade): "

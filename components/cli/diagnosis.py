@@ -35,13 +35,13 @@ def _print_comparison(c, coloured: bool = False) -> None:
     if free:
         print(f"{', '.join(free)}: no noise in these data (the residual's sample differences are rounding): their χ² "
               "weighs rounding against a numerical floor, not a misfit against noise; read their rms")
-    from components.diagnosis.misfit import chi2_band_note
+    from components.diagnosis.misfit import chi2_band, chi2_band_note
 
     note = chi2_band_note(c.chi2_per_dof, c.dof)
     if note:
         # too good to be true: the noise model, not the model, is what is wrong
         print(note)
-    if c.no_white_level and "above" in (chi2_band_note(c.chi2_per_dof, c.dof, above=True) or ""):
+    if c.no_white_level and c.chi2_per_dof > chi2_band(c.dof)[1]:
         from components.cli.calibration import hidden_white_warning
 
         print(hidden_white_warning(c.no_white_level))

@@ -144,15 +144,20 @@ def misfits(rows: dict, segment_of_row: np.ndarray | None, conditions: dict, alp
     return res
 
 
+def chi2_band(dof: int) -> tuple[float, float]:
+    """The 99.9 % band of χ²/dof for a correct model with *dof* degrees of freedom."""
+    from components.estimation.distributions import chi2_isf
+
+    n = max(int(dof), 1)
+    return chi2_isf(0.9995, n) / n, chi2_isf(0.0005, n) / n
+
+
 def chi2_band_note(chi2_per_dof: float, dof: int, above: bool = False) -> str | None:
     """The sentence for a χ²/dof outside its 99.9 % band, or None. Below it the noise model
     states more noise than the residual has (every σ too wide: a noise file of another log or
     IMU, a grade too noisy); above it (said only when *above*: compare and diagnose show where)
     the model or the noise model lacks something."""
-    from components.estimation.distributions import chi2_isf
-
-    n = max(int(dof), 1)
-    low, high = chi2_isf(0.9995, n) / n, chi2_isf(0.0005, n) / n
+    low, high = chi2_band(dof)
     if chi2_per_dof < low:
         return (f"chi2/dof {chi2_per_dof:.3f} is below what a correct model gives (99.9 % band from {low:.3f}): the "
                 "noise model states more noise than the residual has, so every σ from it is too wide; identify the "
