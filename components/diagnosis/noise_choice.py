@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import UserError
-from components.model.noise import FORMAT, TERMS, ChannelNoise, NoiseModel, from_terms, grade
+from components.model.noise import FORMAT, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, from_terms, grade
 from components.model.quantities import NOISE_TERM_UNITS, QuantityError, quantity
 
 WHITE = "white noise, its level from the static data's sample-to-sample differences"
@@ -107,11 +107,11 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
     ident = None
     if not specs:
         if model is not None and model.noise_model() is not None:
-            return with_count_quantization(model.noise_model(), data, f"the model's own: {model.noise_model().source}",
-                                           specs) + (None,)
+            return with_count_quantization(model.noise_model(), data,
+                                           f"the model's own: {model.noise_model().source}") + (None,)
         if data is not None and getattr(data, "noise", None):
             own = NoiseModel.from_dict(data.noise)
-            return with_count_quantization(own, data, "the log's own (imu.noise)", specs) + (None,)
+            return with_count_quantization(own, data, "the log's own (imu.noise)") + (None,)
         if any(data.count_weight) and data.has_table:
             specs = ["identify"]
             lead = "pulse counts: quantization from the count weights, the rest "
@@ -122,6 +122,7 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
         lead = ""
     noise: NoiseModel | None = base
     said = [base.source] if base is not None else []
+    quantized = set()   # the sensors whose quantization the user named (kept as named)
     for spec in specs:
         s = spec.strip()
         if s == "white":
@@ -155,6 +156,8 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
             except ValueError as e:
                 raise UserError(f"--noise {spec!r}: {e}") from None
             said.append(f"{name} = {v:.4g} (SI, given)")
+            if TERM_OF_NAME.get(name.split(".")[2]) == "quantization":
+                quantized.add(name.split(".")[0])
         elif s.endswith(".json"):
             noise = load_noise_file(s)
             said = [f"from {s}"]
@@ -163,18 +166,17 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
                             "or NAME=VALUE (e.g. acc.noise.bi=10 ug)")
     if noise is None:
         return None, "; ".join(said), ident
-    return with_count_quantization(noise, data, "; ".join(said), specs) + (ident,)
+    return with_count_quantization(noise, data, "; ".join(said), quantized) + (ident,)
 
 
-def with_count_quantization(noise: NoiseModel, data, said: str, specs: list[str]) -> tuple[NoiseModel, str]:
+def with_count_quantization(noise: NoiseModel, data, said: str, named=frozenset()) -> tuple[NoiseModel, str]:
     """(*noise* with a pulse output's quantization — one count's w/√12, from the log's count
     weights — on each of its channels that has none, the sentence *said* saying so). A grade, a
     datasheet's terms or a noise file from an analogue log do not know the counts, and without
     them a rest's block sums were given the white noise alone (the true noise of a helper's 2"
-    counts log, given as a file: χ²/dof 6.8; with the counts' quantization, 1.01). A quantization
-    the user names (``gyro.noise.q=…``, 0 included) is theirs and left as it is."""
-    named = {spec.split("=")[0].strip().split(".")[0] for spec in specs
-             if "=" in spec and spec.split("=")[0].strip().split(".")[1:3] == ["noise", "q"]}
+    counts log, given as a file: χ²/dof 6.8; with the counts' quantization, 1.01). The sensors in
+    *named* had their quantization named by the user (``gyro.noise.q=…``, 0 included): theirs,
+    left as it is."""
     chans, added = list(noise.channels), []
     for s, (sensor, w) in enumerate(zip(("gyro", "acc"), getattr(data, "count_weight", None) or ())):
         if not w or sensor in named or all(chans[3 * s + a].quantization > 0 for a in range(3)):
