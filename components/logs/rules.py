@@ -342,5 +342,3 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row) -> N
                     i = s.start + int(np.argmax(frac))
                     raise LogFormatError(f"{where}: {row(i)}, column '{sensor}_{c}': {float(a[i])!r} is not a whole "
                                          f"number; expected integer counts (imu.{sensor}_output is 'counts')")
-
-
