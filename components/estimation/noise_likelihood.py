@@ -96,7 +96,17 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     # that excess scatter with no correlation from block to block (a white level a little low,
     # moves the motion model resolves less well than rests) is not taken for a slow term
     def nll(active: list[str], x) -> float:
-        return -loglik(model(active, x), x[-1])
+        return -loglik(model(active, x), x[-1]) + _beyond(active, x)
+
+    def _beyond(active: list[str], x) -> float:
+        # the likelihood is flat beyond the clips below, where the simplex wandered off and never
+        # came back: a floor's corner at e^36 s (clipped to span/8) kept a fit 7.5 below the
+        # maximum, the floor 2.4x the truth; this slope leads it back and is 0 within reach
+        k = len(active)
+        out = sum(max(0.0, v - mag_hi, mag_lo - v) ** 2 for v in x[:k])
+        if "bias_instability" in active and len(x) > k + 1:
+            out += max(0.0, x[k] - math.log(lo_max), math.log(lo_min) - x[k]) ** 2
+        return out + max(0.0, abs(x[-1]) - VARIANCE_REACH) ** 2
 
     # magnitudes are clipped in log space to MAGNITUDE_REACH either side of the white level: the
     # simplex may wander far along a flat direction, and at e^355 a square overflows (a random
@@ -132,6 +142,16 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
                             options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400 * max(1, len(z0) - 1)})
 
         r = run(x0)
+        if start is None:
+            # the likelihood can hold a second valley where the blocks' independent variance is
+            # lower and a slow term takes its place: from a white level read too high (a pulse
+            # channel's, at the ceiling of what its rests allow) the simplex lowered that level
+            # and the floor together until the floor sat at e^-60, on a flat, and stayed there
+            # (gyro_y of a 2" counts log: no floor, bias 8σ off; the floor's valley 5.5 higher)
+            corners = (math.log(lo_min), corner0, math.log(lo_max)) if "bias_instability" in active and free_corner else ()
+            r1 = run(_scan_start(lambda z: nll(active, full(z)), r.x, k, x0[:k], mag_lo, corners))
+            if r1.fun < r.fun:
+                r = r1
         if "bias_instability" in active and free_corner and start is None:
             # the corner can hold two valleys, one at each end of its range: from the test
             # corner alone the simplex ran to the short end on a 5-minute log whose maximum was
@@ -233,6 +253,33 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     report["loglik"] = -f
     report["loglik_without"] = -f_none
     return out, report
+
+
+SCAN_VARIANCE = (0.0, -1.0, -2.0, -3.0)  # log: where _scan_start puts the blocks' variance scale, from the fit's
+SCAN_MAGNITUDE = (-2.0, -1.0, 0.0, 1.0)  # log: and each slow term's magnitude, from its value there
+
+
+def _scan_start(nll, x: np.ndarray, k: int, x0, floor: float, corners=()) -> np.ndarray:
+    """The best of a coarse grid around the fit *x* (coordinates: *k* log magnitudes, the floor's
+    corner if free, then the variance scale v): v lowered by :data:`SCAN_VARIANCE`, each
+    magnitude moved by :data:`SCAN_MAGNITUDE` from where it is (from its start *x0* where the
+    fit left it within 1 of the *floor* of its reach, log) and the corner at each of *corners*
+    (log; empty: where it is). A start for a second simplex, not an estimate."""
+    import itertools
+
+    best, f_best = np.array(x, float), nll(np.asarray(x, float))
+    mags = [x[i] if x[i] > floor + 1.0 else x0[i] for i in range(k)]
+    for dv, corner in itertools.product(SCAN_VARIANCE, corners or [None]):
+        for dm in itertools.product(SCAN_MAGNITUDE, repeat=k):
+            z = np.array(x, float)
+            z[:k] = [m + d for m, d in zip(mags, dm)]
+            z[-1] = x[-1] + dv
+            if corner is not None:
+                z[k] = corner
+            f = nll(z)
+            if f < f_best:
+                best, f_best = z, f
+    return best
 
 
 def _embed(active: list[str], dropped: str, x_without: np.ndarray, x_with: np.ndarray) -> np.ndarray:
