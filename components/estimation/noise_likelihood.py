@@ -149,7 +149,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             # and the floor together until the floor sat at e^-60, on a flat, and stayed there
             # (gyro_y of a 2" counts log: no floor, bias 8σ off; the floor's valley 5.5 higher)
             corners = (math.log(lo_min), corner0, math.log(lo_max)) if "bias_instability" in active and free_corner else ()
-            r1 = run(_scan_start(lambda z: nll(active, full(z)), r.x, k, x0[:k], mag_lo, corners))
+            r1 = run(_scan_start(lambda z: nll(active, full(z)), r.x, k, x0[:k], corners))
             if r1.fun < r.fun:
                 r = r1
         if "bias_instability" in active and free_corner and start is None:
@@ -257,18 +257,20 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
 
 SCAN_VARIANCE = (0.0, -1.0, -2.0, -3.0)  # log: where _scan_start puts the blocks' variance scale, from the fit's
 SCAN_MAGNITUDE = (-2.0, -1.0, 0.0, 1.0)  # log: and each slow term's magnitude, from its value there
+DEAD = 8.0  # log: a magnitude this far below its start is one the fit set to nothing
 
 
-def _scan_start(nll, x: np.ndarray, k: int, x0, floor: float, corners=()) -> np.ndarray:
+def _scan_start(nll, x: np.ndarray, k: int, x0, corners=()) -> np.ndarray:
     """The best of a coarse grid around the fit *x* (coordinates: *k* log magnitudes, the floor's
     corner if free, then the variance scale v): v lowered by :data:`SCAN_VARIANCE`, each
     magnitude moved by :data:`SCAN_MAGNITUDE` from where it is (from its start *x0* where the
-    fit left it within 1 of the *floor* of its reach, log) and the corner at each of *corners*
+    fit left it more than :data:`DEAD` below that, log: at e^-54 a held floor's grid around it
+    was all flat, and a floor of LR 31 went untested) and the corner at each of *corners*
     (log; empty: where it is). A start for a second simplex, not an estimate."""
     import itertools
 
     best, f_best = np.array(x, float), nll(np.asarray(x, float))
-    mags = [x[i] if x[i] > floor + 1.0 else x0[i] for i in range(k)]
+    mags = [x[i] if x[i] > x0[i] - DEAD else x0[i] for i in range(k)]
     for dv, corner in itertools.product(SCAN_VARIANCE, corners or [None]):
         for dm in itertools.product(SCAN_MAGNITUDE, repeat=k):
             z = np.array(x, float)
