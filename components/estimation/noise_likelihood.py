@@ -149,9 +149,11 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             # and the floor together until the floor sat at e^-60, on a flat, and stayed there
             # (gyro_y of a 2" counts log: no floor, bias 8σ off; the floor's valley 5.5 higher)
             corners = (math.log(lo_min), corner0, math.log(lo_max)) if "bias_instability" in active and free_corner else ()
-            r1 = run(_scan_start(lambda z: nll(active, full(z)), r.x, k, x0[:k], corners))
-            if r1.fun < r.fun:
-                r = r1
+            z1 = _scan_start(lambda z: nll(active, full(z)), r.x, k, x0[:k], corners)
+            if z1 is not None:  # (none better than where the simplex stopped: no second simplex)
+                r1 = run(z1)
+                if r1.fun < r.fun:
+                    r = r1
         if "bias_instability" in active and free_corner and start is None:
             # the corner can hold two valleys, one at each end of its range: from the test
             # corner alone the simplex ran to the short end on a 5-minute log whose maximum was
@@ -260,16 +262,17 @@ SCAN_MAGNITUDE = (-2.0, -1.0, 0.0, 1.0)  # log: and each slow term's magnitude, 
 DEAD = 8.0  # log: a magnitude this far below its start is one the fit set to nothing
 
 
-def _scan_start(nll, x: np.ndarray, k: int, x0, corners=()) -> np.ndarray:
+def _scan_start(nll, x: np.ndarray, k: int, x0, corners=()) -> np.ndarray | None:
     """The best of a coarse grid around the fit *x* (coordinates: *k* log magnitudes, the floor's
     corner if free, then the variance scale v): v lowered by :data:`SCAN_VARIANCE`, each
     magnitude moved by :data:`SCAN_MAGNITUDE` from where it is (from its start *x0* where the
     fit left it more than :data:`DEAD` below that, log: at e^-54 a held floor's grid around it
-    was all flat, and a floor of LR 31 went untested) and the corner at each of *corners*
-    (log; empty: where it is). A start for a second simplex, not an estimate."""
+    was all flat, and a floor of LR 33 went untested) and the corner at each of *corners*
+    (log; empty: where it is). A start for a second simplex, not an estimate; None where no point
+    of the grid is better than *x*."""
     import itertools
 
-    best, f_best = np.array(x, float), nll(np.asarray(x, float))
+    best, f_best = None, nll(np.asarray(x, float))
     mags = [x[i] if x[i] > x0[i] - DEAD else x0[i] for i in range(k)]
     for dv, corner in itertools.product(SCAN_VARIANCE, corners or [None]):
         for dm in itertools.product(SCAN_MAGNITUDE, repeat=k):
