@@ -104,3 +104,22 @@ def test_left_out_samples_leave_the_fit_and_the_rest_still_finds_the_truth(confo
     truth = truth_values(conformance, "example")
     z = np.array([(v - truth[p]) / s for p, v, s in zip(fit.parameters, fit.value, fit.sigma)])
     assert np.max(np.abs(z)) < 4.0
+
+
+def test_a_channel_without_a_white_level_leaves_the_others_theirs(conformance):
+    """A noise model whose gyro_x has no white level (a pulse channel whose counts hide it) still
+    weighs gyro_y and gyro_z, and every accelerometer axis, by the levels it gives; only gyro_x's
+    comes from the data. With one channel lacking a level, all three gyro axes took the data's:
+    on counts that hide it that is next to nothing, and χ²/dof went from 0.78 to 1.14 with the
+    σ too small. The levels given here are 3x the example's truth, so the data's cannot pass."""
+    from components.model.noise import ChannelNoise, NoiseModel
+
+    data = LogData.from_log(read_log(conformance / "example"))
+    white = [0.0, 3 * 0.002 * DEG_H * 60, 3 * 0.002 * DEG_H * 60] + [3 * 10 * UG] * 3   # per √s
+    noise = NoiseModel(tuple([ChannelNoise(quantization=1e-7)] + [ChannelNoise(white=w) for w in white[1:]]), "test")
+    fit = calibrate(data, list(DEFAULT_EFFECTS), noise=noise)
+    given = np.array(white) * math.sqrt(data.sample_interval)
+    np.testing.assert_allclose(fit.sigma_gyro[1:], given[1:3], rtol=1e-6)   # (the mean interval against the nominal)
+    np.testing.assert_allclose(fit.sigma_acc, given[3:], rtol=1e-6)
+    # gyro_x's from the data: the example's 0.002 °/√h, not 3x it
+    assert fit.sigma_gyro[0] == pytest.approx(given[1] / 3, rel=0.05)

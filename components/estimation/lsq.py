@@ -116,12 +116,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
 
     def rows_at(g: TableGeometry, lin=None):
         return chunked_design(data, layout, params, sg, sa, q, g, table_params, temperature_ref, quadrature, lin)
-    if noise is not None:
-        white = noise.white_sigma(dt_mean)
-        if sigma_gyro is None and np.all(white[:3] > 0):
-            sigma_gyro = white[:3]
-        if sigma_acc is None and np.all(white[3:] > 0):
-            sigma_acc = white[3:]
+    white = noise.white_sigma(dt_mean) if noise is not None else np.zeros(6)
     span = float(data.time[-1] - data.time[0] + dt_mean) if len(data.time) else 0.0
 
     def weighted(y, H, w, rows):
@@ -131,10 +126,13 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
         return yw, Hw
 
     quant = data.quantization_floor(noise)
-    raw_g = np.asarray(sigma_gyro if sigma_gyro is not None
-                       else white_noise_sigma(data.gyro, static & data.usable, quant[:3]), float)
-    raw_a = np.asarray(sigma_acc if sigma_acc is not None
-                       else white_noise_sigma(data.acc, static & data.usable, quant[3:]), float)
+    # each channel's white level from the noise model where it has one, else from the data (a
+    # channel without one took all three sensors' axes to the data's: with gyro_x's white level
+    # not found beside its floor, gyro_y's read one was dropped too, and χ²/dof went to 1.14)
+    raw_g = np.asarray(sigma_gyro if sigma_gyro is not None else np.where(
+        white[:3] > 0, white[:3], white_noise_sigma(data.gyro, static & data.usable, quant[:3])), float)
+    raw_a = np.asarray(sigma_acc if sigma_acc is not None else np.where(
+        white[3:] > 0, white[3:], white_noise_sigma(data.acc, static & data.usable, quant[3:])), float)
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
         where = f"{data.source['log']}: " if (data.source or {}).get("log") else ""
