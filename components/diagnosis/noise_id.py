@@ -27,7 +27,7 @@ from components.estimation.allan import first_runs, static_runs
 from components.estimation.chunks import forked_map
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel, white_ceiling
-from components.estimation.noise_likelihood import family_critical, fit_slow_terms
+from components.estimation.noise_likelihood import VARIANCE_REACH, family_critical, fit_slow_terms
 from components.estimation.whitening import channel_rows
 from components.logs.spill import release
 from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of
@@ -170,7 +170,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
-    read_from_blocks = []
+    read_from_blocks, at_ceiling = [], []
     for k, (ch, report) in enumerate(slow_fits):
         sigma, present = dict(fast[k].sigma), list(fast[k].present)
         if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
@@ -186,18 +186,34 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                 # an absent one (dropped below three σ, 7 of 20 navigation-grade logs of 1 mm/s
                 # counts had the accelerometers weighed by a numerical floor: σ of acc.sf and
                 # acc.mis 1.5-3x too small, an effect named on 5 of the 20). A noise-free pulse
-                # output's scale runs to the edge of its reach, where the curvature is 0.
-                sd = level * report["block_variance_log_sigma"] / 2.0
-                if np.isfinite(sd) and sd > 0:
+                # output's scale runs to the edge of its reach, where the curvature is 0. Beside a
+                # floor that takes the blocks' scatter, the scale ran to e^-22 with a log-σ of
+                # 1.5e4, there from the numerical curvature of a flat: the scale's 3σ interval
+                # must lie within its reach, so that the log bounds the level on both sides.
+                log_sd = report["block_variance_log_sigma"]
+                sd = level * log_sd / 2.0
+                bounded = abs(math.log(report["block_variance_scale"])) + 3.0 * log_sd < VARIANCE_REACH
+                if np.isfinite(sd) and sd > 0 and bounded:
                     ch = replace(ch, white=level)
                     present.append("white")
                     sigma["white"] = sd
                     read_from_blocks.append(CHANNELS[k])
+                elif any(report[t]["present"] for t in slow_terms[k]):
+                    # a slow term took the blocks' scatter and left nothing to bound the white
+                    # level by: the most the rests allow, the ceiling (σ wide, not small; with
+                    # none, 10 µrad counts beside a 0.05 °/h gyro floor had gyro_z weighed by
+                    # its quantization and floor alone, and the user told σ may be too small)
+                    ch = replace(ch, white=white[k] / math.sqrt(dt))
+                    present.append("white")
+                    at_ceiling.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     said = []
     if read_from_blocks:
         said.append(f"white noise on {', '.join(read_from_blocks)} from the whole log's block sums (the static "
                     "runs' Allan variance cannot show it beside the counts' quantization)")
+    if at_ceiling:
+        said.append(f"white noise on {', '.join(at_ceiling)} at the most the static runs allow (beside the "
+                    "floor or random walk the block sums found, they do not bound it): σ that rest on it are wide")
     none = [CHANNELS[k] for k, c in enumerate(out_channels) if not c.noise.white > 0]
     if none:
         said.append(f"no white-noise level found on {', '.join(none)} (on a pulse output, counts much coarser "

@@ -24,6 +24,7 @@ truth in 87 % of tactical 5-minute logs; the profile interval in 83 of 84.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import replace
 
@@ -96,17 +97,19 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     # that excess scatter with no correlation from block to block (a white level a little low,
     # moves the motion model resolves less well than rests) is not taken for a slow term
     def nll(active: list[str], x) -> float:
-        return -loglik(model(active, x), x[-1]) + _beyond(active, x)
+        return -loglik(model(active, x), x[-1])
 
-    def _beyond(active: list[str], x) -> float:
-        # the likelihood is flat beyond the clips below, where the simplex wandered off and never
-        # came back: a floor's corner at e^36 s (clipped to span/8) kept a fit 7.5 below the
-        # maximum, the floor 2.4x the truth; this slope leads it back and is 0 within reach
+    def fitted_nll(active: list[str], x) -> float:
+        # what the simplex minimises: the likelihood is flat beyond the clips below, where the
+        # simplex wandered off and never came back (a floor's corner at e^36 s, clipped to
+        # span/8, kept a fit 7.5 below the maximum, the floor 2.4x the truth), so a slope there
+        # leads it back. Not in the curvatures and profiles: at a clip it would make up a σ (a
+        # white level read from a variance scale at the bottom of its reach, 1e-4 of the truth)
         k = len(active)
         out = sum(max(0.0, v - mag_hi, mag_lo - v) ** 2 for v in x[:k])
         if "bias_instability" in active and len(x) > k + 1:
             out += max(0.0, x[k] - math.log(lo_max), math.log(lo_min) - x[k]) ** 2
-        return out + max(0.0, abs(x[-1]) - VARIANCE_REACH) ** 2
+        return nll(active, x) + out + max(0.0, abs(x[-1]) - VARIANCE_REACH) ** 2
 
     # magnitudes are clipped in log space to MAGNITUDE_REACH either side of the white level: the
     # simplex may wander far along a flat direction, and at e^355 a square overflows (a random
@@ -138,7 +141,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             return np.concatenate([z[:k], [corner0], z[k:]]) if held else np.asarray(z, float)
 
         def run(z0):
-            return minimize(lambda z: nll(active, full(z)), np.array(z0), method="Nelder-Mead",
+            return minimize(lambda z: fitted_nll(active, full(z)), np.array(z0), method="Nelder-Mead",
                             options={"xatol": 1e-3, "fatol": 1e-4, "maxiter": 400 * max(1, len(z0) - 1)})
 
         r = run(x0)
@@ -149,7 +152,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             # and the floor together until the floor sat at e^-60, on a flat, and stayed there
             # (gyro_y of a 2" counts log: no floor, bias 8σ off; the floor's valley 5.5 higher)
             corners = (math.log(lo_min), corner0, math.log(lo_max)) if "bias_instability" in active and free_corner else ()
-            z1 = _scan_start(lambda z: nll(active, full(z)), r.x, k, x0[:k], corners)
+            z1 = _scan_start(lambda z: fitted_nll(active, full(z)), r.x, k, x0[:k], corners)
             if z1 is not None:  # (none better than where the simplex stopped: no second simplex)
                 r1 = run(z1)
                 if r1.fun < r.fun:
@@ -270,8 +273,6 @@ def _scan_start(nll, x: np.ndarray, k: int, x0, corners=()) -> np.ndarray | None
     was all flat, and a floor of LR 33 went untested) and the corner at each of *corners*
     (log; empty: where it is). A start for a second simplex, not an estimate; None where no point
     of the grid is better than *x*."""
-    import itertools
-
     best, f_best = None, nll(np.asarray(x, float))
     mags = [x[i] if x[i] > x0[i] - DEAD else x0[i] for i in range(k)]
     for dv, corner in itertools.product(SCAN_VARIANCE, corners or [None]):
