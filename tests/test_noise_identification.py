@@ -424,3 +424,36 @@ def test_a_floor_the_blocks_show_is_found_beside_coarse_counts(name):
     assert 2 * (none.fun - floor.fun) > critical  # the premise: the floor is there to be found (gyro_y: 10.2)
     assert rep["bias_instability"]["present"], rep
     assert rep["loglik"] >= -floor.fun - 0.05, (rep["loglik"], -floor.fun, floor.x)
+
+
+def test_a_white_level_the_blocks_do_not_bound_below_is_their_one_sigma_upper_bound():
+    """acc_z of coarse-count seed 8 (tests/data/block_rows): the floor takes the blocks' scatter
+    and the maximum of the blocks' independent variance is at the bottom of its reach. What the
+    log says of it is an upper bound: the scale at which the deviance, maximised over the floor,
+    its corner and nothing else, reaches 1. Checked against the profile the test computes
+    itself (a grid of starts and Powell over floor and corner at that scale)."""
+    from pathlib import Path
+
+    from scipy.optimize import minimize
+
+    from components.estimation.noise_likelihood import family_critical, restricted_loglik
+
+    r = np.load(Path(__file__).parent / "data" / "block_rows" / "coarse_counts_acc_z.npz")
+    y, H, d, wv, span, q = r["y"], r["H"], r["durations"], r["white_var"], float(r["span"]), float(r["quantization"])
+    _, rep = fit_slow_terms(ChannelNoise(quantization=q), y, H, d, wv, span, 1.0, critical=family_critical(12),
+                            variance_bound=True)
+    assert rep["bias_instability"]["present"] and rep["block_variance_scale"] < 1e-6, rep
+    upper = rep["block_variance_upper"]
+    corner = (math.log(max(float(d.min()), 1e-3)), math.log(max(span / 8, 2 * float(d.min()))))
+    level = math.log(math.sqrt(float(np.median(wv / d**2))))
+
+    def profile(scale):
+        def nll(z):
+            c = ChannelNoise(quantization=q, bias_instability=math.exp(z[0]), flicker_range=(math.exp(z[1]), None))
+            return -restricted_loglik(c, y, H, d, wv * scale, span, 1.0)
+        starts = [[b, c] for b in level + np.arange(-6.0, 2.1) for c in np.linspace(*corner, 5)]
+        return minimize(nll, min(starts, key=nll), method="Powell", bounds=[(level - 20, level + 5), corner],
+                        options={"xtol": 1e-6, "ftol": 1e-10, "maxiter": 4000}).fun
+
+    deviance = 2 * (profile(upper) - profile(rep["block_variance_scale"]))
+    assert deviance == pytest.approx(1.0, abs=0.15), (upper, deviance)

@@ -166,11 +166,11 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         durations = (rows["stop"][idx] - rows["start"][idx]) * dt
         base = replace(chans[k], bias_instability=0.0, random_walk=0.0, gauss_markov=())
         return fit_slow_terms(base, rows["y"][idx], H[:, active], durations, 1.0 / rows["weight"][idx] ** 2, span,
-                              chunk_s, slow_terms[k], critical=critical)
+                              chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden)
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
-    read_from_blocks, at_ceiling = [], []
+    read_from_blocks, at_upper = [], []
     for k, (ch, report) in enumerate(slow_fits):
         sigma, present = dict(fast[k].sigma), list(fast[k].present)
         if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
@@ -199,21 +199,24 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     sigma["white"] = sd
                     read_from_blocks.append(CHANNELS[k])
                 elif any(report[t]["present"] for t in slow_terms[k]):
-                    # a slow term took the blocks' scatter and left nothing to bound the white
-                    # level by: the most the rests allow, the ceiling (σ wide, not small; with
-                    # none, 10 µrad counts beside a 0.05 °/h gyro floor had gyro_z weighed by
-                    # its quantization and floor alone, and the user told σ may be too small)
-                    ch = replace(ch, white=white[k] / math.sqrt(dt))
+                    # a slow term took the blocks' scatter and left them nothing to bound the
+                    # white level by from below: the most they allow at one σ, at most the
+                    # ceiling (σ wide, not small; with none, 10 µrad counts beside a 0.05 °/h
+                    # gyro floor had gyro_z weighed by its quantization and floor alone, and the
+                    # user told σ may be too small; with the ceiling, χ²/dof 0.74 on that log)
+                    upper = report.get("block_variance_upper", float("nan"))
+                    scale = min(upper, 1.0) if np.isfinite(upper) else 1.0
+                    ch = replace(ch, white=white[k] / math.sqrt(dt) * math.sqrt(scale))
                     present.append("white")
-                    at_ceiling.append(CHANNELS[k])
+                    at_upper.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     said = []
     if read_from_blocks:
         said.append(f"white noise on {', '.join(read_from_blocks)} from the whole log's block sums (the static "
                     "runs' Allan variance cannot show it beside the counts' quantization)")
-    if at_ceiling:
-        said.append(f"white noise on {', '.join(at_ceiling)} at the most the static runs allow (beside the "
-                    "floor or random walk the block sums found, they do not bound it): σ that rest on it are wide")
+    if at_upper:
+        said.append(f"white noise on {', '.join(at_upper)} at the most the block sums allow (beside the floor "
+                    "or random walk they found, they do not bound it from below): σ that rest on it are wide")
     none = [CHANNELS[k] for k, c in enumerate(out_channels) if not c.noise.white > 0]
     if none:
         said.append(f"no white-noise level found on {', '.join(none)} (on a pulse output, counts much coarser "

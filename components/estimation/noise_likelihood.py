@@ -72,7 +72,8 @@ def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations:
 
 def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                    white_var: np.ndarray, span: float, t_lo: float, terms=SLOW,
-                   restricted: bool = True, critical: float = LR_CRITICAL) -> tuple[ChannelNoise, dict]:
+                   restricted: bool = True, critical: float = LR_CRITICAL,
+                   variance_bound: bool = False) -> tuple[ChannelNoise, dict]:
     """*ch* with the magnitudes of *terms* re-estimated by (restricted) maximum likelihood, and
     the terms the data do not need dropped one at a time (backward elimination: bias instability
     and random walk can stand in for each other, so a term's likelihood ratio is taken against
@@ -224,6 +225,14 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
                     "block_variance_log_sigma": math.sqrt(v_var) if v_var > 0 else float("nan")}
     if "bias_instability" in active:
         report["flicker_corner_s"] = out.flicker_range[0]
+    if variance_bound and active:
+        # the largest scale of the blocks' independent variance the log allows at one σ (deviance
+        # 1, everything else refitted at each step): where a slow term takes the blocks' scatter
+        # the scale's maximum is at the bottom of its reach, and this is what the log says of it
+        spread = {len(active): (math.log(lo_min), math.log(lo_max))} if "bias_instability" in active else {}
+        hi = profile_interval(lambda z: nll(active, z), x, f, len(x) - 1, 1.0, step=1.0,
+                              reach=VARIANCE_REACH + abs(x[-1]), spread=spread, sides=(1.0,))[0]
+        report["block_variance_upper"] = variance_scale(hi) if math.isfinite(hi) else float("nan")
     f_none = optimise([])[1]
     for t in terms:
         if t in active:
@@ -301,7 +310,8 @@ def _embed(active: list[str], dropped: str, x_without: np.ndarray, x_with: np.nd
 
 
 def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: float = 0.1,
-                     sd: float | None = None, reach: float = 7.0, spread: dict | None = None) -> tuple[float, float]:
+                     sd: float | None = None, reach: float = 7.0, spread: dict | None = None,
+                     sides=(-1.0, 1.0)) -> tuple[float, ...]:
     """The profile-likelihood interval of x[i] (log scale): where 2 [min over the other
     coordinates of nll − f0] reaches *level*, walked outwards from the minimum *x* in *step*s
     (each minimisation started from the last one's), the crossing interpolated in the signed
@@ -314,13 +324,14 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
     moved by each of :data:`SPREAD` along such a coordinate and put at each of its values, and
     the least taken. From the last point alone, one acc floor's lower end came out at 1.1e-4 or
     at 7.1e-5 of the same log as its last bits went (the simplex went up one valley or down the
-    other, the truth 9.8e-5 between them); the profile is the lower valley's."""
+    other, the truth 9.8e-5 between them); the profile is the lower valley's. ``sides``: the ends
+    to walk to (-1 lower, +1 upper), returned in that order."""
     from scipy.optimize import minimize
 
     rest = [j for j in range(len(x)) if j != i]
     jump = 1.5 * max(1.0, step / sd if sd else 1.0)  # a rise of the root that is more than a step's
     out = []
-    for sign in (-1.0, 1.0):
+    for sign in sides:
         z, b, root_prev, crossing = x[rest].copy(), x[i], 0.0, sign * math.inf
         while abs(b - x[i]) < reach:
             b_next = b + sign * step
@@ -356,7 +367,7 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
                 break
             b, root_prev = b_next, root
         out.append(crossing)
-    return out[0], out[1]
+    return tuple(out)
 
 
 def _inverse_curvature(nll, x: np.ndarray, f0: float, h: float = 1e-2) -> np.ndarray:
