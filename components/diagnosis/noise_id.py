@@ -208,6 +208,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     scale = min(upper, 1.0) if np.isfinite(upper) else 1.0
                     ch = replace(ch, white=white[k] / math.sqrt(dt) * math.sqrt(scale))
                     present.append("white")
+                    sigma["white"] = float("nan")  # a bound, not a measurement (the Allan stage's σ is of no level)
                     at_upper.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     said = []
