@@ -128,11 +128,17 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     quant = data.quantization_floor(noise)
     # each channel's white level from the noise model where it has one, else from the data (a
     # channel without one took all three sensors' axes to the data's: with gyro_x's white level
-    # not found beside its floor, gyro_y's read one was dropped too, and χ²/dof went to 1.14)
-    raw_g = np.asarray(sigma_gyro if sigma_gyro is not None else np.where(
-        white[:3] > 0, white[:3], white_noise_sigma(data.gyro, static & data.usable, quant[:3])), float)
-    raw_a = np.asarray(sigma_acc if sigma_acc is not None else np.where(
-        white[3:] > 0, white[3:], white_noise_sigma(data.acc, static & data.usable, quant[3:])), float)
+    # not found beside its floor, gyro_y's read one was dropped too, and χ²/dof went to 1.14); the
+    # data's level is a pass over the whole log, so only for a sensor with a channel lacking one
+    def own_or_data(given, levels, increments, floor):
+        if given is not None:
+            return np.asarray(given, float)
+        if np.all(levels > 0):
+            return levels
+        return np.where(levels > 0, levels, white_noise_sigma(increments, static & data.usable, floor))
+
+    raw_g = own_or_data(sigma_gyro, white[:3], data.gyro, quant[:3])
+    raw_a = own_or_data(sigma_acc, white[3:], data.acc, quant[3:])
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
         where = f"{data.source['log']}: " if (data.source or {}).get("log") else ""
