@@ -239,6 +239,25 @@ def test_rows_gathered_from_a_spilled_column_a_piece_at_a_time_are_its_rows(monk
     assert spill.gathered(on_disk, np.zeros(0, int)).shape == (0,) + shape[1:]
 
 
+@pytest.mark.parametrize("shape", [(5000,), (5000, 3), (0, 3)])
+def test_rows_written_through_a_spilled_arrays_file_are_read_through_its_mapping(shape):
+    """spill.write_rows(a, start, v) is a[start:start + len(v)] = v, for a spilled array (written
+    to its file, read back through the mapping), a view of one and a plain array; rows beyond
+    the array are refused, not written past its end."""
+    rng = np.random.default_rng(5)
+    values = rng.standard_normal(shape)
+    on_disk, plain = spill.spilled_array(shape), np.zeros(shape)
+    for a in (on_disk, plain):
+        for start in range(0, shape[0], 1234):
+            spill.write_rows(a, start, values[start:start + 1234])
+        assert np.array_equal(a, values)
+    if shape[0] and len(shape) == 2:
+        spill.write_rows(on_disk[:, 1], 10, np.full(5, 7.0))  # a strided view: through the mapping
+        assert np.all(on_disk[10:15, 1] == 7.0) and np.array_equal(on_disk[10:15, 0], values[10:15, 0])
+    with pytest.raises(IndexError):
+        spill.write_rows(on_disk, shape[0] - 1, values[:2] if shape[0] else np.zeros((2,) + shape[1:]))
+
+
 @pytest.mark.parametrize("spilled", ["0", str(1 << 40)])
 def test_an_empty_label_is_refused_naming_its_row(tmp_path, monkeypatch, spilled):
     """An empty text label in a Parquet log (and a null one) is an empty value, as in a CSV log;

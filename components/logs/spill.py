@@ -32,14 +32,33 @@ def spill_threshold() -> int:
 
 
 def spilled_array(shape, dtype=np.float64) -> np.memmap:
-    """A writable array of *shape* backed by an unlinked temporary file."""
-    fd, path = tempfile.mkstemp(prefix="calbench-spill-", suffix=".npy")
-    os.close(fd)
-    try:
-        arr = np.lib.format.open_memmap(path, mode="w+", dtype=dtype, shape=tuple(np.atleast_1d(shape)))
-    finally:
-        os.unlink(path)
+    """A writable array of *shape* backed by an unlinked temporary file (write whole rows of it
+    with :func:`write_rows`)."""
+    shape = tuple(int(k) for k in np.atleast_1d(shape))
+    file = tempfile.TemporaryFile(prefix="calbench-spill-", suffix=".npy")
+    # (an empty mapping is no mapping: a zero-row array still gets a byte of file)
+    file.truncate(max(int(np.prod(shape)) * np.dtype(dtype).itemsize, 1))
+    arr = np.memmap(file, dtype=dtype, mode="r+", shape=shape)
+    arr._spill_file = file  # the views numpy makes of it have none: they are written through the mapping
     return arr
+
+
+def write_rows(array: np.ndarray, start: int, values) -> None:
+    """array[start:start + len(values)] = values. A whole spilled *array* is written through its
+    file, not its mapping: a write through the mapping faults each page of the file in, and the
+    8-hour 1 kHz log's sensor columns are 0.65 M pages (4 s of system time of its 5.7 s read)."""
+    file = getattr(array, "_spill_file", None)
+    if file is None or not array.flags.c_contiguous:
+        array[start:start + len(values)] = values
+        return
+    if not 0 <= start <= start + len(values) <= len(array):
+        raise IndexError(f"rows {start}..{start + len(values)} of a spilled array of {len(array)}")
+    block = np.ascontiguousarray(np.broadcast_to(values, (len(values),) + array.shape[1:]), dtype=array.dtype)
+    data = memoryview(block).cast("B")
+    at = array.offset + start * (array.itemsize * int(np.prod(array.shape[1:], dtype=np.int64)))
+    while data:
+        done = os.pwrite(file.fileno(), data, at)
+        data, at = data[done:], at + done
 
 
 def is_spilled(a) -> bool:
