@@ -96,3 +96,39 @@ def test_a_settling_that_pauses_and_creeps_on_is_left_out():
     static = np.concatenate([[False], np.all(angles[1:] == angles[:-1], axis=1)])
     gb, _ = observation_blocks(static, angles, per)
     assert gb.start.min() == 10
+
+
+def test_the_datas_white_level_at_rest_is_the_scatter_of_its_rests_and_follows_its_mask():
+    """LogData.white_sigma_at_rest: white increments of known σ at two rests (a move between
+    them, with increments a thousand times larger, is not a rest) give σ within a Monte-Carlo
+    bound of the MAD scale (its standard error ~1.2 σ/√pairs; 6 of them); computed once, and a
+    copy of the data with another mask has its own (half the rests left out: the level of the
+    samples kept, which the test makes twice as noisy)."""
+    import dataclasses
+
+    from components.estimation.log_data import LogData
+
+    rng = np.random.default_rng(11)
+    n_rest, n_move = 20000, 400
+    angles = np.concatenate([np.zeros(n_rest), np.linspace(0, 1, n_move), np.ones(n_rest)])[:, None]
+    n = len(angles)
+    sigma = np.array([1e-6, 2e-6, 3e-6])
+    scale = np.ones(n)
+    scale[n_rest + n_move:] = 2.0  # the second rest twice as noisy
+    scale[n_rest:n_rest + n_move] = 1e3
+    gyro = 5e-7 + rng.standard_normal((n, 3)) * sigma * scale[:, None]
+    data = LogData(time=np.arange(n) * DT, angles=angles, gyro=gyro, acc=gyro[:, ::-1].copy(), geometry=None)
+    got = data.white_sigma_at_rest("gyro")
+    second = slice(n_rest + n_move + 1, n)
+    # the MAD scale of the rests' pooled differences: that of a sample half N(0, 1), half N(0, 4)
+    mix = np.concatenate([rng.standard_normal(10 ** 6), 2 * rng.standard_normal(10 ** 6)])
+    pooled = 1.4826 * np.median(np.abs(mix - np.median(mix)))
+    bound = 6 * 1.2 / np.sqrt(2 * n_rest)
+    assert np.all(np.abs(got / (sigma * pooled) - 1) < bound), got / (sigma * pooled)
+    assert data.white_sigma_at_rest("gyro") is got  # once
+    assert np.allclose(data.white_sigma_at_rest("acc"), got[::-1], rtol=0, atol=0)
+    second_only = np.zeros(n, bool)
+    second_only[second] = True
+    masked = dataclasses.replace(data, valid=second_only)
+    kept = masked.white_sigma_at_rest("gyro")
+    assert np.all(np.abs(kept / (2 * sigma) - 1) < bound), kept / (2 * sigma)

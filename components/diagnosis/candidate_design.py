@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from components.estimation.blocks import samples_per_block, white_noise_sigma
+from components.estimation.blocks import samples_per_block
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.log_data import LogData
@@ -54,11 +54,10 @@ class CandidateDesign:
         T0 = model.temperature_ref
         dt = data.sample_interval
         layout = BlockLayout.of(data, samples_per_block(dt, chunk_s), chunk_samples)
-        static = data.static
         # noise from the high-frequency content of the data (differences remove the model)
         q = data.quantization_floor(noise)
-        sg = white_noise_sigma(data.gyro, static & data.usable, q[:3])
-        sa = white_noise_sigma(data.acc, static & data.usable, q[3:])
+        sg = np.maximum(data.white_sigma_at_rest("gyro"), q[:3])
+        sa = np.maximum(data.white_sigma_at_rest("acc"), q[3:])
         if noise is not None and noise.coloured:
             white = noise.white_sigma(dt)
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)

@@ -56,6 +56,8 @@ class LogData:
     _interval: float | None = field(default=None, repr=False, compare=False)
     _static: np.ndarray | None = field(default=None, repr=False, compare=False)
     _sides: tuple | None = field(default=None, repr=False, compare=False)
+    # (not an init field: a copy made with dataclasses.replace, another mask perhaps, starts empty)
+    _rest_white: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         if self.segment is not None:
@@ -125,6 +127,19 @@ class LogData:
     def usable(self) -> np.ndarray:
         """(N,) bool: the samples that enter estimates."""
         return np.ones(len(self.time), bool) if self.valid is None else self.valid
+
+    def white_sigma_at_rest(self, sensor: str) -> np.ndarray:
+        """The data's per-sample white σ (3,) of the gyro or accelerometer increments over the
+        usable rest samples (components.estimation.blocks.white_noise_sigma, without a floor),
+        computed once: a pass over the whole log that calibrate and diagnose each needed twice."""
+        if sensor not in self._rest_white:
+            from components.estimation.blocks import white_noise_sigma
+
+            increments = {"gyro": self.gyro, "acc": self.acc}[sensor]
+            sigma = white_noise_sigma(increments, self.static & self.usable)
+            sigma.setflags(write=False)
+            self._rest_white[sensor] = sigma
+        return self._rest_white[sensor]
 
     def angle_profile(self, quadrature: int = 3):
         """The interpolated gimbal angles (cached: they do not depend on the geometry)."""

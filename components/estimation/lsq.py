@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import EstimationError
-from components.estimation.blocks import samples_per_block, white_noise_sigma
+from components.estimation.blocks import samples_per_block
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_design
 from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.determinability import Determinability, assess
@@ -130,15 +130,15 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     # channel without one took all three sensors' axes to the data's: with gyro_x's white level
     # not found beside its floor, gyro_y's read one was dropped too, and χ²/dof went to 1.14); the
     # data's level is a pass over the whole log, so only for a sensor with a channel lacking one
-    def own_or_data(given, levels, increments, floor):
+    def own_or_data(given, levels, sensor, floor):
         if given is not None:
             return np.asarray(given, float)
         if np.all(levels > 0):
             return levels
-        return np.where(levels > 0, levels, white_noise_sigma(increments, static & data.usable, floor))
+        return np.where(levels > 0, levels, np.maximum(data.white_sigma_at_rest(sensor), floor))
 
-    raw_g = own_or_data(sigma_gyro, white[:3], data.gyro, quant[:3])
-    raw_a = own_or_data(sigma_acc, white[3:], data.acc, quant[3:])
+    raw_g = own_or_data(sigma_gyro, white[:3], "gyro", quant[:3])
+    raw_a = own_or_data(sigma_acc, white[3:], "acc", quant[3:])
     if np.any(np.isnan(raw_g)) or np.any(np.isnan(raw_a)):
         # no two usable static samples in a row: no σ can be given without being told the noise
         where = f"{data.source['log']}: " if (data.source or {}).get("log") else ""

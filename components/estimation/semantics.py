@@ -103,7 +103,6 @@ def _handedness(data, log) -> list[str]:
     import mapping) it is not, and the positions method converges all the same (each rest's
     attitude is free) to a χ²/dof of thousands and a 'missing' g-sensitivity."""
     from components.estimation.allan import static_runs
-    from components.estimation.blocks import white_noise_sigma
 
     use = data.static & data.usable
     rests = static_runs(use, 10)
@@ -113,7 +112,7 @@ def _handedness(data, log) -> list[str]:
     w = np.array([np.sum(data.gyro[a:b], axis=0) for a, b in rests])
     n = np.array([b - a for a, b in rests], float)
     u = f / np.linalg.norm(f, axis=1)[:, None]
-    sg = float(np.median(white_noise_sigma(data.gyro, use, data.quantization_floor()[:3])))
+    sg = float(np.median(np.maximum(data.white_sigma_at_rest("gyro"), data.quantization_floor()[:3])))
     if not np.isfinite(sg) or sg <= 0:
         return []
     sigma = sg * np.sqrt(n)  # of u·(gyro sum): white per sample along a unit vector
