@@ -86,12 +86,6 @@ def rotate_back(axis: np.ndarray, angle: np.ndarray, *vectors: np.ndarray) -> tu
     (N,), by Rodrigues' formula on the vectors (no (N, 3, 3) matrices)."""
     c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
     one_c = 1 - c
-    axis = np.asarray(axis, float)
-    if axis.ndim == 1:
-        # one axis for every row: a x v and a . v as products with (3, 3) and (3,) arrays, not
-        # the cross product's column stacks (the estimators' moving nodes: 2x faster)
-        K = skew(axis)
-        return tuple(v * c - (v @ K.T) * s + (v @ axis)[:, None] * one_c * axis for v in vectors)
     return tuple(v * c - cross(axis, v) * s + axis * (np.sum(axis * v, axis=-1)[:, None] * one_c) for v in vectors)
 
 
