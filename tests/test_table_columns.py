@@ -52,7 +52,8 @@ def test_rate_and_force_are_the_kinematics():
 def test_motion_is_the_kinematics_without_the_attitude():
     """Rate, angular acceleration and force rotated as vectors stage by stage equal the rotation
     matrices multiplied (every table error, wobble included; rates and accelerations of rad/s
-    and rad/s² that make the cross-product terms of alpha count)."""
+    and rad/s² that make the cross-product terms of alpha count); any stretch of the rows gives
+    the same bits as the whole."""
     stages = (Stage("outer", (1, 0, 0)), Stage("middle", (0, 1, 0)), Stage("inner", (0, 0, 1)))
     geo = _imperfect(TableGeometry(stages, latitude=0.7, azimuth=0.4))
     rng = np.random.default_rng(2)
@@ -62,6 +63,10 @@ def test_motion_is_the_kinematics_without_the_attitude():
     assert np.max(np.abs(om - omega)) <= 1e-14 * np.max(np.abs(omega))
     assert np.max(np.abs(al - alpha)) <= 1e-14 * np.max(np.abs(alpha))
     assert np.max(np.abs(f - force)) <= 1e-14 * geo.g
+    # a stretch of the rows gives those rows' bits (the estimators' chunks are the whole log's)
+    for a, b in ((0, 1), (3, 10), (17, 4099), (1, 5000)):
+        for whole, part in zip((om, al, f), geo.motion(theta[a:b], rate[a:b], acc[a:b])):
+            assert np.array_equal(part, whole[a:b])
     # at rest: Earth rate alone, no angular acceleration
     om0, al0, _ = geo.motion(theta[:4])
     assert np.all(al0 == 0) and np.allclose(np.linalg.norm(om0, axis=1), geo.earth_rate, rtol=1e-12, atol=0)
