@@ -109,7 +109,8 @@ def test_compare_in_chunks_equals_the_whole_log(data):
 def test_attitudes_are_numpys_unique_rows():
     """interpolate_angles' distinct rest attitudes (angles and the sides they were reached from),
     made unique over the changes only, are exactly np.unique's rows and inverse over every static
-    sample."""
+    sample (static as interpolate_angles has it: the angles of the sample before, the first
+    sample at rest; the sides may change between two static samples)."""
     from components.model.motion import _attitudes
 
     rng = np.random.default_rng(5)
@@ -118,7 +119,7 @@ def test_attitudes_are_numpys_unique_rows():
         repeat = rng.integers(1, 4, size=n)
         angles = np.repeat(rng.integers(0, 3, size=(n, m)).astype(float), repeat, axis=0)
         sides = np.repeat(rng.integers(-1, 2, size=(n, m)).astype(np.int8), repeat, axis=0)
-        static = rng.random(len(angles)) < 0.7
+        static = np.r_[True, np.all(angles[1:] == angles[:-1], axis=1)]
         att, att_sides, inv = _attitudes(angles, static, sides)
         if static.any():
             ref, ref_inv = np.unique(np.hstack([angles[static], sides[static]]), axis=0, return_inverse=True)

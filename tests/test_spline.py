@@ -27,11 +27,13 @@ def test_matches_scipy_cubic_spline(n, clamp):
     k = np.repeat(np.arange(n - 1), 5)
     frac = np.tile([0.0, 0.1, 0.5, 0.9, 1.0], n - 1)
     u = frac * np.diff(x)[k]
+    together = spl.with_derivatives(k, u)
     for d in range(3):
         want = ref(x[k] + u, d)
         scale = np.abs(want).max() + 1e-300
         # x + u in floating point is not x exactly u further on (scipy subtracts the knot again)
         np.testing.assert_allclose(spl(k, u, d), want, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(together[d], want, rtol=0, atol=1e-9 * scale)
     knots = np.arange(n)
     for d in (1, 2):
         np.testing.assert_allclose(spl.at_knots(knots, d), ref(x, d), rtol=1e-12, atol=1e-12)

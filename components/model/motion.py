@@ -168,8 +168,9 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         dt0 = time[1] - time[0] if n > 1 else 0.0
     t_prev = np.concatenate([[time[0] - dt0], time[:-1]])
     dt = time - t_prev
-    prev = np.vstack([measured[:1], measured[:-1]])
-    static = np.all(prev == measured, axis=1)
+    static = np.empty(n, bool)  # the interval before the first sample at rest (unless its angles are NaN)
+    np.all(measured[:1] == measured[:1], axis=1, out=static[:1])
+    np.all(measured[1:] == measured[:-1], axis=1, out=static[1:])
     x, w = gauss_legendre(quadrature)
     q = len(x)
     n_ax = measured.shape[1]
@@ -202,9 +203,7 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         kq = np.broadcast_to(k[:, None], (b - a, q))
         u = dt[a:b, None] * x[None, :]
         rows = slice(row, row + b - a)
-        th_q[rows] = spl(kq, u)
-        rate_q[rows] = spl(kq, u, 1)
-        acc_q[rows] = spl(kq, u, 2)
+        th_q[rows], rate_q[rows], acc_q[rows] = spl.with_derivatives(kq, u)
         rate_end[rows] = spl.at_knots(k + 1, 1)
         acc_end[rows] = spl.at_knots(k + 1, 2)
         row += b - a
@@ -222,18 +221,23 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
 
 
 def _attitudes(measured: np.ndarray, static: np.ndarray, sides: np.ndarray):
-    """The distinct (angles, sides) rows of the static samples (sorted, as np.unique gives them):
+    """The distinct (angles, sides) rows of the static samples (sorted, as np.unique gives them;
+    a static sample is one whose angles are those of the sample before, the first at rest):
     the angles (A, n_axes), the sides (A, n_axes) and, per static sample, its row. Consecutive
     static samples mostly share them, so the rows are made unique over the changes only
     (np.unique over every sample sorted millions of rows: a third of calibrate's time on a 1 kHz
     log)."""
     n_ax = measured.shape[1]
-    rows = np.hstack([measured[static], sides[static]])
-    if len(rows) == 0:
+    idx = np.flatnonzero(static)
+    if len(idx) == 0:
         return np.zeros((0, n_ax)), np.zeros((0, n_ax), np.int8), np.zeros(0, int)
-    new = np.ones(len(rows), bool)
-    new[1:] = np.any(rows[1:] != rows[:-1], axis=1)
-    att, inv_new = np.unique(rows[new], axis=0, return_inverse=True)
+    # a static sample right after another has its angles (that is what static means): only
+    # its side can be new; after a move, anything can (taken as new: np.unique merges repeats)
+    sd = sides[idx]
+    new = np.ones(len(idx), bool)
+    new[1:] = np.any(sd[1:] != sd[:-1], axis=1) | (np.diff(idx) != 1)
+    first = idx[new]
+    att, inv_new = np.unique(np.hstack([measured[first], sd[new]]), axis=0, return_inverse=True)
     return att[:, :n_ax].copy(), att[:, n_ax:].astype(np.int8), inv_new.ravel()[np.cumsum(new) - 1]
 
 
