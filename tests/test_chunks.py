@@ -129,6 +129,23 @@ def test_attitudes_are_numpys_unique_rows():
             assert len(att) == 0 and len(inv) == 0
 
 
+def test_rows_equal_to_the_row_before_are_numpys_all():
+    """same_as_before: row k + 1 equals row k in every column, as np.all over the row gives it
+    (NaN equal to nothing, no columns: equal), into a given array too."""
+    from components.model.motion import same_as_before
+
+    rng = np.random.default_rng(8)
+    for m in (0, 1, 3):
+        rows = np.repeat(rng.integers(0, 2, size=(300, m)).astype(float), rng.integers(1, 3, size=300), axis=0)
+        if m:
+            rows[rng.integers(0, len(rows), 10), rng.integers(0, m, 10)] = np.nan
+        want = np.all(rows[1:] == rows[:-1], axis=1)
+        assert np.array_equal(same_as_before(rows), want)
+        out = np.zeros(len(rows) - 1, bool)
+        assert same_as_before(rows, out=out) is out and np.array_equal(out, want)
+    assert same_as_before(np.zeros((0, 3))).shape == (0,)
+
+
 def test_a_jittered_clock_and_pulse_counts_in_chunks(data):
     """Foreign logs: sample times with a logger's jitter (each interval its own, 50 us RMS at
     200 Hz) and outputs quantised to pulse counts (1e-6 rad, 1e-5 m/s): the chunks still give the

@@ -13,7 +13,7 @@ from components.logs.labels import SegmentLabels
 from components.logs.spill import gathered, pieces, release
 from components.model.approach import run_sides
 from components.model.geometry import Stage, TableGeometry
-from components.model.motion import Motion, interpolate_angles, motion_from_profile
+from components.model.motion import Motion, interpolate_angles, motion_from_profile, same_as_before
 from components.model.noise import CHANNELS
 
 
@@ -167,7 +167,7 @@ class LogData:
                 st = np.empty(len(a), bool)
                 st[0] = True
                 for s in pieces(len(a) - 1, a):
-                    np.all(a[s.start + 1:s.stop + 1] == a[s], axis=1, out=st[s.start + 1:s.stop + 1])
+                    same_as_before(a[s.start:s.stop + 1], out=st[s.start + 1:s.stop + 1])
             st.setflags(write=False)
             self._static = st
         return self._static

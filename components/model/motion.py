@@ -152,6 +152,20 @@ class AngleProfile:
         return self.attitude_of[np.searchsorted(self._static_samples, samples)]
 
 
+def same_as_before(rows: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """(N - 1,) bool: row k + 1 of *rows* (N, k) equals row k in every column; into *out* if
+    given. Column by column: np.all over rows of three is 5x slower (a reduction per row)."""
+    rows = np.asarray(rows)
+    out = np.empty(max(len(rows) - 1, 0), bool) if out is None else out
+    if rows.shape[1] == 0:
+        out[:] = True
+        return out
+    np.equal(rows[1:, 0], rows[:-1, 0], out=out)
+    for k in range(1, rows.shape[1]):
+        out &= rows[1:, k] == rows[:-1, k]
+    return out
+
+
 def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3,
                        dt0: float | None = None, side0: np.ndarray | None = None,
                        band: np.ndarray | None = None) -> AngleProfile:
@@ -170,7 +184,7 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
     dt = time - t_prev
     static = np.empty(n, bool)  # the interval before the first sample at rest (unless its angles are NaN)
     np.all(measured[:1] == measured[:1], axis=1, out=static[:1])
-    np.all(measured[1:] == measured[:-1], axis=1, out=static[1:])
+    same_as_before(measured, out=static[1:])
     x, w = gauss_legendre(quadrature)
     q = len(x)
     n_ax = measured.shape[1]
@@ -235,7 +249,7 @@ def _attitudes(measured: np.ndarray, static: np.ndarray, sides: np.ndarray):
     # its side can be new; after a move, anything can (taken as new: np.unique merges repeats)
     sd = sides[idx]
     new = np.ones(len(idx), bool)
-    new[1:] = np.any(sd[1:] != sd[:-1], axis=1) | (np.diff(idx) != 1)
+    new[1:] = ~same_as_before(sd) | (np.diff(idx) != 1)
     first = idx[new]
     att, inv_new = np.unique(np.hstack([measured[first], sd[new]]), axis=0, return_inverse=True)
     return att[:, :n_ax].copy(), att[:, n_ax:].astype(np.int8), inv_new.ravel()[np.cumsum(new) - 1]
