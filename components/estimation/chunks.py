@@ -32,7 +32,7 @@ from components.estimation.table_columns import (
     geometry_columns_since,
     remember_geometry_columns,
 )
-from components.logs.spill import empty_like_log, is_spilled, release
+from components.logs.spill import empty_like_log, is_spilled, release, write_rows
 
 # samples per chunk: ~0.1 GB of work arrays at 3 quadrature nodes and 3 axes, whatever the log (2^16 was
 # faster than 2^18 too, on a 2.5 M-sample log: 7.9 against 8.4 s, the arrays staying in cache)
@@ -307,9 +307,12 @@ def chunked_prediction(data: LogData, layout: BlockLayout, params, values, geo, 
         own = chunk.own
         at = slice(chunk.start, chunk.lead + len(chunk.data.time))
         gyro, acc = predict(motion, params, values)
-        pred[at, :3], pred[at, 3:] = gyro[own], acc[own]
         p = PlateAtSamples.of(motion)
-        plate.static[at], plate.dt[at], plate.f[at], plate.omega[at] = p.static[own], p.dt[own], p.f[own], p.omega[own]
+        # whole rows, through a spilled array's file (components.logs.spill.write_rows): written
+        # through the mapping, the 8-hour log's 3 GB of prediction faulted in a page at a time
+        for target, rows in ((pred, np.hstack([gyro[own], acc[own]])), (plate.static, p.static[own]),
+                             (plate.dt, p.dt[own]), (plate.f, p.f[own]), (plate.omega, p.omega[own])):
+            write_rows(target, at.start, rows)
         release(pred, plate.static, plate.dt, plate.f, plate.omega)
 
     _each_chunk(fill, layout, data, "prediction, chunk by chunk", parallel="fork" if is_spilled(pred) else None)
