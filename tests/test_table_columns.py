@@ -43,6 +43,10 @@ def test_rate_and_force_are_the_kinematics():
     om, f = geo.rate_and_force(theta, rate)
     assert np.max(np.abs(om - omega)) <= 1e-14 * np.max(np.abs(omega))
     assert np.max(np.abs(f - force)) <= 1e-14 * geo.g
+    # a stretch of the rows gives those rows' bits (the estimators' chunks are the whole log's)
+    for a, b in ((0, 1), (3, 10), (17, 4099)):
+        part = geo.rate_and_force(theta[a:b], rate[a:b])
+        assert np.array_equal(part[0], om[a:b]) and np.array_equal(part[1], f[a:b])
     # and a table with no errors: the same plate attitude as the rotation matrices give
     plain = TableGeometry(stages, latitude=0.7)
     assert np.allclose(plain.rate_and_force(theta[:3], 0 * rate[:3])[1],

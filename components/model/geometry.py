@@ -81,17 +81,11 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], -1)
 
 
-def rotate_back(axis: np.ndarray, angle: np.ndarray, *vectors: np.ndarray) -> tuple[np.ndarray, ...]:
-    """R(a, t)^T v = R(a, -t) v for each of *vectors* (N, 3), unit axes (3,) or (N, 3), angles
-    (N,), by Rodrigues' formula on the vectors (no (N, 3, 3) matrices)."""
-    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
-    one_c = 1 - c
-    return tuple(v * c - cross(axis, v) * s + axis * (np.sum(axis * v, axis=-1)[:, None] * one_c) for v in vectors)
-
-
 def _rotated_back(axis, angle: np.ndarray, *vectors: list) -> tuple[list, ...]:
-    """:func:`rotate_back` on vectors held as three component columns each; *axis*: three
-    numbers (one axis) or three columns (an axis per row)."""
+    """R(a, t)^T v = R(a, -t) v for each of *vectors*, each held as three component columns,
+    by Rodrigues' formula elementwise (no (N, 3, 3) matrices, no BLAS: a stretch of the rows
+    gives the whole's bits); *axis*: three numbers (one unit axis) or three columns (a unit axis
+    per row), *angle* (N,)."""
     c, s = np.cos(angle), np.sin(angle)
     one_c = 1 - c
     ax, ay, az = axis
@@ -297,11 +291,13 @@ class TableGeometry:
         theta = np.atleast_2d(np.asarray(theta, float))
         n = theta.shape[0]
         rate = np.atleast_2d(np.asarray(rate, float))
+        # the vectors as three component columns each, rotated elementwise (as :meth:`motion`)
         if resume is None:
             C_b0n = self.base_to_nav()
             first = 0
-            omega = np.broadcast_to(C_b0n.T @ earth_rate_enu(self.latitude, self.earth_rate), (n, 3))
-            up = np.broadcast_to(C_b0n[2], (n, 3))  # C_n^b0 e_up
+            w0 = C_b0n.T @ earth_rate_enu(self.latitude, self.earth_rate)
+            omega = [np.full(n, w0[i]) for i in range(3)]
+            up = [np.full(n, C_b0n[2, i]) for i in range(3)]  # C_n^b0 e_up
         else:
             first, omega, up = resume
         for k, s in enumerate(self.stages[first:], start=first):
@@ -312,12 +308,12 @@ class TableGeometry:
             if w is not None:
                 # T^T = R(a, t)^T Rot(w)^T, Rot(w)^T = R(w/|w|, -|w|)
                 amp = np.linalg.norm(w, axis=1)
-                omega, up = rotate_back(w / np.where(amp > 0, amp, 1.0)[:, None], amp, omega, up)
-            omega, up = rotate_back(s.effective_axis(), t, omega, up)
-            omega = omega + rate[:, k, None] * b
+                omega, up = _rotated_back((w / np.where(amp > 0, amp, 1.0)[:, None]).T, amp, omega, up)
+            omega, up = _rotated_back(s.effective_axis(), t, omega, up)
+            omega = [omega[i] + rate[:, k] * b[i] for i in range(3)]
         if states is not None:
             states.append((omega, up))
-        return omega, self.g * up
+        return np.column_stack(omega), self.g * np.column_stack(up)
 
     def first_change(self, other: "TableGeometry") -> int:
         """The first stage at which *other* differs from this geometry (0 when the base, site or
