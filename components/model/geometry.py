@@ -98,6 +98,17 @@ def _rotated_back(axis, angle: np.ndarray, *vectors: list) -> tuple[list, ...]:
     return tuple(out)
 
 
+def _back_through(stage: "Stage", theta: np.ndarray, *vectors: list) -> tuple[np.ndarray, tuple[list, ...]]:
+    """The stage's rate axis b (3,) and *vectors* (component columns) taken back through the
+    stage at true angles *theta*: T^T v with T = Rot(w) R(a, θ), so Rot(w)^T = R(w/|w|, -|w|)
+    first (a wobbling stage), then R(a, θ)^T."""
+    w, b = stage.wobble(theta)
+    if w is not None:
+        amp = np.linalg.norm(w, axis=1)
+        vectors = _rotated_back((w / np.where(amp > 0, amp, 1.0)[:, None]).T, amp, *vectors)
+    return b, _rotated_back(stage.effective_axis(), theta, *vectors)
+
+
 def perpendicular_pair(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """u = normalize(e_j x a) with e_j the first basis vector of smallest |a . e_j|; v = a x u."""
     j = int(np.argmin(np.abs(a)))
@@ -245,6 +256,13 @@ class TableGeometry:
         f = np.einsum("nji,j->ni", C, np.array([0.0, 0.0, self.g]))  # C_n^p f^n
         return C, omega, alpha, f
 
+    def _base_columns(self, n: int) -> tuple[list, list]:
+        """Earth rate in the base frame and C_n^b0 e_up, as three component columns of *n* rows
+        each: what :meth:`motion` and :meth:`rate_and_force` carry through the stages."""
+        C_b0n = self.base_to_nav()
+        w0 = C_b0n.T @ earth_rate_enu(self.latitude, self.earth_rate)
+        return [np.full(n, w0[i]) for i in range(3)], [np.full(n, C_b0n[2, i]) for i in range(3)]
+
     def motion(self, theta: np.ndarray, rate: np.ndarray | None = None,
                acc: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """omega_ip^p, alpha and f^p (N, 3) of :meth:`kinematics` without the attitude: the three
@@ -257,19 +275,10 @@ class TableGeometry:
         n = theta.shape[0]
         rate = np.zeros_like(theta) if rate is None else np.atleast_2d(np.asarray(rate, float))
         acc = np.zeros_like(theta) if acc is None else np.atleast_2d(np.asarray(acc, float))
-        C_b0n = self.base_to_nav()
-        w0 = C_b0n.T @ earth_rate_enu(self.latitude, self.earth_rate)
-        omega = [np.full(n, w0[i]) for i in range(3)]
-        up = [np.full(n, C_b0n[2, i]) for i in range(3)]  # C_n^b0 e_up
+        omega, up = self._base_columns(n)
         alpha = [np.zeros(n) for _ in range(3)]
         for k, s in enumerate(self.stages):
-            t = theta[:, k]
-            w, b = s.wobble(t)
-            if w is not None:
-                amp = np.linalg.norm(w, axis=1)
-                unit = w / np.where(amp > 0, amp, 1.0)[:, None]
-                omega, up, alpha = _rotated_back(unit.T, amp, omega, up, alpha)
-            omega, up, alpha = _rotated_back(s.effective_axis(), t, omega, up, alpha)
+            b, (omega, up, alpha) = _back_through(s, theta[:, k], omega, up, alpha)
             r, a = rate[:, k], acc[:, k]
             # alpha += acc b + omega x (rate b); omega += rate b
             alpha = [alpha[i] + a * b[i] + r * (omega[(i + 1) % 3] * b[(i + 2) % 3] - omega[(i + 2) % 3] * b[(i + 1) % 3])
@@ -292,24 +301,11 @@ class TableGeometry:
         n = theta.shape[0]
         rate = np.atleast_2d(np.asarray(rate, float))
         # the vectors as three component columns each, rotated elementwise (as :meth:`motion`)
-        if resume is None:
-            C_b0n = self.base_to_nav()
-            first = 0
-            w0 = C_b0n.T @ earth_rate_enu(self.latitude, self.earth_rate)
-            omega = [np.full(n, w0[i]) for i in range(3)]
-            up = [np.full(n, C_b0n[2, i]) for i in range(3)]  # C_n^b0 e_up
-        else:
-            first, omega, up = resume
+        first, omega, up = (0, *self._base_columns(n)) if resume is None else resume
         for k, s in enumerate(self.stages[first:], start=first):
             if states is not None:
                 states.append((omega, up))
-            t = theta[:, k]
-            w, b = s.wobble(t)
-            if w is not None:
-                # T^T = R(a, t)^T Rot(w)^T, Rot(w)^T = R(w/|w|, -|w|)
-                amp = np.linalg.norm(w, axis=1)
-                omega, up = _rotated_back((w / np.where(amp > 0, amp, 1.0)[:, None]).T, amp, omega, up)
-            omega, up = _rotated_back(s.effective_axis(), t, omega, up)
+            b, (omega, up) = _back_through(s, theta[:, k], omega, up)
             omega = [omega[i] + rate[:, k] * b[i] for i in range(3)]
         if states is not None:
             states.append((omega, up))
