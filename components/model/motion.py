@@ -218,8 +218,7 @@ def interpolate_angles(time: np.ndarray, angles: np.ndarray, quadrature: int = 3
         u = dt[a:b, None] * x[None, :]
         rows = slice(row, row + b - a)
         th_q[rows], rate_q[rows], acc_q[rows] = spl.with_derivatives(kq, u)
-        rate_end[rows] = spl.at_knots(k + 1, 1)
-        acc_end[rows] = spl.at_knots(k + 1, 2)
+        _, rate_end[rows], acc_end[rows] = spl.at_knots(k + 1)
         row += b - a
     # a stage's side changes over the interval of its first sample that moves the other way (the
     # reading moves once the play is taken up: a backlash of arcseconds takes milliseconds)

@@ -75,28 +75,21 @@ class RunSpline:
     def __call__(self, interval: np.ndarray, u: np.ndarray, derivative: int = 0) -> np.ndarray:
         """Value (or its first or second derivative) at offset *u* into *interval*, both of the
         same shape S; result S + (k,)."""
-        i = np.asarray(interval)
-        u = np.asarray(u, float)[..., None]
-        c0, c1, c2, c3 = self.c0[i], self.c1[i], self.c2[i], self.c3[i]
-        if derivative == 0:
-            return ((c3 * u + c2) * u + c1) * u + c0
-        if derivative == 1:
-            return (3 * c3 * u + 2 * c2) * u + c1
-        if derivative == 2:
-            return 6 * c3 * u + 2 * c2
-        raise ValueError(f"derivative {derivative}: 0, 1 or 2")
+        if derivative not in (0, 1, 2):
+            raise ValueError(f"derivative {derivative}: 0, 1 or 2")
+        return self.with_derivatives(interval, u)[derivative]
 
     def with_derivatives(self, interval: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Value, first and second derivative at once (the coefficients gathered once): the
-        same bits as three calls."""
+        """Value, first and second derivative at offset *u* into *interval* (the coefficients
+        gathered once)."""
         i = np.asarray(interval)
         u = np.asarray(u, float)[..., None]
         c0, c1, c2, c3 = self.c0[i], self.c1[i], self.c2[i], self.c3[i]
         return ((c3 * u + c2) * u + c1) * u + c0, (3 * c3 * u + 2 * c2) * u + c1, 6 * c3 * u + 2 * c2
 
-    def at_knots(self, knots: np.ndarray, derivative: int) -> np.ndarray:
-        """At knot indices *knots* (0 … intervals): from the interval that starts there, the last
-        knot from the interval that ends there."""
+    def at_knots(self, knots: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Value, first and second derivative at knot indices *knots* (0 … intervals): from the
+        interval that starts there, the last knot from the interval that ends there."""
         k = np.asarray(knots)
         i = np.minimum(k, self.intervals - 1)
-        return self(i, np.where(k == self.intervals, self.h[i], 0.0), derivative)
+        return self.with_derivatives(i, np.where(k == self.intervals, self.h[i], 0.0))
