@@ -180,11 +180,7 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
                     block[:, place[name][1]] = values
                 else:
                     block[:] = values
-            if target.ndim == 1 or len(cs) == target.shape[1]:
-                write_rows(target, row, block)
-            else:  # (a group with a column the file lacks keeps that column as it was)
-                for name in cs:
-                    target[row:row + len(block), place[name][1]] = block[:, place[name][1]]
+            write_rows(target, row, block)  # (every column of a group is there: check_columns)
             row += table.num_rows
             del table, block
         for name in cs:
