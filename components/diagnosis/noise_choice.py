@@ -205,7 +205,6 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
         return None, WHITE
     from components.diagnosis.noise_id import ALLAN_SAMPLES
     from components.estimation.allan import first_runs, pooled_allan, static_runs
-    from components.estimation.blocks import white_noise_sigma
     from components.estimation.noise_fit import white_beside_quantization, white_ceiling
 
     use = data.static & data.usable
@@ -220,7 +219,7 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
     chans, said = [], []
     for s, (sensor, inc) in enumerate((("gyro", data.gyro), ("acc", data.acc))):
         if not q[3 * s]:
-            level = white_noise_sigma(inc, use) / np.sqrt(dt)
+            level = data.white_sigma_at_rest(sensor) / np.sqrt(dt)
             chans += [ChannelNoise(white=float(v)) for v in level]
             continue
         taus = []
