@@ -388,8 +388,10 @@ def main(argv=None) -> int:
         print(f"  {name}: {ok}/{len(params)} parameters with RMS error / σ in [0.8, 1.25] (expected "
               f"{p_in * len(params):.1f} at {n} seeds were every σ exact); σ rejected as the errors' spread "
               f"(χ²({n}), Holm at {ALPHA}): " + (", ".join(f"{p} (p {pv[p]:.1g})" for p in rejected) or "none"))
+        # each seed's error over its σ, so a rejection can be traced to the logs that make it
         report[f"sigma_test_{name}"] = {"in_band": ok, "expected_in_band": float(p_in * len(params)),
-                                        "rejected": rejected, "p": pv}
+                                        "rejected": rejected, "p": pv,
+                                        "z_per_seed": {p: [r["error"][p] / r[field][p] for r in rs] for p in params}}
 
     ident = [r["identified"] for r in null if "identified" in r]
     if ident:
