@@ -47,6 +47,11 @@ class ScheduleFault(CalbenchError, RuntimeError):
     """The table did not do what the schedule asked (e.g. never settled): names the step."""
 
 
+class SpillError(CalbenchError, OSError):
+    """A long log's columns do not fit in the temporary directory they spill to: names the
+    directory, the size and how to choose another."""
+
+
 class EstimationError(CalbenchError, ValueError):
     """The data cannot give what was asked of an estimator (too few attitudes for the parameters,
     a segment description the data contradict): names the segment or parameter and what is

@@ -4,6 +4,7 @@ diagnosis it gives in memory (issue #18: results equal to the in-memory ones).""
 from __future__ import annotations
 
 import copy
+import os
 import tomllib
 
 import numpy as np
@@ -256,6 +257,37 @@ def test_rows_written_through_a_spilled_arrays_file_are_read_through_its_mapping
         assert np.all(on_disk[10:15, 1] == 7.0) and np.array_equal(on_disk[10:15, 0], values[10:15, 0])
     with pytest.raises(IndexError):
         spill.write_rows(on_disk, shape[0] - 1, values[:2] if shape[0] else np.zeros((2,) + shape[1:]))
+
+
+@pytest.mark.skipif(not hasattr(os, "posix_fallocate"), reason="no posix_fallocate: a sparse file there")
+def test_a_spilled_arrays_disk_blocks_are_allocated_when_it_is_made():
+    """The file behind a spilled array holds its blocks from the start (not a sparse hole that
+    allocates at each page written, or fails at a write through the mapping on a full disk): the
+    file system counts at least its size in blocks before a row is written; zeros read back."""
+    a = spill.spilled_array((300_000, 3))
+    st = os.fstat(a._spill_file.fileno())
+    assert st.st_size == a.nbytes
+    assert st.st_blocks * 512 >= a.nbytes
+    assert not a[::997].any()
+
+
+def test_a_temporary_directory_too_small_for_a_spill_is_one_error_naming_it(monkeypatch):
+    """No room for a long log's columns is one error naming the directory, the size and TMPDIR,
+    raised when the array is made, not a crash at a later write."""
+    import errno
+    import tempfile
+
+    from components.errors import SpillError
+
+    def full(fd, offset, length):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "posix_fallocate", full, raising=False)
+    with pytest.raises(SpillError) as e:
+        spill.spilled_array((1_000_000, 6))
+    msg = str(e.value)
+    assert tempfile.gettempdir() in msg and "0.05 GB" in msg and "TMPDIR" in msg
+    assert os.strerror(errno.ENOSPC) in msg
 
 
 @pytest.mark.parametrize("spilled", ["0", str(1 << 40)])
