@@ -290,6 +290,25 @@ def test_a_temporary_directory_too_small_for_a_spill_is_one_error_naming_it(monk
     assert os.strerror(errno.ENOSPC) in msg
 
 
+def test_no_room_to_spill_a_log_is_could_not_run_on_the_command_line(tmp_path, monkeypatch, capsys):
+    """calibrate on a long log with a full temporary directory: exit 3 (could not run, not bad
+    input) and one line naming the directory and TMPDIR, no traceback."""
+    import errno
+    import tempfile
+
+    from components.cli import main
+
+    path = _write(tmp_path, "full")
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
+    monkeypatch.setattr(os, "posix_fallocate", lambda fd, o, n: (_ for _ in ()).throw(OSError(errno.ENOSPC, "full")),
+                        raising=False)
+    code = main(["calibrate", str(path), "--out", str(tmp_path / "r.json")])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert "could not run" in err and tempfile.gettempdir() in err and "TMPDIR" in err
+    assert "Traceback" not in err and not (tmp_path / "r.json").exists()
+
+
 @pytest.mark.parametrize("spilled", ["0", str(1 << 40)])
 def test_an_empty_label_is_refused_naming_its_row(tmp_path, monkeypatch, spilled):
     """An empty text label in a Parquet log (and a null one) is an empty value, as in a CSV log;

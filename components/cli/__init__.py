@@ -34,8 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _error_classes():
     """(could-not-run classes, bad-input classes): a run that failed underway (a unit's fault, the
-    FMU build, a table that never settled, a missing engine) exits 3, any other user error 2."""
-    from components.errors import CalbenchError, ScheduleFault
+    FMU build, a table that never settled, a missing engine, no room to spill a long log) exits 3,
+    any other user error 2."""
+    from components.errors import CalbenchError, ScheduleFault, SpillError
     from fmus.errors import BuildError
     from orchestrator.errors import (
         LibcosimError,
@@ -45,7 +46,8 @@ def _error_classes():
         SimulationFault,
     )
 
-    return ((SimulationFault, NativeSpanFault, LibcosimError, LibcosimUnsupported, BuildError, ScheduleFault),
+    return ((SimulationFault, NativeSpanFault, LibcosimError, LibcosimUnsupported, BuildError, ScheduleFault,
+             SpillError),
             (CalbenchError, OrchestratorError))
 
 
