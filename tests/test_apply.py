@@ -107,6 +107,15 @@ def test_the_correction_in_pieces_is_the_correction_in_one(conformance, tmp_path
     cut = correct_log(log, model, pieces=997)
     assert np.array_equal(whole.gyro, cut.gyro) and np.array_equal(whole.acc, cut.acc)
     assert not np.array_equal(whole.acc, log.acc)
+    # rates over a measured, jittered clock: each piece takes its samples' own intervals
+    rng = np.random.default_rng(2)
+    t = np.sort(log.time + rng.uniform(-0.2, 0.2, log.n) * log.dt)
+    jittered = dataclasses.replace(log, timing="measured", time=t, gyro=log.gyro_increment() / log.dt,
+                                   gyro_output="rate", acc=log.acc_increment() / log.dt, acc_output="specific_force")
+    whole = correct_log(jittered, model, pieces=10**9)
+    cut = correct_log(jittered, model, pieces=997)
+    assert np.array_equal(whole.gyro, cut.gyro) and np.array_equal(whole.acc, cut.acc)
+    assert not np.array_equal(whole.acc, jittered.acc)
 
 
 def test_a_parquet_log_rewritten_a_row_group_at_a_time_is_the_log_corrected_whole(conformance, tmp_path, monkeypatch):

@@ -140,7 +140,7 @@ def _calibrate_positions(args, log, data, effects, noise) -> int:
 def _cmd_apply(args: argparse.Namespace) -> int:
     from components.errors import UserError
     from components.logs.logfile import read_log, rewrite_parquet, sample_file, write_log
-    from components.logs.spill import empty_like_log, release
+    from components.logs.spill import empty_like_log, release, write_rows
     from components.model.correct import correct_log
     from components.model.result import CalibrationResult
 
@@ -160,7 +160,8 @@ def _cmd_apply(args: argparse.Namespace) -> int:
         # every other column as it is (an 8-hour log read whole was 5.6 GB)
         log = read_log(args.log, lean=True)
         into = (empty_like_log(log.gyro.shape, log.gyro), empty_like_log(log.acc.shape, log.acc))
-        out = correct_log(log, res, into=into, after_piece=lambda: release(log.gyro, log.acc, *into))
+        out = correct_log(log, res, into=into, after_piece=lambda: release(log.gyro, log.acc, *into),
+                          put_rows=write_rows)
         paths = rewrite_parquet(data_file, args.out, out, [f"{s}_{c}" for s in ("gyro", "acc") for c in "xyz"])
     else:
         log = read_log(args.log)

@@ -93,13 +93,20 @@ CORRECT_SAMPLES = 1 << 16
 CORRECT_MARGIN = 8
 
 
-def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray, pieces: int,
-               out=None, after_piece=None):
+def _assign_rows(array: np.ndarray, start: int, values: np.ndarray) -> None:
+    array[start:start + len(values)] = values
+
+
+def _corrected(res: CalibrationResult, log, pieces: int, out=None, after_piece=None, put_rows=_assign_rows):
     """(gyro, acc) of the whole log corrected, in its output kinds (rates and specific forces
     over each interval, else increments), *pieces* samples at a time, each with CORRECT_MARGIN
     samples either side: the same values as in one piece; into *out* (two (N, 3) arrays) if
-    given; ``after_piece()`` after each piece."""
+    given, each piece's rows by ``put_rows(array, start, rows)``; ``after_piece()`` after each
+    piece. Each sample's own interval (a logger's measured clock: the rates were logged over
+    those), and the drift terms' time from the start of the first interval, as calibrate counts
+    it; a piece's at a time (two whole-log arrays were 0.5 GB on an 8-hour log)."""
     n = log.n
+    start = float(log.time[0] - log.intervals(slice(0, 1))[0]) if n else 0.0
     g_inc, a_inc = log.gyro_increment(), log.acc_increment()
     g, a = out if out is not None else (np.empty((n, 3)), np.empty((n, 3)))
     T = log.temperature
@@ -107,30 +114,32 @@ def _corrected(res: CalibrationResult, log, dt: np.ndarray, elapsed: np.ndarray,
     for lo in range(0, n, pieces):
         hi = min(lo + pieces, n)
         a0, b0 = max(lo - CORRECT_MARGIN, 0), min(hi + CORRECT_MARGIN, n)
-        gp, ap = correct_increments(res, g_inc[a0:b0], a_inc[a0:b0], dt[a0:b0],
-                                    None if T is None else T[a0:b0], T0, elapsed[a0:b0])
-        g[lo:hi], a[lo:hi] = gp[lo - a0:hi - a0], ap[lo - a0:hi - a0]
+        dt = log.intervals(slice(a0, b0))
+        elapsed = (log.time[a0:b0] - start) - dt / 2
+        gp, ap = correct_increments(res, g_inc[a0:b0], a_inc[a0:b0], dt,
+                                    None if T is None else T[a0:b0], T0, elapsed)
+        gp, ap = gp[lo - a0:hi - a0], ap[lo - a0:hi - a0]
         if log.gyro_output == "rate":
-            g[lo:hi] /= dt[lo:hi, None]
+            gp = gp / dt[lo - a0:hi - a0, None]
         if log.acc_output == "specific_force":
-            a[lo:hi] /= dt[lo:hi, None]
+            ap = ap / dt[lo - a0:hi - a0, None]
+        put_rows(g, lo, gp)
+        put_rows(a, lo, ap)
         if after_piece is not None:
             after_piece()
     return g, a
 
 
-def correct_log(log, res: CalibrationResult, pieces: int = CORRECT_SAMPLES, into=None, after_piece=None):
+def correct_log(log, res: CalibrationResult, pieces: int = CORRECT_SAMPLES, into=None, after_piece=None,
+                put_rows=_assign_rows):
     """A copy of the measurement log with corrected IMU outputs (same output kinds; counts are
     written as increments, since corrected values are no longer whole counts). *into*: the
-    (gyro, acc) arrays (N, 3) to write them in (a long log's on disk); ``after_piece()`` after
-    each piece of the correction."""
-    # each sample's own interval (a logger's measured clock: the rates were logged over those),
-    # and the drift terms' time from the start of the first interval, as calibrate counts it
-    dt = log.intervals()
-    elapsed = (log.time - (log.time[0] - dt[0])) - dt / 2 if log.n else np.zeros(0)
+    (gyro, acc) arrays (N, 3) to write them in (a long log's on disk), a piece's rows at a time by
+    ``put_rows(array, start, rows)`` (components.logs.spill.write_rows for those: through their
+    file, not faulted in page by page); ``after_piece()`` after each piece of the correction."""
     # (the corrected values in the log's output kinds: rates and forces over each interval,
     # else increments)
-    g, a = _corrected(res, log, dt, elapsed, pieces, into, after_piece)
+    g, a = _corrected(res, log, pieces, into, after_piece, put_rows)
     out = copy.copy(log)
     if log.gyro_output == "rate":
         out.gyro = g
