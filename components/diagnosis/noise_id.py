@@ -204,9 +204,9 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     # ceiling (with none, 10 µrad counts beside a 0.05 °/h gyro floor had gyro_z
                     # weighed by its quantization and floor alone, and the user told σ may be too
                     # small; with the ceiling, χ²/dof 0.74 on that log). Meant as an upper bound,
-                    # it is a fair reading instead: 0.72-1.19 times the truth on the coarse-count
-                    # benchmark's 15 such levels, the truth below it in 5
-                    # (benchmarks/coloured_noise_counts_coarse_diagnosis.txt)
+                    # it is a fair reading instead: 0.51-1.36 times the truth (median 0.91) on the
+                    # coarse-count benchmark's 41 such levels of 60 logs, the truth below it in 14
+                    # (benchmarks/coloured_noise_counts_coarse_diagnosis_60seeds.txt)
                     upper = report.get("block_variance_upper", float("nan"))
                     scale = min(upper, 1.0) if np.isfinite(upper) else 1.0
                     ch = replace(ch, white=white[k] / math.sqrt(dt) * math.sqrt(scale))
@@ -223,7 +223,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         # 0.72-1.19 times the truth, median 0.91, so not the upper bound it was meant as)
         said.append(f"white noise on {', '.join(at_upper)} read at the block sums' one-σ likelihood limit (beside "
                     "the floor or random walk they found, they do not bound it from below; on simulated coarse "
-                    "counts that reading lands at 0.7-1.2 times the true level, so it is no upper bound): σ that "
+                    "counts that reading lands at 0.5-1.4 times the true level, so it is no upper bound): σ that "
                     "rest on it carry that uncertainty")
     none = [CHANNELS[k] for k, c in enumerate(out_channels) if not c.noise.white > 0]
     if none:
