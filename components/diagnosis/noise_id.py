@@ -170,7 +170,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
-    read_from_blocks, at_upper = [], []
+    read_from_blocks, at_one_sigma = [], []
     for k, (ch, report) in enumerate(slow_fits):
         sigma, present = dict(fast[k].sigma), list(fast[k].present)
         if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
@@ -212,16 +212,14 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     ch = replace(ch, white=white[k] / math.sqrt(dt) * math.sqrt(scale))
                     present.append("white")
                     sigma["white"] = float("nan")  # no measurement's σ (the Allan stage's σ is of no level)
-                    at_upper.append(CHANNELS[k])
+                    at_one_sigma.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     said = []
     if read_from_blocks:
         said.append(f"white noise on {', '.join(read_from_blocks)} from the whole log's block sums (the static "
                     "runs' Allan variance cannot show it beside the counts' quantization)")
-    if at_upper:
-        # (Monte-Carlo'd on 2" / 1 mm/s counts, benchmarks/coloured_noise_counts_coarse_diagnosis.txt:
-        # 0.72-1.19 times the truth, median 0.91, so not the upper bound it was meant as)
-        said.append(f"white noise on {', '.join(at_upper)} read at the block sums' one-σ likelihood limit (beside "
+    if at_one_sigma:
+        said.append(f"white noise on {', '.join(at_one_sigma)} read at the block sums' one-σ likelihood limit (beside "
                     "the floor or random walk they found, they do not bound it from below; on simulated coarse "
                     "counts that reading lands at 0.5-1.4 times the true level, so it is no upper bound): σ that "
                     "rest on it carry that uncertainty")
