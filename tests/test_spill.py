@@ -4,6 +4,7 @@ diagnosis it gives in memory (issue #18: results equal to the in-memory ones).""
 from __future__ import annotations
 
 import copy
+import errno
 import os
 import tomllib
 
@@ -271,18 +272,20 @@ def test_a_spilled_arrays_disk_blocks_are_allocated_when_it_is_made():
     assert not a[::997].any()
 
 
+def _failing_fallocate(code):
+    def fallocate(fd, offset, length):
+        raise OSError(code, os.strerror(code))
+    return fallocate
+
+
 def test_a_temporary_directory_too_small_for_a_spill_is_one_error_naming_it(monkeypatch):
     """No room for a long log's columns is one error naming the directory, the size and TMPDIR,
     raised when the array is made, not a crash at a later write."""
-    import errno
     import tempfile
 
     from components.errors import SpillError
 
-    def full(fd, offset, length):
-        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-    monkeypatch.setattr(os, "posix_fallocate", full, raising=False)
+    monkeypatch.setattr(os, "posix_fallocate", _failing_fallocate(errno.ENOSPC), raising=False)
     with pytest.raises(SpillError) as e:
         spill.spilled_array((1_000_000, 6))
     msg = str(e.value)
@@ -290,18 +293,27 @@ def test_a_temporary_directory_too_small_for_a_spill_is_one_error_naming_it(monk
     assert os.strerror(errno.ENOSPC) in msg
 
 
+@pytest.mark.parametrize("code", [errno.EOPNOTSUPP, errno.EINVAL])
+def test_a_file_system_that_cannot_reserve_blocks_still_spills(monkeypatch, code):
+    """Where the temporary directory's file system cannot reserve blocks (not a want of space),
+    the array is a sparse file as before: made, written and read back, no error."""
+    monkeypatch.setattr(os, "posix_fallocate", _failing_fallocate(code), raising=False)
+    a = spill.spilled_array((1000, 3))
+    values = np.arange(3000.0).reshape(1000, 3)
+    spill.write_rows(a, 0, values)
+    assert np.array_equal(a, values)
+
+
 def test_no_room_to_spill_a_log_is_could_not_run_on_the_command_line(tmp_path, monkeypatch, capsys):
     """calibrate on a long log with a full temporary directory: exit 3 (could not run, not bad
     input) and one line naming the directory and TMPDIR, no traceback."""
-    import errno
     import tempfile
 
     from components.cli import main
 
     path = _write(tmp_path, "full")
     monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
-    monkeypatch.setattr(os, "posix_fallocate", lambda fd, o, n: (_ for _ in ()).throw(OSError(errno.ENOSPC, "full")),
-                        raising=False)
+    monkeypatch.setattr(os, "posix_fallocate", _failing_fallocate(errno.ENOSPC), raising=False)
     code = main(["calibrate", str(path), "--out", str(tmp_path / "r.json")])
     err = capsys.readouterr().err
     assert code == 3

@@ -13,6 +13,7 @@ memory.
 """
 from __future__ import annotations
 
+import errno
 import mmap
 import os
 import tempfile
@@ -25,6 +26,7 @@ from components.errors import SpillError, whole_number_from_environment
 # estimators (70 minutes at 1 kHz; CALBENCH_SPILL_SAMPLES overrides, e.g. 0 for always)
 SPILL_SAMPLES = 1 << 22
 PIECE = 1 << 18  # samples per piece of a pass over a spilled column (a (PIECE, 6) array: 12.6 MB)
+NO_ROOM = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)  # reserving failed for want of space
 
 
 def spill_threshold() -> int:
@@ -47,17 +49,20 @@ def _reserve(file, size: int) -> None:
     """Give *file* *size* bytes with its disk blocks allocated, not a sparse hole. A sparse file
     allocates at every page written, which on ext4 made writing the 8-hour log's 1.7 GB of
     columns cost 1.1-2.4 s of system time, against 0.25 s into reserved blocks; and a full disk
-    then shows as a crash (SIGBUS) at a write through the mapping, not as this one error."""
-    try:
-        if hasattr(os, "posix_fallocate"):
+    then shows as a crash (SIGBUS) at a write through the mapping, not as this one error. Where
+    the system or its file system cannot reserve blocks, a sparse file as before."""
+    if hasattr(os, "posix_fallocate"):
+        try:
             os.posix_fallocate(file.fileno(), 0, size)
-        else:  # (no such call on this system: a sparse file)
-            file.truncate(size)
-    except OSError as e:
-        file.close()
-        raise SpillError(f"the temporary directory {tempfile.gettempdir()} cannot hold {size / 1e9:.2f} GB of a "
-                         f"long log's columns ({e.strerror}); free space there or point TMPDIR at a disk that "
-                         f"has it") from None
+            return
+        except OSError as e:
+            if e.errno in NO_ROOM:
+                file.close()
+                raise SpillError(f"the temporary directory {tempfile.gettempdir()} cannot hold {size / 1e9:.2f} GB "
+                                 f"of a long log's columns ({e.strerror}); free space there or point TMPDIR at a "
+                                 f"disk that has it") from None
+    # (no reserving on this system or this file system: a sparse file)
+    file.truncate(size)
 
 
 def write_rows(array: np.ndarray, start: int, values) -> None:
