@@ -69,7 +69,7 @@ from components.estimation.log_data import LogData  # noqa: E402
 from components.estimation.lsq import calibrate  # noqa: E402
 from components.estimation.noise_sensitivity import SLOW_TERMS, sensitivity, sigma_under  # noqa: E402
 from components.model.effects import DEFAULT_EFFECTS, EFFECTS, parameters_of  # noqa: E402
-from components.model.noise import CHANNELS, TERMS, NoiseModel, from_fmu_parameters, from_terms  # noqa: E402
+from components.model.noise import CHANNELS, TERMS, NoiseModel, from_fmu_parameters, from_terms, sensor_of  # noqa: E402
 from components.model.quantities import noise_value  # noqa: E402
 from components.model.result import result_from_fit  # noqa: E402
 from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
@@ -196,8 +196,11 @@ def analyse_null(job) -> dict:
                               "upper": {t: c.slow[t]["upper"] for t in SLOW_TERMS
                                         if t in c.slow and not c.slow[t]["present"]},
                               "interval": {t: c.slow[t]["interval"] for t in SLOW_TERMS
-                                           if t in c.slow and c.slow[t]["present"]}}
-                             for c in ident.channels]
+                                           if t in c.slow and c.slow[t]["present"]},
+                              # a white level read at the block sums' one-σ limit: [0, three-σ limit]
+                              "white_interval": ident.model.intervals.get(f"{TERMS[sensor_of(k)]['white'][0]}."
+                                                                          f"{'xyz'[k % 3]}")}
+                             for k, c in enumerate(ident.channels)]
     return out
 
 
@@ -396,8 +399,8 @@ def main(argv=None) -> int:
     ident = [r["identified"] for r in null if "identified" in r]
     if ident:
         print("\nNoise identification (identified / injected; present terms: (est - truth)/σ within 3, the slow ones "
-              "within their 3σ profile-likelihood interval; a white level given as the block sums' one-σ upper bound (no "
-              "σ): the truth below it; absent slow terms: the truth below the likelihood's upper bound):")
+              "within their 3σ profile-likelihood interval; a white level read at the block sums' one-σ limit (no σ): "
+              "the truth below it and below its 3σ limit; absent slow terms: the truth below the likelihood's upper bound):")
         within, total = 0, 0
         for k in range(6):
             ch = noise.channels[k]
@@ -410,15 +413,21 @@ def main(argv=None) -> int:
                 # the slow terms: within their profile-likelihood interval (deviance 9: three σ)
                 iv = np.array([r[k].get("interval", {}).get(term, (np.nan, np.nan)) for r in ident], float)
                 inside = np.where(np.isfinite(iv[:, 0]), (iv[:, 0] <= tv) & (tv <= iv[:, 1]), z <= 3)
-                # a level given as a bound has no σ (a white level the block sums bound only from
-                # above, at their one-σ upper bound): counted apart, the truth below it ~84 % of logs
+                # a level read at a limit has no σ (a white level the block sums bound only from
+                # above, read at their one-σ limit): counted apart, with its [0, three-σ limit]
                 bound = pres & ~np.isfinite(sig) & ~np.isfinite(iv[:, 0])
                 measured = pres & ~bound
                 w = np.sum(inside & measured)
                 within += w
                 total += measured.sum()
-                at_bound = (f"  at a one-σ upper bound {bound.sum()}: truth below it {np.sum(bound & (tv <= est))}/"
-                            f"{bound.sum()}" if bound.any() else "")
+                if term == "white":
+                    top = np.array([(r[k].get("white_interval") or (np.nan, np.nan))[1] for r in ident], float)
+                else:
+                    top = np.full(len(ident), np.nan)
+                at_bound = (f"  at the one-σ limit {bound.sum()}: truth below it {np.sum(bound & (tv <= est))}/"
+                            f"{bound.sum()}, below its 3σ limit {np.sum(bound & (tv <= top))}/{bound.sum()} "
+                            f"(limit/truth {np.nanmin(np.where(bound, top, np.nan)) / tv:.2f}-"
+                            f"{np.nanmax(np.where(bound, top, np.nan)) / tv:.2f})" if bound.any() else "")
                 up = np.array([r[k].get("upper", {}).get(term, np.nan) for r in ident])
                 absent = ~pres & np.isfinite(up)
                 covered = f"  truth below upper bound {np.sum(absent & (tv <= up))}/{absent.sum()}" if absent.any() else ""

@@ -81,3 +81,22 @@ def test_the_true_sigma_lies_below_the_bound(identified):
     # what the bound is for: the identified model's σ of the gyro biases is below the true one
     gb = [fit.parameters.index(f"gyro.bias.{a}") for a in "xyz"]
     assert np.all(fit.sigma[gb] < true_sigma[gb]), (fit.sigma[gb], true_sigma[gb])
+
+
+def test_a_white_level_read_at_the_one_sigma_limit_goes_in_at_its_three_sigma_limit():
+    """A pulse channel's white level the block sums bound only from above has no σ and the
+    interval [0, three-σ limit]: at the bounds it takes that limit; a white level measured with
+    a σ stays as it is, and so does one whose limit lies below it (nothing to widen)."""
+    from components.diagnosis.noise_id import ChannelIdentification, NoiseIdentification
+    from components.model.noise import CHANNELS, ChannelNoise, NoiseModel
+
+    levels = [1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4]
+    chans = tuple(ChannelNoise(white=w, quantization=w) for w in levels)
+    intervals = {"acc.noise.vrw.y": (0.0, 3e-4), "acc.noise.vrw.z": (0.0, 3e-4), "acc.noise.vrw.x": (0.0, 5e-5)}
+    sigma = [{"white": 1e-8}] * 3 + [{"white": float("nan")}, {"white": float("nan")}, {"white": 1e-6}]
+    ident = NoiseIdentification(NoiseModel(chans, "identified", {}, intervals), [
+        ChannelIdentification(CHANNELS[k], None, {}, chans[k], sigma[k], ["quantization", "white"]) for k in range(6)])
+    noise, added = at_upper_bounds(ident)
+    assert added == ["acc_y white"]
+    assert [c.white for c in noise.channels] == levels[:4] + [3e-4, 1e-4]
+    assert [c.quantization for c in noise.channels] == levels

@@ -72,11 +72,11 @@ def _print_sensitivity(res) -> None:
     hit = {p: r for p, r in sens["ratio"].items() if r > SENSITIVE}
     terms = ", ".join(sens["terms_at_upper_bound"])
     if not hit:
-        print(f"sigma holds whatever the slow terms this log cannot see ({terms}): at their upper bounds no "
-              f"sigma grows beyond {SENSITIVE}x")
+        print(f"sigma holds whatever the noise terms this log cannot pin down ({terms}): at their upper bounds "
+              f"no sigma grows beyond {SENSITIVE}x")
         return
-    print(f"sigma rests on slow terms this log cannot see ({terms}): at their upper bounds these sigma grow "
-          "(a longer log, or the terms given with --noise, settles it):")
+    print(f"sigma rests on noise terms this log cannot pin down ({terms}): at their upper bounds these sigma "
+          "grow (a longer log, or the terms given with --noise, settles it):")
     for p, r in sorted(hit.items(), key=lambda x: -x[1]):
         print(f"  {p:22s} x{r:.2f}")
 

@@ -59,7 +59,7 @@ class NoiseIdentification:
         """The identified terms per channel in readable units, with σ; absent terms with their
         upper bound."""
         lines = [f"{'channel':8s} {'term':18s} {'value':>12s} {'sigma':>10s}  unit           present  "
-                 "(slow terms: the 3σ profile-likelihood interval)"]
+                 "(slow terms, and a white level bounded from above only: the 3σ profile-likelihood interval)"]
         for k, c in enumerate(self.channels):
             terms = TERMS[sensor_of(k)]
             for t in BASIC:
@@ -170,7 +170,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
-    read_from_blocks, at_one_sigma = [], []
+    read_from_blocks, at_one_sigma, white_interval = [], [], {}
     for k, (ch, report) in enumerate(slow_fits):
         sigma, present = dict(fast[k].sigma), list(fast[k].present)
         if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
@@ -207,11 +207,15 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     # it is a fair reading instead: 0.51-1.36 times the truth (median 0.91) on the
                     # coarse-count benchmark's 41 such levels of 60 logs, the truth below it in 14
                     # (benchmarks/coloured_noise_counts_coarse_diagnosis_60seeds.txt)
-                    upper = report.get("block_variance_upper", float("nan"))
-                    scale = min(upper, 1.0) if np.isfinite(upper) else 1.0
-                    ch = replace(ch, white=white[k] / math.sqrt(dt) * math.sqrt(scale))
+                    def level_at(key):
+                        upper = report.get(key, float("nan"))
+                        return white[k] / math.sqrt(dt) * math.sqrt(min(upper, 1.0) if np.isfinite(upper) else 1.0)
+                    ch = replace(ch, white=level_at("block_variance_upper"))
                     present.append("white")
                     sigma["white"] = float("nan")  # no measurement's σ (the Allan stage's σ is of no level)
+                    # what the log does say of it: the three-σ upper limit (deviance 9), at most
+                    # the ceiling; from below nothing but 0
+                    white_interval[k] = (0.0, level_at("block_variance_upper_3sigma"))
                     at_one_sigma.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     said = []
@@ -221,8 +225,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     if at_one_sigma:
         said.append(f"white noise on {', '.join(at_one_sigma)} read at the block sums' one-σ likelihood limit (beside "
                     "the floor or random walk they found, they do not bound it from below; on simulated coarse "
-                    "counts that reading lands at 0.5-1.4 times the true level, so it is no upper bound): σ that "
-                    "rest on it carry that uncertainty")
+                    "counts that reading lands at 0.5-1.4 times the true level, so it is no upper bound; the "
+                    "interval is [0, their three-σ limit]): σ that rest on it carry that uncertainty")
     none = [CHANNELS[k] for k, c in enumerate(out_channels) if not c.noise.white > 0]
     if none:
         said.append(f"no white-noise level found on {', '.join(none)} (on a pulse output, counts much coarser "
@@ -238,6 +242,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                 sig[name] = c.sigma.get(t, float("nan"))
                 if "interval" in c.slow.get(t, {}):  # a slow term present in the likelihood stage
                     iv[name] = c.slow[t]["interval"]
+                elif t == "white" and k in white_interval:
+                    iv[name] = white_interval[k]
     model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
     return NoiseIdentification(model_out, out_channels, len(runs), notes, "; ".join(said) or None)
 

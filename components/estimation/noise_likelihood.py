@@ -226,13 +226,15 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     if "bias_instability" in active:
         report["flicker_corner_s"] = out.flicker_range[0]
     if variance_bound and active:
-        # the largest scale of the blocks' independent variance the log allows at one σ (deviance
-        # 1, everything else refitted at each step): where a slow term takes the blocks' scatter
-        # the scale's maximum is at the bottom of its reach, and this is what the log says of it
+        # the largest scale of the blocks' independent variance the log allows at one σ and at
+        # three (deviance 1 and 9, everything else refitted at each step): where a slow term
+        # takes the blocks' scatter the scale's maximum is at the bottom of its reach, and this
+        # is what the log says of it
         spread = {len(active): (math.log(lo_min), math.log(lo_max))} if "bias_instability" in active else {}
-        hi = profile_interval(lambda z: nll(active, z), x, f, len(x) - 1, 1.0, step=1.0,
-                              reach=VARIANCE_REACH + abs(x[-1]), spread=spread, sides=(1.0,))[0]
-        report["block_variance_upper"] = variance_scale(hi) if math.isfinite(hi) else float("nan")
+        hi1, hi3 = profile_crossings(lambda z: nll(active, z), x, f, len(x) - 1, (1.0, PROFILE_LEVEL), 1.0, step=1.0,
+                                     reach=VARIANCE_REACH + abs(x[-1]), spread=spread, refine=2)
+        report["block_variance_upper"] = variance_scale(hi1) if math.isfinite(hi1) else float("nan")
+        report["block_variance_upper_3sigma"] = variance_scale(hi3) if math.isfinite(hi3) else float("nan")
     f_none = optimise([])[1]
     for t in terms:
         if t in active:
@@ -313,62 +315,81 @@ def profile_interval(nll, x: np.ndarray, f0: float, i: int, level: float, step: 
                      sd: float | None = None, reach: float = 7.0, spread: dict | None = None,
                      sides=(-1.0, 1.0)) -> tuple[float, ...]:
     """The profile-likelihood interval of x[i] (log scale): where 2 [min over the other
-    coordinates of nll − f0] reaches *level*, walked outwards from the minimum *x* in *step*s
-    (each minimisation started from the last one's), the crossing interpolated in the signed
-    root of the deviance (near-linear in the coordinate, with slope 1/sd where the curvature
-    gives a σ *sd*). ±inf where it is not reached within *reach* (log) of x[i]: the log does not
-    bound the magnitude on that side. *x* has at least one other coordinate (the likelihood's
+    coordinates of nll − f0] reaches *level* on each of *sides* (-1 lower, +1 upper, returned in
+    that order; :func:`profile_crossings` says how it is walked)."""
+    return tuple(profile_crossings(nll, x, f0, i, (level,), sign, step, sd, reach, spread)[0] for sign in sides)
+
+
+def profile_crossings(nll, x: np.ndarray, f0: float, i: int, levels, sign: float, step: float = 0.1,
+                      sd: float | None = None, reach: float = 7.0, spread: dict | None = None,
+                      refine: int = 0) -> list[float]:
+    """Where the profile deviance of x[i] (log scale), 2 [min over the other coordinates of
+    nll − f0], reaches each of *levels* (ascending) on the side *sign* (-1 lower, +1 upper):
+    walked outwards from the minimum *x* in *step*s (each minimisation started from the last
+    one's), the crossing interpolated in the signed root of the deviance (near-linear in the
+    coordinate, with slope 1/sd where the curvature gives a σ *sd*); one walk for all levels.
+    ±inf where a level is not reached within *reach* (log) of x[i]: the log does not bound the
+    magnitude that far on that side. *x* has at least one other coordinate (the likelihood's
     block-variance nuisance is always one). ``spread``: {index into *x*: values} of coordinates
     along which the likelihood may hold more than one valley at a given x[i] (the flicker floor's
     corner, with the ends of its range): each step is also minimised from the last step's point
     moved by each of :data:`SPREAD` along such a coordinate and put at each of its values, and
     the least taken. From the last point alone, one acc floor's lower end came out at 1.1e-4 or
     at 7.1e-5 of the same log as its last bits went (the simplex went up one valley or down the
-    other, the truth 9.8e-5 between them); the profile is the lower valley's. ``sides``: the ends
-    to walk to (-1 lower, +1 upper), returned in that order."""
+    other, the truth 9.8e-5 between them); the profile is the lower valley's. ``refine``: that
+    many more profile points per crossing, each where the interpolation in its bracket puts it
+    (a long step over a curved root: the blocks' variance scale in steps of e, whose deviance-9
+    point came out where the deviance is 7.9)."""
     from scipy.optimize import minimize
 
     rest = [j for j in range(len(x)) if j != i]
     jump = 1.5 * max(1.0, step / sd if sd else 1.0)  # a rise of the root that is more than a step's
-    out = []
-    for sign in sides:
-        z, b, root_prev, crossing = x[rest].copy(), x[i], 0.0, sign * math.inf
-        while abs(b - x[i]) < reach:
-            b_next = b + sign * step
+    roots = [math.sqrt(v) for v in levels]
+    crossings = [sign * math.inf] * len(levels)
 
-            def at(zz, bb=b_next):
-                full = np.empty(len(x))
-                full[i], full[rest] = bb, zz
-                return nll(full)
+    def least(bb, z0):
+        def at(zz):
+            full = np.empty(len(x))
+            full[i], full[rest] = bb, zz
+            return nll(full)
+        r = minimize(at, z0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-5, "maxiter": 400 * len(rest)})
+        return r.x, float(r.fun), math.sqrt(max(2.0 * (float(r.fun) - f0), 0.0))
 
-            def least(z0):
-                r = minimize(at, z0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-5,
-                                                                    "maxiter": 400 * len(rest)})
-                return r.x, float(r.fun), math.sqrt(max(2.0 * (float(r.fun) - f0), 0.0))
+    def crossing(target, lo, hi, width):
+        # lo, hi: (coordinate, root, other coordinates) on either side of the target root,
+        # width = hi's coordinate - lo's (the signed step, exactly, before any refining)
+        for _ in range(refine):
+            b_mid = lo[0] + width * (target - lo[1]) / max(hi[1] - lo[1], 1e-12)
+            mid = min((least(b_mid, lo[2]), least(b_mid, hi[2])), key=lambda r: r[1])
+            point = (b_mid, mid[2], mid[0])
+            lo, hi = (point, hi) if mid[2] < target else (lo, point)
+            width = hi[0] - lo[0]
+        return lo[0] + width * (target - lo[1]) / max(hi[1] - lo[1], 1e-12)
 
-            z_last = z
-            z, val, root = least(z)
-            for j, ends in (spread or {}).items():
-                for to in [z_last[rest.index(j)] + off for off in SPREAD] + list(ends):
-                    z0 = z_last.copy()
-                    z0[rest.index(j)] = to
-                    z2, val2, root2 = least(z0)
-                    if val2 < val:
-                        z, val, root = z2, val2, root2
-            if root - root_prev > jump:
-                # a jump of more than a step's worth: the other coordinates may have had to move
-                # far (the floor's corner trades with its magnitude along a curved valley), so
-                # the step is also started from the maximum's
-                z2, val2, root2 = least(x[rest])
+    z, b, root_prev, found = x[rest].copy(), x[i], 0.0, 0
+    while abs(b - x[i]) < reach and found < len(levels):
+        b_next = b + sign * step
+        z_last = z
+        z, val, root = least(b_next, z)
+        for j, ends in (spread or {}).items():
+            for to in [z_last[rest.index(j)] + off for off in SPREAD] + list(ends):
+                z0 = z_last.copy()
+                z0[rest.index(j)] = to
+                z2, val2, root2 = least(b_next, z0)
                 if val2 < val:
                     z, val, root = z2, val2, root2
-            if root >= math.sqrt(level):
-                crossing = b + sign * step * (math.sqrt(level) - root_prev) / max(root - root_prev, 1e-12)
-                break
-            b, root_prev = b_next, root
-        out.append(crossing)
-    return tuple(out)
-
+        if root - root_prev > jump:
+            # a jump of more than a step's worth: the other coordinates may have had to move
+            # far (the floor's corner trades with its magnitude along a curved valley), so
+            # the step is also started from the maximum's
+            z2, val2, root2 = least(b_next, x[rest])
+            if val2 < val:
+                z, val, root = z2, val2, root2
+        while found < len(levels) and root >= roots[found]:
+            crossings[found] = crossing(roots[found], (b, root_prev, z_last), (b_next, root, z), sign * step)
+            found += 1
+        b, root_prev = b_next, root
+    return crossings
 
 def _inverse_curvature(nll, x: np.ndarray, f0: float, h: float = 1e-2) -> np.ndarray:
     """Inverse of the numerical Hessian of *nll* at its minimum *x* (NaN where not positive)."""

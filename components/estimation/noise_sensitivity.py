@@ -1,4 +1,4 @@
-"""How much the σ of a calibration rests on the slow noise terms its log cannot see.
+"""How much the σ of a calibration rests on the noise terms its log cannot pin down.
 
 Noise identification keeps a bias-instability floor or a random walk only when the log shows it
 (components.diagnosis.noise_id); an absent term has an upper bound instead, the magnitude the
@@ -7,7 +7,9 @@ log a navigation-grade gyro floor of 0.003 °/h is not detected, yet under it th
 is 1.5 times the one the identified (white) model gives (benchmarks/
 coloured_noise_26position_navigation.txt). So beside the σ under the identified model, calibrate
 gives each parameter's σ with every absent slow term at its bound: the range the honest σ lies in
-when the log cannot tell."""
+when the log cannot tell. The same holds for a pulse channel's white level that the block sums
+bound only from above (read at their one-σ limit, beside a slow term that took their scatter):
+it goes in at its three-σ upper limit."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -16,18 +18,25 @@ import numpy as np
 
 from components.estimation.noise_likelihood import FLICKER_CORNER_TEST
 from components.estimation.whitening import whiten
-from components.model.noise import NoiseModel
+from components.model.noise import AXES, TERMS, NoiseModel, sensor_of
 
 SLOW_TERMS = ("bias_instability", "random_walk")
 
 
 def at_upper_bounds(identification) -> tuple[NoiseModel | None, list[str]]:
     """The identified model with every slow term it found absent at its upper bound (a floor
-    with its lower corner where its presence was tested), and which terms those are
-    ("gyro_x bias_instability", ...); (None, []) when every slow term is present or unbounded."""
+    with its lower corner where its presence was tested), and every white level it read at the
+    block sums' one-σ limit (a pulse channel whose counts hide it beside a slow term) at its
+    three-σ upper limit; and which terms those are ("gyro_x bias_instability", "acc_y white",
+    ...); (None, []) when there are none."""
     chans = list(identification.model.channels)
     added = []
     for k, c in enumerate(identification.channels):
+        white_iv = identification.model.intervals.get(f"{TERMS[sensor_of(k)]['white'][0]}.{AXES[k % 3]}")
+        if white_iv is not None and "white" in c.present and not np.isfinite(c.sigma.get("white", np.nan)) \
+                and np.isfinite(white_iv[1]) and white_iv[1] > chans[k].white:
+            chans[k] = replace(chans[k], white=float(white_iv[1]))
+            added.append(f"{c.name} white")
         for t in SLOW_TERMS:
             rep = c.slow.get(t)  # absent from the report: the likelihood stage did not run
             if not rep or rep.get("present") or not np.isfinite(rep.get("upper", np.nan)):
@@ -40,7 +49,7 @@ def at_upper_bounds(identification) -> tuple[NoiseModel | None, list[str]]:
     if not added:
         return None, []
     m = identification.model
-    return replace(m, channels=tuple(chans), source=m.source + "; absent slow terms at their upper bounds"), added
+    return replace(m, channels=tuple(chans), source=m.source + "; terms the log cannot pin down at their upper bounds"), added
 
 
 def sigma_under(fit, noise: NoiseModel, span: float, chunk_s: float = 1.0) -> np.ndarray:
