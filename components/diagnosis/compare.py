@@ -36,6 +36,7 @@ from components.diagnosis.misfit import CHANNELS, Misfits, misfits
 from components.estimation import order_statistics
 from components.estimation.blocks import observation_blocks, samples_per_block, white_noise_sigma
 from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, PlateAtSamples, chunked_prediction
+from components.estimation.count_phase import count_advance
 from components.estimation.design import SIGNAL_SCALE, noise_floor
 from components.estimation.distributions import ljung_box
 from components.estimation.log_data import LogData
@@ -121,6 +122,7 @@ def _blocks_rows(data: LogData, geo, blocks, residual, sigma, rest, chunk_s, noi
     if noise is not None and noise.coloured:
         # block sums whitened under the coloured model: z is then the normalised innovation
         rows["axis"] = rows["channel"] % 3
+        rows.update(count_advance(data, rows))
         sums = np.concatenate([v[0] for v in vs])
         var = np.concatenate([v[1] for v in vs])
         span = float(data.time[-1] - data.time[0] + dt)

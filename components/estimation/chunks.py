@@ -25,6 +25,7 @@ from components import progress
 from components.errors import UserError, whole_number_from_environment
 from components.estimation.block_motion import BlockMotion
 from components.estimation.blocks import Blocks, observation_blocks
+from components.estimation.count_phase import count_advance
 from components.estimation.design import design, predict
 from components.estimation.log_data import LogData
 from components.estimation.table_columns import (
@@ -264,12 +265,14 @@ def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo
     parts = _each_chunk(rows_of, layout, data, "block rows, chunk by chunk", parallel="anywhere")
     if len(parts) == 1:
         rows = parts[0][1]
-        return rows["y"], rows["H"], rows["weight"], rows
-    # the whole log's order: every gyro row, then every accelerometer row
-    def cat(key):
-        return np.concatenate([r[key][:g] for g, r in parts] + [r[key][g:] for g, r in parts])
+    else:
+        # the whole log's order: every gyro row, then every accelerometer row
+        def cat(key):
+            return np.concatenate([r[key][:g] for g, r in parts] + [r[key][g:] for g, r in parts])
 
-    rows = {k: cat(k) for k in ("sensor", "axis", "start", "stop", "moving", "y", "H", "weight")}
+        rows = {k: cat(k) for k in ("sensor", "axis", "start", "stop", "moving", "y", "H", "weight")}
+    # a pulse output's count phase through the whole log's rests (a rest may span chunks)
+    rows.update(count_advance(data, rows))
     return rows["y"], rows["H"], rows["weight"], rows
 
 

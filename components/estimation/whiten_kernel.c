@@ -50,3 +50,63 @@ __attribute__((visibility("default"))) long calbench_whiten(
     }
     return 0;
 }
+
+/* The same filter with a transition that turns pairs of states: F_k = diag(phi_k) plus, for each
+ * state i with partner[i] >= 0, spin_k[i] at (i, partner[i]) (a damped rotation of the pair: the
+ * harmonics of a pulse output's count remainder, components.model.noise.block_noise).
+ *   g = (F Pc + cross_k) / S_k;  x = F x + g nu';  P = F P F' + diag(q_k) - S_k g g'
+ * work holds 2*m*m + 2*m*ncol + 2*m + ncol doubles. */
+__attribute__((visibility("default"))) long calbench_whiten_turning(
+    long nb, long m, long ncol, const double *phi, const double *spin, const long *partner, const double *q,
+    const double *c, const double *cross, const double *r, const double *p0, const double *values, double *out,
+    double *S_all, double *work) {
+    double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *nu = g + m, *A = nu + ncol, *xt = A + m * m;
+    memset(P, 0, sizeof(double) * (size_t)(m * m));
+    memset(x, 0, sizeof(double) * (size_t)(m * ncol));
+    for (long i = 0; i < m; i++) P[i * m + i] = p0[i];
+    for (long k = 0; k < nb; k++) {
+        const double *ck = c + k * m, *fk = phi + k * m, *sk = spin + k * m, *qk = q + k * m, *xk = cross + k * m;
+        double S = r[k];
+        for (long i = 0; i < m; i++) {
+            double s = 0.0;
+            for (long l = 0; l < m; l++) s += P[i * m + l] * ck[l];
+            Pc[i] = s;
+        }
+        for (long i = 0; i < m; i++) S += ck[i] * Pc[i];
+        S_all[k] = S;
+        if (!(S > 0.0)) return k + 1;
+        const double rs = 1.0 / sqrt(S);
+        for (long j = 0; j < ncol; j++) {
+            double v = values[k * ncol + j];
+            for (long i = 0; i < m; i++) v -= ck[i] * x[i * ncol + j];
+            nu[j] = v;
+            out[k * ncol + j] = v * rs;
+        }
+        for (long i = 0; i < m; i++) {
+            const long p = partner[i];
+            g[i] = (fk[i] * Pc[i] + (p >= 0 ? sk[i] * Pc[p] : 0.0) + xk[i]) / S;
+        }
+        for (long i = 0; i < m; i++) {
+            const long p = partner[i];
+            for (long j = 0; j < ncol; j++)
+                xt[i * ncol + j] = fk[i] * x[i * ncol + j] + (p >= 0 ? sk[i] * x[p * ncol + j] : 0.0) + g[i] * nu[j];
+        }
+        memcpy(x, xt, sizeof(double) * (size_t)(m * ncol));
+        for (long i = 0; i < m; i++) {
+            const long p = partner[i];
+            for (long l = 0; l < m; l++) A[i * m + l] = fk[i] * P[i * m + l] + (p >= 0 ? sk[i] * P[p * m + l] : 0.0);
+        }
+        for (long i = 0; i < m; i++)
+            for (long l = 0; l < m; l++) {
+                const long p = partner[l];
+                P[i * m + l] = A[i * m + l] * fk[l] + (p >= 0 ? A[i * m + p] * sk[l] : 0.0) - S * g[i] * g[l];
+            }
+        for (long i = 0; i < m; i++) P[i * m + i] += qk[i];
+        for (long i = 0; i < m; i++)
+            for (long l = i + 1; l < m; l++) {
+                double a = 0.5 * (P[i * m + l] + P[l * m + i]);
+                P[i * m + l] = P[l * m + i] = a;
+            }
+    }
+    return 0;
+}

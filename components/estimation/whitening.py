@@ -29,11 +29,20 @@ def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.n
         return values * w[:, None], bn.r.copy()
     nb, m = bn.c.shape
     ncol = values.shape[1]
-    arrays = [np.ascontiguousarray(a, dtype=float) for a in (bn.phi, bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
     out = np.empty((nb, ncol))
     S_all = np.empty(nb)
-    work = np.empty(m * m + m * ncol + 2 * m + ncol)
-    failed = _kernel()(nb, m, ncol, *[_ptr(a) for a in arrays], _ptr(out), _ptr(S_all), _ptr(work))
+    if bn.spin is None:
+        arrays = [np.ascontiguousarray(a, dtype=float) for a in (bn.phi, bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
+        work = np.empty(m * m + m * ncol + 2 * m + ncol)
+        failed = _kernel()(nb, m, ncol, *[_ptr(a) for a in arrays], _ptr(out), _ptr(S_all), _ptr(work))
+    else:
+        partner = np.ascontiguousarray(bn.partner, dtype=np.int64)
+        arrays = [np.ascontiguousarray(a, dtype=float) for a in (bn.phi, bn.spin)]
+        rest = [np.ascontiguousarray(a, dtype=float) for a in (bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
+        work = np.empty(2 * m * m + 2 * m * ncol + 2 * m + ncol)
+        failed = _turning_kernel()(nb, m, ncol, *[_ptr(a) for a in arrays],
+                                   partner.ctypes.data_as(ctypes.POINTER(ctypes.c_long)),
+                                   *[_ptr(a) for a in rest], _ptr(out), _ptr(S_all), _ptr(work))
     if failed:
         k = failed - 1
         raise EstimationError(
@@ -59,6 +68,23 @@ def _kernel():
     return _KERNEL
 
 
+_TURNING = None
+
+
+def _turning_kernel():
+    """The filter whose transition also turns pairs of states (calbench_whiten_turning)."""
+    global _TURNING
+    if _TURNING is None:
+        from orchestrator.native import compiled
+
+        fn = compiled(Path(__file__).with_name("whiten_kernel.c")).calbench_whiten_turning
+        fn.restype = ctypes.c_long
+        fn.argtypes = [ctypes.c_long] * 3 + [ctypes.POINTER(ctypes.c_double)] * 2 + [ctypes.POINTER(ctypes.c_long)] \
+            + [ctypes.POINTER(ctypes.c_double)] * 9
+        _TURNING = fn
+    return _TURNING
+
+
 def _ptr(a: np.ndarray):
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
@@ -67,6 +93,18 @@ def channel_rows(rows: dict, channel: int) -> np.ndarray:
     """Indices of one channel's rows (0-2 gyro, 3-5 accelerometer), in block order."""
     sensor = "gyro" if channel < 3 else "acc"
     return np.nonzero((rows["sensor"] == sensor) & (rows["axis"] == channel % 3))[0]
+
+
+def turning_of(rows: dict, idx: np.ndarray) -> tuple | None:
+    """(advance, None) of the rows *idx* (one channel's, in block order) for
+    components.model.noise.block_noise (a pulse output's count phase through its rests,
+    components.estimation.count_phase), or None when the rows have none for that channel."""
+    if "advance" not in rows:
+        return None
+    adv = rows["advance"][idx]
+    if not np.any(np.isfinite(adv)):
+        return None
+    return adv, None
 
 
 def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, noise: NoiseModel | None,
@@ -86,7 +124,7 @@ def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, nois
         if len(idx) == 0:
             continue
         durations = (rows["stop"][idx] - rows["start"][idx]) * dt
-        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo)
+        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo, turning_of(rows, idx))
         vals, s = whiten_channel(np.column_stack([y[idx], H[idx]]), bn)
         yw[idx], Hw[idx], S[idx] = vals[:, 0], vals[:, 1:], s
     return yw, Hw, S

@@ -22,9 +22,12 @@ Over a block each term has an exact discrete form with a state at the block boun
 - random walk b: b' = b + w, ∫b = Δ b + v, var w = K² Δ, var v = K² Δ³ / 3, cov(w, v) = K² Δ² / 2.
 - quantization: a pulse output carries the remainder r (|r| ≤ one count w / 2), so a block sum is
   the true sum + r_start − r_end; r at each boundary is a state with var Q² = w² / 12 (no memory).
+  Where the blocks' advance is known (the rests of a pulse log), the harmonics of r that the
+  noise does not dither away within a block turn from block to block instead
+  (components.model.count_remainder): pairs of states, the one transition that is not diagonal.
 - white: N² Δ, independent per block.
 
-All transitions are diagonal (the terms are independent), which keeps the whitening filter
+All other transitions are diagonal (the terms are independent), which keeps the whitening filter
 (components.estimation.whitening) to a few vector operations per block.
 """
 from __future__ import annotations
@@ -34,6 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from components.model.count_remainder import kept_harmonics, remainder_form
 from components.model.effects import DEG, DEG_H, UG
 from components.model.flicker import FLICKER_AVAR, flicker_terms, gm_avar
 
@@ -360,6 +364,10 @@ class BlockNoise:
     cross: np.ndarray
     r: np.ndarray
     p0: np.ndarray
+    # a transition that also turns pairs of states (a pulse count's remainder at rest,
+    # components.model.count_remainder): ``spin`` (B, m) at (i, ``partner[i]``), -1 for none
+    spin: np.ndarray | None = None
+    partner: np.ndarray | None = None
 
     @property
     def states(self) -> int:
@@ -380,12 +388,17 @@ def flicker_upper(span: float, t_lo: float) -> float:
 
 
 def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, span: float,
-                t_lo: float) -> BlockNoise:
+                t_lo: float, turning: tuple | None = None) -> BlockNoise:
     """The discrete form of *ch* on blocks of *durations* [s] (contiguous, in time order).
     ``white_var`` (B,): the block sums' variance from white noise and anything else independent
     per block (rest angles); ``span`` [s]: the log's duration (a floor without a range of its own
     is realised up to :func:`flicker_upper`, and the random walk's starting value has that much
-    wander); ``t_lo`` [s]: the shortest time scale the flicker floor is realised from."""
+    wander); ``t_lo`` [s]: the shortest time scale the flicker floor is realised from.
+    ``turning``: (advance, harmonics), a pulse output's input over each block (B,) in the
+    channel's unit (NaN where not known: a move; components.estimation.count_phase); given, the
+    quantization's remainder turns through the rests (components.model.count_remainder), with
+    the harmonics the blocks' white noise keeps or, not None, that many (a likelihood that
+    varies the white level holds them, or it would jump where one more is kept)."""
     d = np.asarray(durations, float)
     nb = len(d)
     cols_phi, cols_q, cols_c, cols_x, p0 = [], [], [], [], []
@@ -407,6 +420,18 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
         rest += K**2 * d**3 / 3
         p0.append(K**2 * max(span, 1.0))
     Q = ch.quantization
+    form = None
+    if Q > 0 and turning is not None:
+        count = Q * math.sqrt(12.0)
+        advance, n = np.asarray(turning[0], float), turning[1]
+        # the phase spread over a block: its white noise
+        spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
+        if n is None:
+            n = kept_harmonics(spread)
+        if n:
+            form = remainder_form(count, advance / count, spread, n)
+            Q = math.sqrt(form.independent)
+            rest += form.rest
     if Q > 0:
         # the state is the remainder at the block's start; the new one (at its end) is the next
         # state's process noise and enters this block's sum with the opposite sign
@@ -420,4 +445,11 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
     def stack(cols):
         return np.column_stack(cols) if cols else np.zeros((nb, 0))
 
-    return BlockNoise(stack(cols_phi), stack(cols_q), stack(cols_c), stack(cols_x), rest, np.array(p0, float))
+    if form is None:
+        return BlockNoise(stack(cols_phi), stack(cols_q), stack(cols_c), stack(cols_x), rest, np.array(p0, float))
+    m0 = len(p0)
+    return BlockNoise(np.hstack([stack(cols_phi), form.phi]), np.hstack([stack(cols_q), form.q]),
+                      np.hstack([stack(cols_c), form.c]), np.hstack([stack(cols_x), form.cross]), rest,
+                      np.concatenate([np.array(p0, float), form.p0]),
+                      spin=np.hstack([np.zeros((nb, m0)), form.spin]),
+                      partner=np.concatenate([np.full(m0, -1, np.int64), form.partner + m0]))

@@ -1,0 +1,94 @@
+"""The remainder of a pulse output's count as it turns through a rest: the quantization term's
+discrete form when the phase advance of each block is known.
+
+A pulse output of count weight w reports floor(φ_end) − floor(φ_start) counts over a block, φ the
+accumulated input in counts; the block sum is the true one plus w (r_start − r_end), with
+r = frac(φ) − ½ = −Σₙ sin(2πnφ) / (πn). Taken as independent at every block boundary (the
+plain quantization term, components.model.noise), r is what a sensor turning fast gives. At rest
+a channel advances by a fraction of a count per block (Earth's rate on a 2″ gyro count: ~7 counts
+a second, any fraction of one per block): r then runs along a sawtooth fixed by that advance, and
+a slow one (an advance near a whole count per block) is a ramp over many blocks, which a fit
+taking the remainders as independent reads as a rate error several of its σ wide.
+
+Each harmonic n of r is a pair of states (cos 2πnφ, sin 2πnφ), variance ½ each at a uniform
+phase, which a block with advance Δ (counts) turns by 2πnΔ and the white noise within it
+dithers: a phase spread s² (counts²) damps the pair by ρ = exp(−2π²n²s²), and the process noise
+(1 − ρ²)/2 per state keeps it stationary. A block where the advance is not known (a move: the
+phase after it is anybody's) damps every harmonic to nothing. Harmonics that no block damps less
+than :data:`KEPT_DAMPING` (fine counts, or the high harmonics of any count under noise) forget
+their phase within a block and stay in the independent term, with the variance w²/12 minus what
+the kept ones carry; so a channel whose noise dithers every harmonic has the plain term exactly.
+
+The block sum loads the sine state at its start with −w/(πn) and the one at its end with
++w/(πn); with x' = F x + v that is c = a + Fᵀb on the start state, b·v in the sum (its variance
+and its covariance with v: bᵀQb, Qb).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+KEPT_DAMPING = 0.01  # a harmonic kept as states where some block keeps more than this of its phase
+MAX_HARMONICS = 16   # a noise-free pulse output keeps these (the rest, 3.7 % of w²/12, stays independent)
+
+
+@dataclass
+class RemainderForm:
+    """The kept harmonics' states (2 per harmonic, cosine then sine) on B blocks: diagonal
+    ``phi``, the turning ``spin`` at (i, ``partner[i]``), process variance ``q``, loading ``c``,
+    ``cross`` (B, 2n); the block sums' own variance ``rest`` (B,) from them; ``p0`` (2n,); and the
+    variance per boundary left to the independent term, ``independent``."""
+
+    phi: np.ndarray
+    spin: np.ndarray
+    partner: np.ndarray
+    q: np.ndarray
+    c: np.ndarray
+    cross: np.ndarray
+    rest: np.ndarray
+    p0: np.ndarray
+    independent: float
+
+
+def kept_harmonics(spread: np.ndarray) -> int:
+    """How many harmonics some block with phase spread *spread* (counts², finite entries only)
+    damps by less than :data:`KEPT_DAMPING` (at most :data:`MAX_HARMONICS`)."""
+    s = spread[np.isfinite(spread)]
+    if len(s) == 0:
+        return 0
+    least = float(np.min(s))
+    if least <= 0:
+        return MAX_HARMONICS
+    return min(MAX_HARMONICS, int(math.floor(math.sqrt(math.log(1 / KEPT_DAMPING) / (2 * math.pi**2 * least)))))
+
+
+def remainder_form(count: float, advance: np.ndarray, spread: np.ndarray, harmonics: int) -> RemainderForm:
+    """The form of a count *count* (w, in the channel's unit) with *harmonics* kept, on blocks of
+    phase *advance* (counts; NaN where unknown) and phase spread *spread* (counts²)."""
+    adv = np.asarray(advance, float)
+    nb = len(adv)
+    known = np.isfinite(adv) & np.isfinite(spread)
+    cols = {k: [] for k in ("phi", "spin", "q", "c", "cross")}
+    partner, rest, carried = [], np.zeros(nb), 0.0
+    for n in range(1, harmonics + 1):
+        beta = count / (math.pi * n)
+        rho = np.where(known, np.exp(-2 * math.pi**2 * n**2 * np.where(known, spread, 0.0)), 0.0)
+        turn = 2 * math.pi * n * np.where(known, adv, 0.0)
+        cos, sin = np.cos(turn), np.sin(turn)
+        fresh = (1 - rho**2) / 2
+        i = len(partner)
+        # cosine state, then sine state: F = ρ [[cos, −sin], [sin, cos]]
+        cols["phi"] += [rho * cos, rho * cos]
+        cols["spin"] += [-rho * sin, rho * sin]
+        partner += [i + 1, i]
+        cols["q"] += [fresh, fresh]
+        cols["c"] += [rho * beta * sin, -beta + rho * beta * cos]
+        cols["cross"] += [np.zeros(nb), fresh * beta]
+        rest += beta**2 * fresh
+        carried += beta**2 / 2  # the harmonic's share of var(w r) at a boundary
+    stack = {k: np.column_stack(v) if v else np.zeros((nb, 0)) for k, v in cols.items()}
+    independent = max(count**2 / 12 - carried, 0.0)
+    return RemainderForm(stack["phi"], stack["spin"], np.array(partner, dtype=np.int64), stack["q"], stack["c"],
+                         stack["cross"], rest, np.full(2 * harmonics, 0.5), independent)

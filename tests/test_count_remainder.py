@@ -1,0 +1,173 @@
+"""A pulse output's count remainder turning through a rest (components.model.count_remainder,
+the turning whitening filter, components.estimation.count_phase) against independent
+computations:
+
+- the covariance of the block sums' quantization error written from the remainder's Fourier
+  series with a Gaussian phase wander (Cov r_j r_k = Σₙ cos(2πn mΔ) e^(−2π²n² m s²) / 2π²n², a
+  few thousand terms), which the filter's L L' must reproduce to what the harmonics left
+  independent can carry;
+- a Monte-Carlo of real counts — floor of the accumulated input plus white noise — whose rest
+  rates the generalised least squares must give with honest σ, where the plain quantization term
+  (remainders independent) gives σ too small by the factor the covariance says;
+- the tick rate of simulated counts, within the σ count_advance states.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from components.estimation.count_phase import count_advance
+from components.estimation.whitening import whiten_channel
+from components.model.count_remainder import KEPT_DAMPING, kept_harmonics
+from components.model.noise import ChannelNoise, block_noise
+
+W = 2.0  # one count (any unit)
+
+
+def fourier_covariance(advance: float, spread: float, white_var: float, nb: int, terms: int = 4000) -> np.ndarray:
+    n = np.arange(1, terms + 1)
+
+    def R(m):
+        m = abs(m)
+        return float(np.sum(np.cos(2 * np.pi * n * m * advance) * np.exp(-2 * np.pi**2 * n**2 * m * spread)
+                            / (2 * np.pi**2 * n**2)))
+
+    r = {m: R(m) for m in range(0, nb + 2)}
+    C = np.empty((nb, nb))
+    for j in range(nb):
+        for k in range(nb):
+            m = abs(k - j)
+            C[j, k] = W**2 * (2 * r[m] - r[abs(m - 1)] - r[m + 1])
+    return C + np.eye(nb) * white_var
+
+
+def filter_covariance(bn, nb: int) -> np.ndarray:
+    Linv, _ = whiten_channel(np.eye(nb), bn)
+    L = np.linalg.inv(Linv)
+    return L @ L.T
+
+
+def rest_noise(nb: int, advance: float, sigma: float, turning: bool = True):
+    ch = ChannelNoise(quantization=W / math.sqrt(12))
+    wv = np.full(nb, (sigma * W) ** 2)
+    turn = (np.full(nb, advance * W), None) if turning else None
+    return block_noise(ch, np.ones(nb), wv, 100.0, 1.0, turn)
+
+
+@pytest.mark.parametrize("advance,sigma", [(3.02, 0.06), (7.37, 0.06), (0.01, 0.02), (3.5, 0.3)])
+def test_the_filter_has_the_remainders_covariance(advance, sigma):
+    nb = 40
+    bn = rest_noise(nb, advance, sigma)
+    kept = kept_harmonics(np.array([sigma**2]))
+    assert bn.spin is not None and bn.states == 2 * kept + 1
+    C = fourier_covariance(advance, sigma**2, (sigma * W) ** 2, nb)
+    # the harmonics beyond the kept ones are taken as independent: each keeps less than
+    # KEPT_DAMPING of its phase over a block, and together they carry 1/(2π² kept) of var r
+    bound = 4 * W**2 * KEPT_DAMPING / (2 * math.pi**2 * kept)
+    assert np.max(np.abs(filter_covariance(bn, nb) - C)) <= bound
+
+
+def test_a_dithered_count_keeps_the_plain_term_bit_for_bit():
+    """Noise of a count a block dithers every harmonic within the block: the same form as the
+    remainders taken as independent (so fine counts are weighed as before)."""
+    nb = 30
+    plain, turned = rest_noise(nb, 3.3, 1.0, turning=False), rest_noise(nb, 3.3, 1.0)
+    assert turned.spin is None
+    for a, b in zip((plain.phi, plain.q, plain.c, plain.cross, plain.r, plain.p0),
+                    (turned.phi, turned.q, turned.c, turned.cross, turned.r, turned.p0)):
+        assert np.array_equal(a, b)
+
+
+def simulated_rest_counts(rng, rests: int, nb: int, per_block: int, advance: float, sigma: float):
+    """Per-sample counts (rests, nb * per_block) of a pulse output at a steady input of *advance*
+    counts a block: each sample's count is the difference of floor(phase), the phase a uniform
+    start plus the input plus white noise of *sigma* counts a block."""
+    steps = advance / per_block + rng.normal(0, sigma / math.sqrt(per_block), (rests, nb * per_block))
+    phase = np.concatenate([rng.random((rests, 1)), steps], axis=1).cumsum(axis=1)
+    return np.diff(np.floor(phase), axis=1)
+
+
+def rest_rows(nb: int, per_block: int) -> dict:
+    return {"sensor": np.array(["gyro"] * nb), "axis": np.zeros(nb, int), "start": np.arange(nb) * per_block,
+            "stop": np.arange(1, nb + 1) * per_block, "moving": np.zeros(nb, bool)}
+
+
+@pytest.mark.parametrize("advance", [3.02, 0.013])
+def test_rest_rates_by_gls_have_honest_sigma_only_with_the_turning_remainder(advance):
+    """2000 rests of 30 one-second blocks at 100 samples a block, counts at an input that leaves
+    a slow sawtooth (a fiftieth or less of a count per block beside a whole number, or of its
+    first harmonics): the rest's rate by generalised least squares, error over σ. With the
+    remainder turning — by the exact advance, and by the advance count_advance reads from the
+    ticks — the RMS of those is 1 within its χ² band; taken as independent, the σ are too small
+    (RMS far above)."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(7)
+    rests, nb, per, sigma = 2000, 30, 100, 0.06
+    counts = simulated_rest_counts(rng, rests, nb, per, advance, sigma)
+    sums = counts.reshape(rests, nb, per).sum(axis=2) * W
+    x = np.ones((nb, 1))
+    band = math.sqrt(1 + 3 * math.sqrt(2 / rests))  # RMS z of exact σ: χ²(n)/n within 3 of its SD
+    ch = ChannelNoise(quantization=W / math.sqrt(12))
+    wv = np.full(nb, (sigma * W) ** 2)
+    rows = rest_rows(nb, per)
+
+    def turning(kind, c):
+        if kind == "exact":
+            return np.full(nb, advance * W), None
+        if kind == "ticks":
+            data = SimpleNamespace(count_weight=(W, None), gyro=np.column_stack([c * W, 0 * c, 0 * c]), acc=None)
+            return count_advance(data, rows)["advance"], None
+        return None
+
+    # read from the ticks, the advance is taken as exact though it is not: at 0.013 counts a
+    # block a rest's counts tick once at most and the RMS is ~1.09 (count_phase's docstring)
+    band_ticks = 1.12 if advance == 0.013 else band
+    for kind in ("exact", "ticks", "independent"):
+        z = []
+        for y, c in zip(sums, counts):
+            w, _ = whiten_channel(np.column_stack([y, x]), block_noise(ch, np.ones(nb), wv, 100.0, 1.0, turning(kind, c)))
+            yw, hw = w[:, 0], w[:, 1]
+            z.append(((hw @ yw) / (hw @ hw) - advance * W) * math.sqrt(hw @ hw))
+        rms = float(np.sqrt(np.mean(np.square(z))))
+        if kind == "independent":
+            assert rms > 1.2 * band, rms
+        else:
+            assert 1 / band <= rms <= (band_ticks if kind == "ticks" else band), (kind, rms)
+
+
+def test_the_tick_rate_is_known_to_a_samples_advance_at_each_end():
+    """count_advance on simulated rests of a pulse gyro, slow and fast, either sign: each rest's
+    rate within three σ of the truth, σ that of the tick method — the phase at the first and
+    last tick known to a sample's advance beyond the whole counts (uniform: σ of the ends' sum
+    √2 · that / √12) and the white noise's wander over the samples between; moves get none."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(3)
+    per_block, nb, w, noise = 100, 20, 1e-5, 0.004  # noise: counts a sample
+    rates = [0.0713, 0.51, -0.033, 97.63, -4.12]  # counts a sample
+    gyro, start, stop, moving = [], [], [], []
+    t = 0
+    for r in rates:
+        phase = np.concatenate([[rng.random()], r + rng.normal(0, noise, nb * per_block)]).cumsum()
+        gyro.append(np.column_stack([np.diff(np.floor(phase)) * w, np.zeros((nb * per_block, 2))]))
+        start += [t + k * per_block for k in range(nb)]
+        stop += [t + (k + 1) * per_block for k in range(nb)]
+        moving += [False] * nb
+        t += nb * per_block
+        gyro.append(np.zeros((50, 3)))  # a move: one block
+        start.append(t), stop.append(t + 50), moving.append(True)
+        t += 50
+    data = SimpleNamespace(count_weight=(w, None), gyro=np.concatenate(gyro), acc=np.zeros((t, 3)))
+    n = len(start)
+    rows = {"sensor": np.array(["gyro"] * n), "axis": np.zeros(n, int), "start": np.array(start),
+            "stop": np.array(stop), "moving": np.array(moving)}
+    adv = count_advance(data, rows)["advance"]
+    assert np.all(np.isnan(adv[rows["moving"]]))
+    span = nb * per_block
+    for i, r in enumerate(rates):
+        blocks = slice(i * (nb + 1), i * (nb + 1) + nb)
+        frac = abs(r - round(r))
+        sd_rate = math.sqrt(2 * frac**2 / 12 / span**2 + noise**2 / span)  # counts a sample
+        err = adv[blocks] / (w * per_block) - r
+        assert np.all(np.abs(err) <= 3 * sd_rate), (r, err[0], sd_rate)
