@@ -11,42 +11,61 @@
 #include <math.h>
 #include <string.h>
 
+/* P = diag(p0), x = 0: the filter's start (P m x m, x m x ncol) */
+static void start_state(long m, long ncol, const double *p0, double *P, double *x) {
+    memset(P, 0, sizeof(double) * (size_t)(m * m));
+    memset(x, 0, sizeof(double) * (size_t)(m * ncol));
+    for (long i = 0; i < m; i++) P[i * m + i] = p0[i];
+}
+
+/* Block k's innovation: Pc = P c_k, S = c_k' Pc + r_k, nu = v_k - c_k' x, out_k = nu / sqrt(S).
+ * Returns S (not positive: the filter has failed, out_k untouched). */
+static double innovate(long m, long ncol, const double *P, const double *ck, double rk, const double *x,
+                       const double *vk, double *Pc, double *nu, double *outk) {
+    double S = rk;
+    for (long i = 0; i < m; i++) {
+        double s = 0.0;
+        for (long l = 0; l < m; l++) s += P[i * m + l] * ck[l];
+        Pc[i] = s;
+    }
+    for (long i = 0; i < m; i++) S += ck[i] * Pc[i];
+    if (!(S > 0.0)) return S;
+    const double rs = 1.0 / sqrt(S);
+    for (long j = 0; j < ncol; j++) {
+        double v = vk[j];
+        for (long i = 0; i < m; i++) v -= ck[i] * x[i * ncol + j];
+        nu[j] = v;
+        outk[j] = v * rs;
+    }
+    return S;
+}
+
+/* P = (P + P') / 2 */
+static void symmetrise(long m, double *P) {
+    for (long i = 0; i < m; i++)
+        for (long l = i + 1; l < m; l++) {
+            double a = 0.5 * (P[i * m + l] + P[l * m + i]);
+            P[i * m + l] = P[l * m + i] = a;
+        }
+}
+
 __attribute__((visibility("default"))) long calbench_whiten(
     long nb, long m, long ncol, const double *phi, const double *q, const double *c, const double *cross,
     const double *r, const double *p0, const double *values, double *out, double *S_all, double *work) {
     double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *nu = g + m;
-    memset(P, 0, sizeof(double) * (size_t)(m * m));
-    memset(x, 0, sizeof(double) * (size_t)(m * ncol));
-    for (long i = 0; i < m; i++) P[i * m + i] = p0[i];
+    start_state(m, ncol, p0, P, x);
     for (long k = 0; k < nb; k++) {
         const double *ck = c + k * m, *fk = phi + k * m, *qk = q + k * m, *xk = cross + k * m;
-        double S = r[k];
-        for (long i = 0; i < m; i++) {
-            double s = 0.0;
-            for (long l = 0; l < m; l++) s += P[i * m + l] * ck[l];
-            Pc[i] = s;
-        }
-        for (long i = 0; i < m; i++) S += ck[i] * Pc[i];
+        const double S = innovate(m, ncol, P, ck, r[k], x, values + k * ncol, Pc, nu, out + k * ncol);
         S_all[k] = S;
         if (!(S > 0.0)) return k + 1;
-        const double rs = 1.0 / sqrt(S);
-        for (long j = 0; j < ncol; j++) {
-            double v = values[k * ncol + j];
-            for (long i = 0; i < m; i++) v -= ck[i] * x[i * ncol + j];
-            nu[j] = v;
-            out[k * ncol + j] = v * rs;
-        }
         for (long i = 0; i < m; i++) g[i] = (fk[i] * Pc[i] + xk[i]) / S;
         for (long i = 0; i < m; i++)
             for (long j = 0; j < ncol; j++) x[i * ncol + j] = fk[i] * x[i * ncol + j] + g[i] * nu[j];
         for (long i = 0; i < m; i++)
             for (long l = 0; l < m; l++) P[i * m + l] = fk[i] * P[i * m + l] * fk[l] - S * g[i] * g[l];
         for (long i = 0; i < m; i++) P[i * m + i] += qk[i];
-        for (long i = 0; i < m; i++)
-            for (long l = i + 1; l < m; l++) {
-                double a = 0.5 * (P[i * m + l] + P[l * m + i]);
-                P[i * m + l] = P[l * m + i] = a;
-            }
+        symmetrise(m, P);
     }
     return 0;
 }
@@ -61,27 +80,12 @@ __attribute__((visibility("default"))) long calbench_whiten_turning(
     const double *c, const double *cross, const double *r, const double *p0, const double *values, double *out,
     double *S_all, double *work) {
     double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *nu = g + m, *A = nu + ncol, *xt = A + m * m;
-    memset(P, 0, sizeof(double) * (size_t)(m * m));
-    memset(x, 0, sizeof(double) * (size_t)(m * ncol));
-    for (long i = 0; i < m; i++) P[i * m + i] = p0[i];
+    start_state(m, ncol, p0, P, x);
     for (long k = 0; k < nb; k++) {
         const double *ck = c + k * m, *fk = phi + k * m, *sk = spin + k * m, *qk = q + k * m, *xk = cross + k * m;
-        double S = r[k];
-        for (long i = 0; i < m; i++) {
-            double s = 0.0;
-            for (long l = 0; l < m; l++) s += P[i * m + l] * ck[l];
-            Pc[i] = s;
-        }
-        for (long i = 0; i < m; i++) S += ck[i] * Pc[i];
+        const double S = innovate(m, ncol, P, ck, r[k], x, values + k * ncol, Pc, nu, out + k * ncol);
         S_all[k] = S;
         if (!(S > 0.0)) return k + 1;
-        const double rs = 1.0 / sqrt(S);
-        for (long j = 0; j < ncol; j++) {
-            double v = values[k * ncol + j];
-            for (long i = 0; i < m; i++) v -= ck[i] * x[i * ncol + j];
-            nu[j] = v;
-            out[k * ncol + j] = v * rs;
-        }
         for (long i = 0; i < m; i++) {
             const long p = partner[i];
             g[i] = (fk[i] * Pc[i] + (p >= 0 ? sk[i] * Pc[p] : 0.0) + xk[i]) / S;
@@ -102,11 +106,7 @@ __attribute__((visibility("default"))) long calbench_whiten_turning(
                 P[i * m + l] = A[i * m + l] * fk[l] + (p >= 0 ? A[i * m + p] * sk[l] : 0.0) - S * g[i] * g[l];
             }
         for (long i = 0; i < m; i++) P[i * m + i] += qk[i];
-        for (long i = 0; i < m; i++)
-            for (long l = i + 1; l < m; l++) {
-                double a = 0.5 * (P[i * m + l] + P[l * m + i]);
-                P[i * m + l] = P[l * m + i] = a;
-            }
+        symmetrise(m, P);
     }
     return 0;
 }

@@ -41,7 +41,7 @@ def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.n
         rest = [np.ascontiguousarray(a, dtype=float) for a in (bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
         work = np.empty(2 * m * m + 2 * m * ncol + 2 * m + ncol)
         failed = _turning_kernel()(nb, m, ncol, *[_ptr(a) for a in arrays],
-                                   partner.ctypes.data_as(ctypes.POINTER(ctypes.c_long)),
+                                   partner.ctypes.data_as(_LONGS),
                                    *[_ptr(a) for a in rest], _ptr(out), _ptr(S_all), _ptr(work))
     if failed:
         k = failed - 1
@@ -52,41 +52,34 @@ def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.n
     return out, S_all
 
 
-_KERNEL = None
+_DOUBLES, _LONGS = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
+_KERNELS: dict = {}
+
+
+def _entry(name: str, argtypes: list):
+    """An entry of whiten_kernel.c (compiled on first use and cached), returning long."""
+    if name not in _KERNELS:
+        from orchestrator.native import compiled
+
+        fn = getattr(compiled(Path(__file__).with_name("whiten_kernel.c")), name)
+        fn.restype = ctypes.c_long
+        fn.argtypes = argtypes
+        _KERNELS[name] = fn
+    return _KERNELS[name]
 
 
 def _kernel():
-    """The filter's recursion in C (whiten_kernel.c, compiled on first use and cached)."""
-    global _KERNEL
-    if _KERNEL is None:
-        from orchestrator.native import compiled
-
-        fn = compiled(Path(__file__).with_name("whiten_kernel.c")).calbench_whiten
-        fn.restype = ctypes.c_long
-        fn.argtypes = [ctypes.c_long] * 3 + [ctypes.POINTER(ctypes.c_double)] * 10
-        _KERNEL = fn
-    return _KERNEL
-
-
-_TURNING = None
+    """The filter's recursion in C."""
+    return _entry("calbench_whiten", [ctypes.c_long] * 3 + [_DOUBLES] * 10)
 
 
 def _turning_kernel():
-    """The filter whose transition also turns pairs of states (calbench_whiten_turning)."""
-    global _TURNING
-    if _TURNING is None:
-        from orchestrator.native import compiled
-
-        fn = compiled(Path(__file__).with_name("whiten_kernel.c")).calbench_whiten_turning
-        fn.restype = ctypes.c_long
-        fn.argtypes = [ctypes.c_long] * 3 + [ctypes.POINTER(ctypes.c_double)] * 2 + [ctypes.POINTER(ctypes.c_long)] \
-            + [ctypes.POINTER(ctypes.c_double)] * 9
-        _TURNING = fn
-    return _TURNING
+    """The filter whose transition also turns pairs of states."""
+    return _entry("calbench_whiten_turning", [ctypes.c_long] * 3 + [_DOUBLES] * 2 + [_LONGS] + [_DOUBLES] * 9)
 
 
 def _ptr(a: np.ndarray):
-    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    return a.ctypes.data_as(_DOUBLES)
 
 
 def channel_rows(rows: dict, channel: int) -> np.ndarray:
