@@ -50,8 +50,7 @@ def filter_covariance(bn, nb: int) -> np.ndarray:
 def rest_noise(nb: int, advance: float, sigma: float, turning: bool = True):
     ch = ChannelNoise(quantization=W / math.sqrt(12))
     wv = np.full(nb, (sigma * W) ** 2)
-    turn = (np.full(nb, advance * W), None) if turning else None
-    return block_noise(ch, np.ones(nb), wv, 100.0, 1.0, turn)
+    return block_noise(ch, np.ones(nb), wv, 100.0, 1.0, np.full(nb, advance * W) if turning else None)
 
 
 @pytest.mark.parametrize("advance,sigma", [(3.02, 0.06), (7.37, 0.06), (0.01, 0.02), (3.5, 0.3)])
@@ -112,12 +111,12 @@ def test_rest_rates_by_gls_have_honest_sigma_only_with_the_turning_remainder(adv
     wv = np.full(nb, (sigma * W) ** 2)
     rows = rest_rows(nb, per)
 
-    def turning(kind, c):
+    def advance_by(kind, c):
         if kind == "exact":
-            return np.full(nb, advance * W), None
+            return np.full(nb, advance * W)
         if kind == "ticks":
             data = SimpleNamespace(count_weight=(W, None), gyro=np.column_stack([c * W, 0 * c, 0 * c]), acc=None)
-            return count_advance(data, rows)["advance"], None
+            return count_advance(data, rows)["advance"]
         return None
 
     # read from the ticks, the advance is taken as exact though it is not: at 0.013 counts a
@@ -126,7 +125,7 @@ def test_rest_rates_by_gls_have_honest_sigma_only_with_the_turning_remainder(adv
     for kind in ("exact", "ticks", "independent"):
         z = []
         for y, c in zip(sums, counts):
-            w, _ = whiten_channel(np.column_stack([y, x]), block_noise(ch, np.ones(nb), wv, 100.0, 1.0, turning(kind, c)))
+            w, _ = whiten_channel(np.column_stack([y, x]), block_noise(ch, np.ones(nb), wv, 100.0, 1.0, advance_by(kind, c)))
             yw, hw = w[:, 0], w[:, 1]
             z.append(((hw @ yw) / (hw @ hw) - advance * W) * math.sqrt(hw @ hw))
         rms = float(np.sqrt(np.mean(np.square(z))))

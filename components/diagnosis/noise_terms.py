@@ -12,7 +12,7 @@ import numpy as np
 from components import progress
 from components.estimation.distributions import chi2_isf
 from components.estimation.noise_likelihood import fit_one_term
-from components.estimation.whitening import channel_rows, turning_of
+from components.estimation.whitening import advance_of, channel_rows
 from components.model.noise import TERM_OF_NAME, NoiseModel
 
 # noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)
@@ -53,7 +53,7 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
                 active = np.any(Hc != 0, axis=0)
                 durations = (rows["stop"][idx] - rows["start"][idx]) * design.dt
                 value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,
-                                        design.span, design.t_lo, turning=turning_of(rows, idx))
+                                        design.span, design.t_lo, advance=advance_of(rows, idx))
                 chans[k] = replace(chans[k], **{field_: value})
                 gain += g
                 values.append(value)

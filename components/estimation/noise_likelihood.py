@@ -31,7 +31,6 @@ from dataclasses import replace
 import numpy as np
 
 from components.estimation.whitening import whiten_channel
-from components.model.count_remainder import kept_harmonics
 from components.model.noise import ChannelNoise, block_noise
 
 LR_CRITICAL = 5.4119  # χ²₁ 98 % point: the 1 % level of ½ χ²₀ + ½ χ²₁
@@ -54,12 +53,12 @@ def family_critical(tests: int, alpha: float = 0.01) -> float:
 
 def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                       white_var: np.ndarray, span: float, t_lo: float, restricted: bool = True,
-                      turning: tuple | None = None) -> float:
+                      advance: np.ndarray | None = None) -> float:
     """ℓ of one channel's rows under *ch* (see the module docstring); ``restricted=False``: the
     ordinary log-likelihood at the GLS estimate, −½ [log det C + min_θ ‖y − H θ‖²_C] (the one that
-    compares models with different columns). ``turning``: a pulse output's count phase through
+    compares models with different columns). ``advance``: a pulse output's count phase through
     the rests (components.model.noise.block_noise)."""
-    bn = block_noise(ch, durations, white_var, span, t_lo, turning)
+    bn = block_noise(ch, durations, white_var, span, t_lo, advance)
     w, S = whiten_channel(np.column_stack([y, H]), bn)
     yw, Hw = w[:, 0], w[:, 1:]
     out = -0.5 * (np.sum(np.log(S)) + yw @ yw)
@@ -76,7 +75,7 @@ def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations:
 def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                    white_var: np.ndarray, span: float, t_lo: float, terms=SLOW,
                    restricted: bool = True, critical: float = LR_CRITICAL,
-                   variance_bound: bool = False, turning: tuple | None = None) -> tuple[ChannelNoise, dict]:
+                   variance_bound: bool = False) -> tuple[ChannelNoise, dict]:
     """*ch* with the magnitudes of *terms* re-estimated by (restricted) maximum likelihood, and
     the terms the data do not need dropped one at a time (backward elimination: bias instability
     and random walk can stand in for each other, so a term's likelihood ratio is taken against
@@ -89,13 +88,12 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     lo_min, lo_max = max(float(np.min(durations)), 1e-3), max(span / 8.0, 2 * float(np.min(durations)))
     scale = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
     base = replace(ch, **{t: 0.0 for t in terms})
-    turning = held_harmonics(ch, turning, white_var)
 
     def variance_scale(v: float) -> float:
         return math.exp(min(max(v, -VARIANCE_REACH), VARIANCE_REACH))
 
     def loglik(c: ChannelNoise, v: float = 0.0) -> float:
-        return restricted_loglik(c, y, H, durations, white_var * variance_scale(v), span, t_lo, restricted, turning)
+        return restricted_loglik(c, y, H, durations, white_var * variance_scale(v), span, t_lo, restricted)
 
     # x = [magnitudes of the active terms (log), the floor's corner (log) if it is active, v]:
     # v (log) scales the blocks' independent variance, a nuisance refitted with every model, so
@@ -275,16 +273,6 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     return out, report
 
 
-def held_harmonics(ch: ChannelNoise, turning: tuple | None, white_var: np.ndarray) -> tuple | None:
-    """*turning* with the count remainder's kept harmonics fixed at what the white variance
-    *white_var* keeps (components.model.noise.block_noise), for a likelihood that scales it."""
-    if turning is None or turning[1] is not None or not ch.quantization:
-        return turning
-    count = ch.quantization * math.sqrt(12.0)
-    spread = np.where(np.isfinite(turning[0]), white_var / count**2, np.nan)
-    return turning[0], kept_harmonics(spread)
-
-
 SCAN_VARIANCE = (0.0, -1.0, -2.0, -3.0)  # log: where _scan_start puts the blocks' variance scale, from the fit's
 SCAN_MAGNITUDE = (-2.0, -1.0, 0.0, 1.0)  # log: and each slow term's magnitude, from its value there
 DEAD = 8.0  # log: a magnitude this far below its start is one the fit set to nothing
@@ -426,13 +414,13 @@ def _inverse_curvature(nll, x: np.ndarray, f0: float, h: float = 1e-2) -> np.nda
 
 def fit_one_term(ch: ChannelNoise, term: str, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                  white_var: np.ndarray, span: float, t_lo: float, restricted: bool = False,
-                 turning: tuple | None = None) -> tuple[float, float]:
+                 advance: np.ndarray | None = None) -> tuple[float, float]:
     """(magnitude, gain in log-likelihood) of one noise term added to *ch* on these rows: a
     bounded one-dimensional maximum over the log magnitude (the flicker floor from *t_lo*). The
     ordinary likelihood by default: the gain compares with a missing effect's ½ Δχ²."""
     from scipy.optimize import minimize_scalar
 
-    base = restricted_loglik(ch, y, H, durations, white_var, span, t_lo, restricted, turning)
+    base = restricted_loglik(ch, y, H, durations, white_var, span, t_lo, restricted, advance)
     level = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
     if term == "random_walk":
         level /= math.sqrt(span)
@@ -440,7 +428,7 @@ def fit_one_term(ch: ChannelNoise, term: str, y: np.ndarray, H: np.ndarray, dura
 
     def nll(x):
         return -restricted_loglik(replace(ch, **{term: math.exp(x)}), y, H, durations, white_var, span, t_lo,
-                                  restricted, turning)
+                                  restricted, advance)
 
     r = minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-2})
     gain = -r.fun - base

@@ -88,8 +88,8 @@ def channel_rows(rows: dict, channel: int) -> np.ndarray:
     return np.nonzero((rows["sensor"] == sensor) & (rows["axis"] == channel % 3))[0]
 
 
-def turning_of(rows: dict, idx: np.ndarray) -> tuple | None:
-    """(advance, None) of the rows *idx* (one channel's, in block order) for
+def advance_of(rows: dict, idx: np.ndarray) -> np.ndarray | None:
+    """The advance of the rows *idx* (one channel's, in block order) for
     components.model.noise.block_noise (a pulse output's count phase through its rests,
     components.estimation.count_phase), or None when the rows have none for that channel."""
     if "advance" not in rows:
@@ -97,7 +97,7 @@ def turning_of(rows: dict, idx: np.ndarray) -> tuple | None:
     adv = rows["advance"][idx]
     if not np.any(np.isfinite(adv)):
         return None
-    return adv, None
+    return adv
 
 
 def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, noise: NoiseModel | None,
@@ -117,7 +117,7 @@ def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, nois
         if len(idx) == 0:
             continue
         durations = (rows["stop"][idx] - rows["start"][idx]) * dt
-        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo, turning_of(rows, idx))
+        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo, advance_of(rows, idx))
         vals, s = whiten_channel(np.column_stack([y[idx], H[idx]]), bn)
         yw[idx], Hw[idx], S[idx] = vals[:, 0], vals[:, 1:], s
     return yw, Hw, S

@@ -388,17 +388,15 @@ def flicker_upper(span: float, t_lo: float) -> float:
 
 
 def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, span: float,
-                t_lo: float, turning: tuple | None = None) -> BlockNoise:
+                t_lo: float, advance: np.ndarray | None = None) -> BlockNoise:
     """The discrete form of *ch* on blocks of *durations* [s] (contiguous, in time order).
     ``white_var`` (B,): the block sums' variance from white noise and anything else independent
     per block (rest angles); ``span`` [s]: the log's duration (a floor without a range of its own
     is realised up to :func:`flicker_upper`, and the random walk's starting value has that much
     wander); ``t_lo`` [s]: the shortest time scale the flicker floor is realised from.
-    ``turning``: (advance, harmonics), a pulse output's input over each block (B,) in the
-    channel's unit (NaN where not known: a move; components.estimation.count_phase); given, the
-    quantization's remainder turns through the rests (components.model.count_remainder), with
-    the harmonics the blocks' white noise keeps or, not None, that many (a likelihood that
-    varies the white level holds them, or it would jump where one more is kept)."""
+    ``advance`` (B,): a pulse output's input over each block in the channel's unit (NaN where
+    not known: a move; components.estimation.count_phase); given, the quantization's remainder
+    turns through the rests (components.model.count_remainder)."""
     d = np.asarray(durations, float)
     nb = len(d)
     cols_phi, cols_q, cols_c, cols_x, p0 = [], [], [], [], []
@@ -421,13 +419,12 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
         p0.append(K**2 * max(span, 1.0))
     Q = ch.quantization
     form = None
-    if Q > 0 and turning is not None:
+    if Q > 0 and advance is not None:
         count = Q * math.sqrt(12.0)
-        advance, n = np.asarray(turning[0], float), turning[1]
+        advance = np.asarray(advance, float)
         # the phase spread over a block: its white noise
         spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
-        if n is None:
-            n = kept_harmonics(spread)
+        n = kept_harmonics(spread)
         if n:
             form = remainder_form(count, advance / count, spread, n)
             Q = math.sqrt(form.independent)
