@@ -209,8 +209,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     # ceiling (with none, 10 µrad counts beside a 0.05 °/h gyro floor had gyro_z
                     # weighed by its quantization and floor alone, and the user told σ may be too
                     # small; with the ceiling, χ²/dof 0.74 on that log). Meant as an upper bound,
-                    # it is a fair reading instead: 0.51-1.36 times the truth (median 0.91) on the
-                    # coarse-count benchmark's 41 such levels of 60 logs, the truth below it in 14
+                    # it is a fair reading instead: 0.52-1.49 times the truth (median 0.94) on the
+                    # coarse-count benchmark's 41 such levels of 60 logs, the truth below it in 15
                     # (benchmarks/coloured_noise_counts_coarse_diagnosis_60seeds.txt)
                     def level_at(key):
                         upper = report.get(key, float("nan"))
