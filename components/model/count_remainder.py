@@ -11,9 +11,8 @@ a slow one (an advance near a whole count per block) is a ramp over many blocks,
 taking the remainders as independent reads as a rate error several of its σ wide.
 
 Each harmonic n of r is a pair of states (cos 2πnφ, sin 2πnφ), variance ½ each at a uniform
-phase, which a block with advance Δ (counts) turns by 2πnΔ and the noise within it dithers (the
-white noise, and the slow terms' wander over the block: components.model.noise.block_noise): a
-phase spread s² (counts²) damps the pair by ρ = exp(−2π²n²s²), and the process noise
+phase, which a block with advance Δ (counts) turns by 2πnΔ and the white noise within it
+dithers: a phase spread s² (counts²) damps the pair by ρ = exp(−2π²n²s²), and the process noise
 (1 − ρ²)/2 per state keeps it stationary. A block where the advance is not known (a move: the
 phase after it is anybody's) damps every harmonic to nothing. Harmonics that no block damps less
 than :data:`KEPT_DAMPING` (fine counts, or the high harmonics of any count under noise) forget
