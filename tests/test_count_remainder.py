@@ -170,28 +170,3 @@ def test_the_tick_rate_is_known_to_a_samples_advance_at_each_end():
         sd_rate = math.sqrt(2 * frac**2 / 12 / span**2 + noise**2 / span)  # counts a sample
         err = adv[blocks] / (w * per_block) - r
         assert np.all(np.abs(err) <= 3 * sd_rate), (r, err[0], sd_rate)
-
-
-def test_a_slow_term_wandering_within_the_blocks_dithers_the_remainder_too():
-    """Counts whose rate carries a strong Gauss–Markov term (T = 20 s, the blocks' sums of it
-    0.35 counts RMS, the white noise 0.03): the block sums of 1000 rests, whitened under the true
-    model with the exact advance, have χ² per row 1 within its band. The remainder's harmonics are
-    damped by the term's wander within a block as well as the white noise's; by the white noise
-    alone the model kept the sawtooth and χ² per row came out at 4.5."""
-    rng = np.random.default_rng(5)
-    rests, nb, per, advance, white, gm_sigma, T = 1000, 30, 100, 3.02, 0.03, 0.36, 20.0
-    dt = 1.0 / per
-    phi = math.exp(-dt / T)
-    x = np.empty((rests, nb * per))
-    x[:, 0] = rng.normal(0, gm_sigma, rests)
-    shocks = rng.normal(0, gm_sigma * math.sqrt(1 - phi**2), (rests, nb * per))
-    for i in range(1, nb * per):
-        x[:, i] = phi * x[:, i - 1] + shocks[:, i]
-    steps = advance / per + x * dt + rng.normal(0, white / math.sqrt(per), (rests, nb * per))
-    phase = np.concatenate([rng.random((rests, 1)), steps], axis=1).cumsum(axis=1)
-    sums = np.diff(np.floor(phase), axis=1).reshape(rests, nb, per).sum(axis=2) * W
-    ch = ChannelNoise(quantization=W / math.sqrt(12), gauss_markov=((gm_sigma * W, T),))
-    bn = block_noise(ch, np.ones(nb), np.full(nb, (white * W) ** 2), 1e4, 1.0, np.full(nb, advance * W))
-    assert bn.spin is not None  # (the harmonics are kept: the test is of their damping)
-    chi2 = np.mean([np.mean(whiten_channel((y - advance * W)[:, None], bn)[0] ** 2) for y in sums])
-    assert abs(chi2 - 1) <= 3 * math.sqrt(2 / (rests * nb)) * 2, chi2  # (×2: rows within a rest correlate)
