@@ -422,15 +422,8 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
     if Q > 0 and advance is not None:
         count = Q * math.sqrt(12.0)
         advance = np.asarray(advance, float)
-        # the phase spread over a block: its white noise, and what the slow terms add within it
-        # (their block sums' variance; counted with the white noise alone, a floor of 3-4e-4
-        # m/s² identified on a 1 mm/s pulse log left the remainder's sawtooth too sure, χ²/dof
-        # 1.046, where the independent remainders gave 1.015 and this 1.012)
-        wander = np.asarray(white_var, float).copy()
-        for s, T in ch.gm_terms(t_lo, flicker_upper(span, t_lo)):
-            wander += 2 * s**2 * T * (d - T * (1 - np.exp(-d / T)))
-        wander += ch.random_walk**2 * d**3 / 3
-        spread = np.where(np.isfinite(advance), wander / count**2, np.nan)
+        # the phase spread over a block: its white noise
+        spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
         n = kept_harmonics(spread)
         if n:
             form = remainder_form(count, advance / count, spread, n)
