@@ -69,7 +69,7 @@ from components.estimation.log_data import LogData  # noqa: E402
 from components.estimation.lsq import calibrate  # noqa: E402
 from components.estimation.noise_sensitivity import SLOW_TERMS, sensitivity, sigma_under  # noqa: E402
 from components.model.effects import DEFAULT_EFFECTS, EFFECTS, parameters_of  # noqa: E402
-from components.model.noise import CHANNELS, TERMS, NoiseModel, from_fmu_parameters, from_terms, sensor_of  # noqa: E402
+from components.model.noise import CHANNELS, TERMS, NoiseModel, from_fmu_parameters, from_terms, term_name  # noqa: E402
 from components.model.quantities import noise_value  # noqa: E402
 from components.model.result import result_from_fit  # noqa: E402
 from components.simulation.multi_imu import Variant, heat_cool_cycle, run_variants  # noqa: E402
@@ -198,8 +198,7 @@ def analyse_null(job) -> dict:
                               "interval": {t: c.slow[t]["interval"] for t in SLOW_TERMS
                                            if t in c.slow and c.slow[t]["present"]},
                               # a white level read at the block sums' one-σ limit: [0, three-σ limit]
-                              "white_interval": ident.model.intervals.get(f"{TERMS[sensor_of(k)]['white'][0]}."
-                                                                          f"{'xyz'[k % 3]}")}
+                              "white_interval": ident.model.intervals.get(term_name(k, "white"))}
                              for k, c in enumerate(ident.channels)]
     return out
 

@@ -30,7 +30,7 @@ from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel,
 from components.estimation.noise_likelihood import VARIANCE_REACH, family_critical, fit_slow_terms
 from components.estimation.whitening import channel_rows
 from components.logs.spill import release
-from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of
+from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of, term_name
 
 ALLAN_SAMPLES = 1 << 22  # static samples the Allan stage uses, at most (70 minutes at 1 kHz)
 
@@ -67,7 +67,7 @@ class NoiseIdentification:
                 v = getattr(c.noise, t)
                 s = c.sigma.get(t, float("nan"))
                 if t in c.present:
-                    iv = self.model.intervals.get(f"{vname}.{AXES[k % 3]}")
+                    iv = self.model.intervals.get(term_name(k, t))
                     within = f"  [{iv[0] / scale:.3g}, {iv[1] / scale:.3g}]" if iv else ""
                     sd = f"{s / scale:10.2g}" if np.isfinite(s) else f"{'-':>10s}"
                     lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {sd}  "
@@ -85,6 +85,13 @@ class NoiseIdentification:
                 lines.append(f"{c.name:8s} {'gauss-markov':18s} {s_ / gu[3]:12.4g} {'':10s}  {gu[2]:14s} yes "
                              f"(T = {T:.3g} s)")
         return lines
+
+
+def at_scale(ceiling: float, scale: float) -> float:
+    """The white level at a *scale* of the blocks' independent variance, from its *ceiling* (the
+    level at scale 1, the most the rests allow): never above it, and the ceiling where the scale
+    is not known (a likelihood limit not reached)."""
+    return ceiling * math.sqrt(min(scale, 1.0) if np.isfinite(scale) else 1.0)
 
 
 # static samples below which no noise term is identified: the Allan deviation then spans too few
@@ -183,8 +190,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                 [t for t in slow_terms[k] if report[t]["present"]]
             sigma.update({t: report[t]["sigma"] for t in slow_terms[k]})
             if k in hidden:
-                # (at most the ceiling: white_ceiling)
-                level = white[k] / math.sqrt(dt) * math.sqrt(min(report["block_variance_scale"], 1.0))
+                ceiling = white[k] / math.sqrt(dt)  # (white_ceiling: no level above it)
+                level = at_scale(ceiling, report["block_variance_scale"])
                 # σ of N from that of log N² (half of it). Kept wherever the likelihood has its
                 # maximum inside the scale's reach (a finite curvature), even below three σ: as in
                 # the Allan stage, every sensor has white noise, and a level poorly read is not
@@ -212,15 +219,12 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     # it is a fair reading instead: 0.52-1.49 times the truth (median 0.94) on the
                     # coarse-count benchmark's 41 such levels of 60 logs, the truth below it in 15
                     # (benchmarks/coloured_noise_counts_coarse_diagnosis_60seeds.txt)
-                    def level_at(key):
-                        upper = report.get(key, float("nan"))
-                        return white[k] / math.sqrt(dt) * math.sqrt(min(upper, 1.0) if np.isfinite(upper) else 1.0)
-                    ch = replace(ch, white=level_at("block_variance_upper"))
+                    ch = replace(ch, white=at_scale(ceiling, report.get("block_variance_upper", math.nan)))
                     present.append("white")
                     sigma["white"] = float("nan")  # no measurement's σ (the Allan stage's σ is of no level)
                     # what the log does say of it: the three-σ upper limit (deviance 9), at most
                     # the ceiling; from below nothing but 0
-                    white_interval[k] = (0.0, level_at("block_variance_upper_3sigma"))
+                    white_interval[k] = (0.0, at_scale(ceiling, report.get("block_variance_upper_3sigma", math.nan)))
                     at_one_sigma.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     said = []
@@ -243,7 +247,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     for k, c in enumerate(out_channels):
         for t in c.present:
             if t in TERMS[sensor_of(k)]:
-                name = f"{TERMS[sensor_of(k)][t][0]}.{AXES[k % 3]}"
+                name = term_name(k, t)
                 sig[name] = c.sigma.get(t, float("nan"))
                 if "interval" in c.slow.get(t, {}):  # a slow term present in the likelihood stage
                     iv[name] = c.slow[t]["interval"]

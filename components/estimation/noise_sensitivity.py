@@ -18,7 +18,7 @@ import numpy as np
 
 from components.estimation.noise_likelihood import FLICKER_CORNER_TEST
 from components.estimation.whitening import whiten
-from components.model.noise import AXES, TERMS, NoiseModel, sensor_of
+from components.model.noise import NoiseModel, term_name
 
 SLOW_TERMS = ("bias_instability", "random_walk")
 
@@ -32,7 +32,7 @@ def at_upper_bounds(identification) -> tuple[NoiseModel | None, list[str]]:
     chans = list(identification.model.channels)
     added = []
     for k, c in enumerate(identification.channels):
-        white_iv = identification.model.intervals.get(f"{TERMS[sensor_of(k)]['white'][0]}.{AXES[k % 3]}")
+        white_iv = identification.model.intervals.get(term_name(k, "white"))
         if white_iv is not None and "white" in c.present and not np.isfinite(c.sigma.get("white", np.nan)) \
                 and np.isfinite(white_iv[1]) and white_iv[1] > chans[k].white:
             chans[k] = replace(chans[k], white=float(white_iv[1]))

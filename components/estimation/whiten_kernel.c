@@ -70,7 +70,9 @@ __attribute__((visibility("default"))) long calbench_whiten(
     return 0;
 }
 
-/* The same filter with a transition that turns pairs of states: F_k = diag(phi_k) plus, for each
+/* The same filter with a transition that turns pairs of states (an entry of its own, not this one
+ * with every partner -1: the diagonal filter is the hot path, with no product matrix to hold and
+ * no state to copy): F_k = diag(phi_k) plus, for each
  * state i with partner[i] >= 0, spin_k[i] at (i, partner[i]) (a damped rotation of the pair: the
  * harmonics of a pulse output's count remainder, components.model.noise.block_noise).
  *   g = (F Pc + cross_k) / S_k;  x = F x + g nu';  P = F P F' + diag(q_k) - S_k g g'

@@ -62,6 +62,11 @@ def sensor_of(channel: int) -> str:
     return "gyro" if channel < 3 else "acc"
 
 
+def term_name(channel: int, term: str) -> str:
+    """The vocabulary name of *term* on *channel* (0-5): ``gyro.noise.arw.x``, ``acc.noise.bi.z``."""
+    return f"{TERMS[sensor_of(channel)][term][0]}.{AXES[channel % 3]}"
+
+
 @dataclass(frozen=True)
 class ChannelNoise:
     """The composite noise of one channel (SI, rate units; see the module docstring)."""
