@@ -170,3 +170,59 @@ def test_the_tick_rate_is_known_to_a_samples_advance_at_each_end():
         sd_rate = math.sqrt(2 * frac**2 / 12 / span**2 + noise**2 / span)  # counts a sample
         err = adv[blocks] / (w * per_block) - r
         assert np.all(np.abs(err) <= 3 * sd_rate), (r, err[0], sd_rate)
+
+
+def simulated_counts_under_a_slow_term(rng, rests, nb, per, advance, white, gm_sigma, T):
+    """Per-sample counts as simulated_rest_counts, the input also carrying a Gauss–Markov rate
+    of *gm_sigma* counts a block (RMS) and time constant *T* blocks."""
+    from scipy.signal import lfilter
+
+    phi = math.exp(-1.0 / (per * T))
+    shocks = rng.normal(0, gm_sigma * math.sqrt(1 - phi**2), (rests, nb * per))
+    shocks[:, 0] = rng.normal(0, gm_sigma, rests)  # (stationary from the start)
+    rate = lfilter([1.0], [1.0, -phi], shocks, axis=1)
+    steps = (advance + rate + rng.normal(0, white * math.sqrt(per), (rests, nb * per))) / per
+    phase = np.concatenate([rng.random((rests, 1)), steps], axis=1).cumsum(axis=1)
+    return np.diff(np.floor(phase), axis=1)
+
+
+@pytest.mark.parametrize("advance,gm_sigma,T", [(3.02, 0.36, 20.0), (0.013, 0.36, 300.0), (3.02, 0.05, 2000.0)])
+def test_a_slow_terms_wander_within_the_rest_dithers_the_remainder(advance, gm_sigma, T, monkeypatch):
+    """600 rests of 30 one-second blocks whose rate carries a strong Gauss–Markov term (0.05–0.36
+    counts a block RMS, T 20–2000 s; white noise 0.03 counts a block), the advance read from
+    the ticks: the block sums whitened under the true model have χ² per row at most 1 within its
+    band (the wander's spread, V(h)/h averaged over the lags, is a Markov stand-in for a smooth
+    wander and is allowed to err low by up to 0.1), and the rest rates honest σ. With the
+    harmonics damped by the white noise alone, the strong term's sawtooth is held too sure."""
+    from types import SimpleNamespace
+
+    import components.model.noise as noise_model
+
+    rng = np.random.default_rng(11)
+    rests, nb, per, white = 600, 30, 100, 0.03
+    counts = simulated_counts_under_a_slow_term(rng, rests, nb, per, advance, white, gm_sigma, T)
+    sums = counts.reshape(rests, nb, per).sum(axis=2) * W
+    ch = ChannelNoise(quantization=W / math.sqrt(12), gauss_markov=((gm_sigma * W, T),))
+    rows, x = rest_rows(nb, per), np.ones((nb, 1))
+    advances = [count_advance(SimpleNamespace(count_weight=(W, None), gyro=np.column_stack([c * W, 0 * c, 0 * c]),
+                                              acc=None), rows)["advance"] for c in counts]
+
+    def fit():
+        chi2, z = [], []
+        for y, adv in zip(sums, advances):
+            bn = block_noise(ch, np.ones(nb), np.full(nb, (white * W) ** 2), 1e4, 1.0, adv)
+            w, _ = whiten_channel(np.column_stack([y, x]), bn)
+            yw, hw = w[:, 0], w[:, 1]
+            rate = (hw @ yw) / (hw @ hw)
+            chi2.append(float(np.sum((yw - hw * rate) ** 2)) / (nb - 1))
+            z.append((rate - advance * W) * math.sqrt(hw @ hw))
+        return float(np.mean(chi2)), float(np.sqrt(np.mean(np.square(z))))
+
+    top = 1 + 2 * 3 * math.sqrt(2 / (rests * (nb - 1)))  # (×2: the rows within a rest correlate)
+    band = math.sqrt(1 + 3 * math.sqrt(2 / rests))
+    chi2, rms = fit()
+    assert 0.9 <= chi2 <= top, chi2
+    assert 1 / band <= rms <= band, rms
+    if T < nb:
+        monkeypatch.setattr(noise_model, "slow_wander_in_rest", lambda ch, d, *a: np.zeros(len(d)))
+        assert fit()[0] > 1.5, "the white noise alone should hold the sawtooth too sure"
