@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -420,11 +421,14 @@ def slow_wander_in_rest(ch: ChannelNoise, d: np.ndarray, rest: np.ndarray, span:
     for W in np.unique(rest[np.isfinite(rest)]):
         at = rest == W
         n = int(min(max(round(W / float(np.mean(d[at]))), 1), WANDER_CELLS))  # (the rest's blocks)
-        out[at] = _wander_rate(terms, ch.random_walk, W, n) * d[at]
+        # (to four digits of the rest's length: a jittered clock makes every rest's a little
+        # different, and the rate is smooth in it)
+        out[at] = _wander_rate(tuple(terms), float(ch.random_walk), float(f"{W:.4g}"), n) * d[at]
     return out
 
 
-def _wander_rate(terms, random_walk: float, W: float, n: int) -> float:
+@lru_cache(maxsize=4096)
+def _wander_rate(terms: tuple, random_walk: float, W: float, n: int) -> float:
     """The mean over lags h = kc (c = W/n, k = 1..n) of V(h)/h [unit² s], V the variance of the
     slow terms' integral over h less the rest's mean rate times h, averaged over where h starts."""
     c = W / n
@@ -487,10 +491,13 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
         count = Q * math.sqrt(12.0)
         advance = np.asarray(advance, float)
         # the phase spread over a block: its white noise, and the slow terms' wander within the
-        # rest beyond the rest's mean rate (which the tick-read advance holds)
-        wander = np.asarray(white_var, float) + slow_wander_in_rest(ch, d, rest_spans(d, advance), span, t_lo)
-        spread = np.where(np.isfinite(advance), wander / count**2, np.nan)
+        # rest beyond the rest's mean rate (which the tick-read advance holds); the wander only
+        # adds, so where the white noise alone dithers every harmonic (fine counts) it is not needed
+        spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
         n = kept_harmonics(spread)
+        if n:
+            spread = spread + slow_wander_in_rest(ch, d, rest_spans(d, advance), span, t_lo) / count**2
+            n = kept_harmonics(spread)
         if n:
             form = remainder_form(count, advance / count, spread, n)
             Q = math.sqrt(form.independent)
