@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from components.estimation import order_statistics
-from components.estimation.order_statistics import DIRECT_BELOW, SAMPLE, median
+from components.estimation.order_statistics import BINS, DIRECT_BELOW, SAMPLE, median
 
 N = 3 * DIRECT_BELOW + 7          # odd
 STRIDE = N // SAMPLE
@@ -32,6 +32,8 @@ def _arrays():
     ties = np.where(np.arange(N) % STRIDE == 0, 0.0, rng.standard_normal(N))
     yield "sample on a tie", ties
     yield "two values, middle on their boundary", np.repeat([1.0, 2.0], N // 2)
+    # a regular clock's intervals: alike but for their last bits, so any bracket holds them all
+    yield "a regular clock's intervals", np.diff(12345.0 + np.arange(N + 1) * 1e-3)
 
 
 @pytest.mark.parametrize("name,values", list(_arrays()), ids=[n for n, _ in _arrays()])
@@ -70,3 +72,23 @@ def test_the_median_of_pieces_is_numpys_whatever_the_cuts_and_the_sample(name, v
     for sample in (values[::stride(len(values))], np.sort(values)[:SAMPLE]):
         got = median_of_pieces(lambda: iter(parts), len(values), sample)
         assert got == expected, (name, got, expected)
+
+
+@pytest.mark.parametrize("name,values", list(_arrays()), ids=[n for n, _ in _arrays()])
+def test_a_bracket_too_full_to_hold_is_narrowed_by_its_bins(name, values, monkeypatch):
+    """With a bracket allowed to hold only 1000 values, np.median's value still, bit for bit,
+    and no piece of values gathered beyond that many (memory bounded whatever the log's length)."""
+    from components.estimation.order_statistics import median_of_pieces, stride
+
+    monkeypatch.setattr(order_statistics, "MOST_INSIDE", 1000)
+    held = []
+    real_concatenate = np.concatenate
+    monkeypatch.setattr(order_statistics.np, "concatenate",
+                        lambda arrays, *a, **k: held.append(sum(len(x) for x in arrays)) or real_concatenate(arrays, *a, **k))
+    parts = np.array_split(values, 37)
+    expected = np.median(values)
+    for sample in (values[::stride(len(values))], np.sort(values)[:SAMPLE], np.zeros(0)):
+        held.clear()
+        got = median_of_pieces(lambda: iter(parts), len(values), sample)
+        assert got == expected, (name, got, expected)
+        assert all(h <= 1000 for h in held if h != BINS + 1), (name, held)
