@@ -196,7 +196,7 @@ def test_a_slow_terms_wander_within_the_rest_dithers_the_remainder(advance, gm_s
     harmonics damped by the white noise alone, the strong term's sawtooth is held too sure."""
     from types import SimpleNamespace
 
-    import components.model.noise as noise_model
+    import components.model.noise as noise_model  # (where block_noise looks the wander up)
 
     rng = np.random.default_rng(11)
     rests, nb, per, white = 600, 30, 100, 0.03
@@ -224,5 +224,24 @@ def test_a_slow_terms_wander_within_the_rest_dithers_the_remainder(advance, gm_s
     assert 0.9 <= chi2 <= top, chi2
     assert 1 / band <= rms <= band, rms
     if T < nb:
-        monkeypatch.setattr(noise_model, "slow_wander_in_rest", lambda ch, d, *a: np.zeros(len(d)))
+        monkeypatch.setattr(noise_model, "slow_wander_in_rest", lambda terms, rw, d, rest: np.zeros(len(d)))
         assert fit()[0] > 1.5, "the white noise alone should hold the sawtooth too sure"
+
+
+def test_the_wander_of_a_fast_term_is_white_and_of_a_random_walk_the_slow_limit():
+    """slow_wander_in_rest's spread per second against closed forms: a Gauss–Markov term far
+    faster than a block is white noise of density 2σ²T, whose phase over m of a rest's n blocks,
+    its mean removed, has variance m q (1 − m/n) — V(h)/h averaged over the lags is 2σ²T (n−1)/2n;
+    a rate random walk K is the limit T → ∞ of a term of variance K²T/2 (its own formula)."""
+    from components.model.rest_wander import slow_wander_in_rest
+
+    n, d = 30, np.ones(30)
+    rest = np.full(n, float(n))
+    sigma, T = 0.3, 1e-3
+    got = slow_wander_in_rest([(sigma, T)], 0.0, d, rest)
+    assert np.allclose(got, 2 * sigma**2 * T * (n - 1) / (2 * n), rtol=2e-3), got[0]
+    K, T_long = 1e-3, 1e8
+    walk = slow_wander_in_rest([], K, d, rest)
+    limit = slow_wander_in_rest([(K * math.sqrt(T_long / 2), T_long)], 0.0, d, rest)
+    assert np.allclose(walk, limit, rtol=1e-4), (walk[0], limit[0])
+    assert np.all(slow_wander_in_rest([(sigma, T)], K, d, np.full(n, np.nan)) == 0)  # not at rest

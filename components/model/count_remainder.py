@@ -12,8 +12,8 @@ taking the remainders as independent reads as a rate error several of its σ wid
 
 Each harmonic n of r is a pair of states (cos 2πnφ, sin 2πnφ), variance ½ each at a uniform
 phase, which a block with advance Δ (counts) turns by 2πnΔ and the noise within it dithers (the
-white noise, and the slow terms' wander about the rest's mean rate: components.model.noise,
-slow_wander_in_rest): a phase spread s² (counts²) damps the pair by ρ = exp(−2π²n²s²), and the process noise
+white noise, and the slow terms' wander about the rest's mean rate:
+components.model.rest_wander): a phase spread s² (counts²) damps the pair by ρ = exp(−2π²n²s²), and the process noise
 (1 − ρ²)/2 per state keeps it stationary. A block where the advance is not known (a move: the
 phase after it is anybody's) damps every harmonic to nothing. Harmonics that no block damps less
 than :data:`KEPT_DAMPING` (fine counts, or the high harmonics of any count under noise) forget
@@ -51,21 +51,6 @@ class RemainderForm:
     rest: np.ndarray
     p0: np.ndarray
     independent: float
-
-
-def rest_spans(durations: np.ndarray, advance: np.ndarray) -> np.ndarray:
-    """Each block's rest length [s] (NaN where the advance is not known): a rest is a run of
-    blocks with a known advance at one rate (count_phase reads one rate per rest, so two rests
-    with no move between them still differ in it)."""
-    d = np.asarray(durations, float)
-    adv = np.asarray(advance, float)
-    known = np.isfinite(adv)
-    rate = np.where(known, adv, 0.0) / d
-    same = np.zeros(len(d), bool)  # the block continues the rest before it
-    same[1:] = known[1:] & known[:-1] & np.isclose(rate[1:], rate[:-1], rtol=1e-9, atol=0.0)
-    rest_id = np.cumsum(~same)
-    span = np.bincount(rest_id, weights=d)[rest_id]
-    return np.where(known, span, np.nan)
 
 
 def kept_harmonics(spread: np.ndarray) -> int:

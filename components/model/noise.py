@@ -34,13 +34,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 
-from components.model.count_remainder import kept_harmonics, remainder_form, rest_spans
+from components.model.count_remainder import kept_harmonics, remainder_form
 from components.model.effects import DEG, DEG_H, UG
 from components.model.flicker import FLICKER_AVAR, flicker_terms, gm_avar
+from components.model.rest_wander import rest_spans, slow_wander_in_rest
 
 CHANNELS = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
 AXES = "xyz"
@@ -393,68 +393,6 @@ def flicker_upper(span: float, t_lo: float) -> float:
     return max(span, FLICKER_HORIZON, 2 * t_lo)
 
 
-# the cells a rest is cut into to measure the slow terms' wander in it (its blocks, up to this)
-WANDER_CELLS = 64
-
-
-def slow_wander_in_rest(ch: ChannelNoise, d: np.ndarray, rest: np.ndarray, span: float,
-                        t_lo: float) -> np.ndarray:
-    """The variance [unit² s²] by which the slow terms spread a block's phase beyond the mean rate
-    over its rest: blocks of durations *d* in rests of *rest* seconds (NaN: not at rest; 0 there).
-
-    What turns a pulse count's remainder through a rest is the advance read from the rest's
-    ticks (components.estimation.count_phase), which holds the slow terms' mean over the rest;
-    only their wander about that mean dithers the phase. That wander is smooth: its phase
-    variance V(h) over a lag h grows faster than h, which the harmonics' damping block by block
-    (a spread proportional to the lag) cannot follow. The spread per second is taken as V(h)/h
-    averaged over the lags in the rest — on simulated rests under strong Gauss–Markov terms
-    (T of 10 s to 2000 s on 30 s rests) the block sums' χ² per row came out at 0.91–0.98; with
-    the spread of one block's lag alone 0.98–1.14, and with the white noise's alone up to 2.2.
-    V is computed from the terms' covariance on up to :data:`WANDER_CELLS` equal cells of the
-    rest with the rest's mean removed (a random walk's, non-stationary, the same way)."""
-    d = np.asarray(d, float)
-    rest = np.asarray(rest, float)
-    out = np.zeros(len(d))
-    terms = ch.gm_terms(t_lo, flicker_upper(span, t_lo))
-    if not terms and ch.random_walk <= 0:
-        return out
-    for W in np.unique(rest[np.isfinite(rest)]):
-        at = rest == W
-        n = int(min(max(round(W / float(np.mean(d[at]))), 1), WANDER_CELLS))  # (the rest's blocks)
-        # (to four digits of the rest's length: a jittered clock makes every rest's a little
-        # different, and the rate is smooth in it)
-        out[at] = _wander_rate(tuple(terms), float(ch.random_walk), float(f"{W:.4g}"), n) * d[at]
-    return out
-
-
-@lru_cache(maxsize=4096)
-def _wander_rate(terms: tuple, random_walk: float, W: float, n: int) -> float:
-    """The mean over lags h = kc (c = W/n, k = 1..n) of V(h)/h [unit² s], V the variance of the
-    slow terms' integral over h less the rest's mean rate times h, averaged over where h starts."""
-    c = W / n
-    k = np.arange(n)
-    lag = np.abs(k[:, None] - k[None, :])
-    C = np.zeros((n, n))  # the cells' mean rates
-    for s, T in terms:
-        a = math.exp(-c / T)
-        x = c / T
-        C += np.where(lag == 0, s**2 * 2 * (x + math.expm1(-x)) / x**2,
-                      s**2 * (T / c) ** 2 * (1 - a) ** 2 * a ** (np.maximum(lag, 1) - 1))
-    if random_walk > 0:
-        lo = np.minimum(k[:, None], k[None, :])
-        C += random_walk**2 * c * (lo + np.where(lag == 0, 1 / 3, 1 / 2))
-    P = np.eye(n) - 1.0 / n
-    S = c**2 * (P @ C @ P)  # the cells' phase beyond the mean rate
-    Z = np.zeros((n + 1, n + 1))
-    Z[1:, 1:] = S.cumsum(0).cumsum(1)
-    rates = []
-    for m in range(1, n + 1):
-        j = np.arange(n - m + 1)
-        V = Z[j + m, j + m] - Z[j, j + m] - Z[j + m, j] + Z[j, j]
-        rates.append(float(V.mean()) / (m * c))
-    return max(float(np.mean(rates)), 0.0)
-
-
 def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, span: float,
                 t_lo: float, advance: np.ndarray | None = None) -> BlockNoise:
     """The discrete form of *ch* on blocks of *durations* [s] (contiguous, in time order).
@@ -496,7 +434,8 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
         spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
         n = kept_harmonics(spread)
         if n:
-            spread = spread + slow_wander_in_rest(ch, d, rest_spans(d, advance), span, t_lo) / count**2
+            terms = ch.gm_terms(t_lo, flicker_upper(span, t_lo))
+            spread = spread + slow_wander_in_rest(terms, ch.random_walk, d, rest_spans(d, advance)) / count**2
             n = kept_harmonics(spread)
         if n:
             form = remainder_form(count, advance / count, spread, n)
