@@ -305,7 +305,7 @@ def check_samples(cols: dict[str, np.ndarray], meta: dict, where: str, row) -> N
     # the intervals a piece at a time too: the whole log's differences and masks were 0.9 s of
     # fresh pages on an 8-hour log; the first offending row is the same
     first_off = None
-    for s in pieces(len(t) - 1):
+    for s in pieces(len(t) - 1, t):
         dt = np.diff(t[s.start:s.stop + 1])
         if not (dt > 0).all():
             i = s.start + int(np.argmax(~(dt > 0))) + 1
