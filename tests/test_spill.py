@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import errno
 import os
+import sys
 import tomllib
 
 import numpy as np
@@ -369,3 +370,35 @@ def test_a_damaged_parquet_log_is_refused_not_read_as_zeros(tmp_path, monkeypatc
     monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", spilled)
     with pytest.raises(LogFormatError, match=r"written\.parquet: .*cannot be read"):
         read_log(src, lean=True)
+
+
+def _resident_bytes(array) -> int:
+    """The resident bytes of the mapping *array* lies in (Linux: /proc/self/smaps)."""
+    at = array.ctypes.data
+    with open("/proc/self/smaps") as f:
+        inside = False
+        for line in f:
+            head = line.split()[0]
+            if "-" in head and all(c in "0123456789abcdef-" for c in head):
+                lo, hi = (int(x, 16) for x in head.split("-"))
+                inside = lo <= at < hi
+            elif inside and line.startswith("Rss:"):
+                return int(line.split()[1]) * 1024
+    raise AssertionError("no mapping holds the array")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/smaps")
+def test_the_sample_checks_give_back_a_spilled_time_columns_pages():
+    """check_samples reads a spilled time column a piece at a time and gives each piece's pages
+    back: after it, at most about a piece of the column is resident (before, its interval pass
+    left the whole column in: 32 MB here, 242 MB on an 8-hour 1 kHz log)."""
+    from components.logs.rules import check_samples
+    from components.logs.spill import PIECE, release, spilled_array, write_rows
+
+    n = 16 * PIECE
+    t = spilled_array((n,))
+    write_rows(t, 0, np.arange(1, n + 1) * 1e-3)  # (through the file: no page mapped yet)
+    release(t)
+    meta = {"sample_rate_hz": 1000.0, "gyro_output": "increment", "acc_output": "increment"}
+    check_samples({"time": t}, meta, "a log", lambda i: f"row {i + 1}")
+    assert _resident_bytes(t) <= 2 * PIECE * t.itemsize, _resident_bytes(t)
