@@ -38,8 +38,7 @@ def median(values: np.ndarray, *, overwrite_input: bool = False) -> float:
     if n < DIRECT_BELOW:
         return float(np.median(d, overwrite_input=overwrite_input))
     # a piece at a time: a spilled array's pages go back after each (components.logs.spill)
-    return median_of_pieces(lambda: (d[s] for s in pieces(n, d)), n, d[::stride(n)],
-                            whole=lambda: float(np.median(d, overwrite_input=overwrite_input)))
+    return median_of_pieces(lambda: (d[s] for s in pieces(n, d)), n, d[::stride(n)])
 
 
 def median_of_pieces(pieces, n: int, sample: np.ndarray, whole=None) -> float:

@@ -407,7 +407,8 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
     nb = len(d)
     cols_phi, cols_q, cols_c, cols_x, p0 = [], [], [], [], []
     rest = np.asarray(white_var, float).copy()
-    for s, T in ch.gm_terms(t_lo, flicker_upper(span, t_lo)):
+    terms = ch.gm_terms(t_lo, flicker_upper(span, t_lo))
+    for s, T in terms:
         phi = np.exp(-d / T)
         cols_phi.append(phi)
         cols_q.append(s**2 * (1 - phi**2))
@@ -434,7 +435,6 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
         spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
         n = kept_harmonics(spread)
         if n:
-            terms = ch.gm_terms(t_lo, flicker_upper(span, t_lo))
             spread = spread + slow_wander_in_rest(terms, ch.random_walk, d, rest_spans(d, advance)) / count**2
             n = kept_harmonics(spread)
         if n:
