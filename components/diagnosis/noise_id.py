@@ -28,7 +28,7 @@ from components.estimation.chunks import forked_map
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel, white_ceiling
 from components.estimation.noise_likelihood import VARIANCE_REACH, family_critical, fit_slow_terms
-from components.estimation.whitening import channel_rows
+from components.estimation.whitening import block_timing, channel_rows
 from components.logs.spill import release
 from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of, term_name
 
@@ -170,7 +170,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         idx = channel_rows(rows, k)
         H = rows["H"][idx]
         active = np.any(H != 0, axis=0)
-        durations = (rows["stop"][idx] - rows["start"][idx]) * dt
+        durations, gaps = block_timing(rows, idx, dt)
         base = replace(chans[k], bias_instability=0.0, random_walk=0.0, gauss_markov=())
         # (the count remainder as independent here, not turning: the advance read from the same
         # counts sets part of what the block sums show, and the white level the scale measures
@@ -178,7 +178,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         # logs, a false verdict on 6 of 20 with the datasheet's slow terms over it; independent,
         # 6.7e-7 and 19 of 20, no false verdict)
         return fit_slow_terms(base, rows["y"][idx], H[:, active], durations, 1.0 / rows["weight"][idx] ** 2, span,
-                              chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden)
+                              chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden, gaps=gaps)
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
@@ -279,9 +279,9 @@ def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[
             idx = channel_rows(rows, k)
             H = rows["H"][idx]
             Hc = H[:, np.any(H != 0, axis=0)]
-            durations = (rows["stop"][idx] - rows["start"][idx]) * dt
+            durations, gaps = block_timing(rows, idx, dt)
             ch, rep = fit_slow_terms(replace(chans[k], **{field_: 0.0}), rows["y"][idx], Hc, durations,
-                                     1.0 / rows["weight"][idx] ** 2, span, chunk_s, [field_])
+                                     1.0 / rows["weight"][idx] ** 2, span, chunk_s, [field_], gaps=gaps)
             r = rep[field_]
             chans[k] = replace(ch, **{field_: r["value"]})
             report[f"{term}.{AXES[k % 3]}"] = r

@@ -12,7 +12,7 @@ import numpy as np
 from components import progress
 from components.estimation.distributions import chi2_isf
 from components.estimation.noise_likelihood import fit_one_term
-from components.estimation.whitening import advance_of, channel_rows
+from components.estimation.whitening import advance_of, block_timing, channel_rows
 from components.model.noise import TERM_OF_NAME, NoiseModel
 
 # noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)
@@ -51,9 +51,9 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
                 idx = channel_rows(rows, k)
                 Hc = H[idx][:, cols] if cols else np.zeros((len(idx), 0))
                 active = np.any(Hc != 0, axis=0)
-                durations = (rows["stop"][idx] - rows["start"][idx]) * design.dt
+                durations, gaps = block_timing(rows, idx, design.dt)
                 value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,
-                                        design.span, design.t_lo, advance=advance_of(rows, idx))
+                                        design.span, design.t_lo, advance=advance_of(rows, idx), gaps=gaps)
                 chans[k] = replace(chans[k], **{field_: value})
                 gain += g
                 values.append(value)

@@ -10,7 +10,9 @@ last, the input advanced by the counts in between to within one sample's advance
 (a tick says the phase crossed a whole count during that sample); so the rate is those counts
 over those samples. A channel that counts several a sample is read the same way from what it
 counts beyond the whole number every sample has. Moves, and the rests of a channel that is not a
-pulse output, have no advance (NaN): the remainder after a move is taken as new.
+pulse output, have no advance (NaN): the remainder after a move is taken as new. A rest ends also
+where samples are left out inside it (block_noise's gaps); each side is read at its own rate and
+the phase after the gap is taken as new.
 
 The advance so read is taken as exact. Its error is one rate over the rest, a phase error growing
 with the lag, which no state of a linear filter carries; spread as a wander instead, it damped the

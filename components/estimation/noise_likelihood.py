@@ -53,12 +53,12 @@ def family_critical(tests: int, alpha: float = 0.01) -> float:
 
 def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                       white_var: np.ndarray, span: float, t_lo: float, restricted: bool = True,
-                      advance: np.ndarray | None = None) -> float:
+                      advance: np.ndarray | None = None, gaps: np.ndarray | None = None) -> float:
     """ℓ of one channel's rows under *ch* (see the module docstring); ``restricted=False``: the
     ordinary log-likelihood at the GLS estimate, −½ [log det C + min_θ ‖y − H θ‖²_C] (the one that
     compares models with different columns). ``advance``: a pulse output's count phase through
-    the rests (components.model.noise.block_noise)."""
-    bn = block_noise(ch, durations, white_var, span, t_lo, advance)
+    the rests, ``gaps`` [s]: what lies between the blocks (components.model.noise.block_noise)."""
+    bn = block_noise(ch, durations, white_var, span, t_lo, advance, gaps)
     w, S = whiten_channel(np.column_stack([y, H]), bn)
     yw, Hw = w[:, 0], w[:, 1:]
     out = -0.5 * (np.sum(np.log(S)) + yw @ yw)
@@ -75,7 +75,7 @@ def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations:
 def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                    white_var: np.ndarray, span: float, t_lo: float, terms=SLOW,
                    restricted: bool = True, critical: float = LR_CRITICAL,
-                   variance_bound: bool = False) -> tuple[ChannelNoise, dict]:
+                   variance_bound: bool = False, gaps: np.ndarray | None = None) -> tuple[ChannelNoise, dict]:
     """*ch* with the magnitudes of *terms* re-estimated by (restricted) maximum likelihood, and
     the terms the data do not need dropped one at a time (backward elimination: bias instability
     and random walk can stand in for each other, so a term's likelihood ratio is taken against
@@ -93,7 +93,8 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         return math.exp(min(max(v, -VARIANCE_REACH), VARIANCE_REACH))
 
     def loglik(c: ChannelNoise, v: float = 0.0) -> float:
-        return restricted_loglik(c, y, H, durations, white_var * variance_scale(v), span, t_lo, restricted)
+        return restricted_loglik(c, y, H, durations, white_var * variance_scale(v), span, t_lo, restricted,
+                                 gaps=gaps)
 
     # x = [magnitudes of the active terms (log), the floor's corner (log) if it is active, v]:
     # v (log) scales the blocks' independent variance, a nuisance refitted with every model, so
@@ -414,13 +415,13 @@ def _inverse_curvature(nll, x: np.ndarray, f0: float, h: float = 1e-2) -> np.nda
 
 def fit_one_term(ch: ChannelNoise, term: str, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                  white_var: np.ndarray, span: float, t_lo: float, restricted: bool = False,
-                 advance: np.ndarray | None = None) -> tuple[float, float]:
+                 advance: np.ndarray | None = None, gaps: np.ndarray | None = None) -> tuple[float, float]:
     """(magnitude, gain in log-likelihood) of one noise term added to *ch* on these rows: a
     bounded one-dimensional maximum over the log magnitude (the flicker floor from *t_lo*). The
     ordinary likelihood by default: the gain compares with a missing effect's ½ Δχ²."""
     from scipy.optimize import minimize_scalar
 
-    base = restricted_loglik(ch, y, H, durations, white_var, span, t_lo, restricted, advance)
+    base = restricted_loglik(ch, y, H, durations, white_var, span, t_lo, restricted, advance, gaps)
     level = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
     if term == "random_walk":
         level /= math.sqrt(span)
@@ -428,7 +429,7 @@ def fit_one_term(ch: ChannelNoise, term: str, y: np.ndarray, H: np.ndarray, dura
 
     def nll(x):
         return -restricted_loglik(replace(ch, **{term: math.exp(x)}), y, H, durations, white_var, span, t_lo,
-                                  restricted, advance)
+                                  restricted, advance, gaps)
 
     r = minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-2})
     gain = -r.fun - base

@@ -88,6 +88,20 @@ def channel_rows(rows: dict, channel: int) -> np.ndarray:
     return np.nonzero((rows["sensor"] == sensor) & (rows["axis"] == channel % 3))[0]
 
 
+def block_timing(rows: dict, idx: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(durations, gaps) [s] of the rows *idx* (one channel's, in block order) for
+    components.model.noise.block_noise: each block's length and what lies between it and the
+    block before (left-out samples, a dropped move; 0 for the first)."""
+    start, stop = rows["start"][idx], rows["stop"][idx]
+    gaps = np.zeros(len(idx))
+    gaps[1:] = (start[1:] - stop[:-1]) * dt
+    if np.any(gaps < 0):
+        k = int(np.argmax(gaps < 0))
+        raise ValueError(f"block rows out of time order: row {idx[k + 1]} starts at sample {start[k + 1]}, before "
+                         f"row {idx[k]} ends at {stop[k]}")
+    return (stop - start) * dt, gaps
+
+
 def advance_of(rows: dict, idx: np.ndarray) -> np.ndarray | None:
     """The advance of the rows *idx* (one channel's, in block order) for
     components.model.noise.block_noise (a pulse output's count phase through its rests,
@@ -116,8 +130,8 @@ def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, nois
         idx = channel_rows(rows, ch)
         if len(idx) == 0:
             continue
-        durations = (rows["stop"][idx] - rows["start"][idx]) * dt
-        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo, advance_of(rows, idx))
+        durations, gaps = block_timing(rows, idx, dt)
+        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo, advance_of(rows, idx), gaps)
         vals, s = whiten_channel(np.column_stack([y[idx], H[idx]]), bn)
         yw[idx], Hw[idx], S[idx] = vals[:, 0], vals[:, 1:], s
     return yw, Hw, S

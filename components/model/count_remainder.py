@@ -65,12 +65,17 @@ def kept_harmonics(spread: np.ndarray) -> int:
     return min(MAX_HARMONICS, int(math.floor(math.sqrt(math.log(1 / KEPT_DAMPING) / (2 * math.pi**2 * least)))))
 
 
-def remainder_form(count: float, advance: np.ndarray, spread: np.ndarray, harmonics: int) -> RemainderForm:
+def remainder_form(count: float, advance: np.ndarray, spread: np.ndarray, harmonics: int,
+                   joined: np.ndarray | None = None) -> RemainderForm:
     """The form of a count *count* (w, in the channel's unit) with *harmonics* kept, on blocks of
-    phase *advance* (counts; NaN where unknown) and phase spread *spread* (counts²)."""
+    phase *advance* (counts; NaN where unknown) and phase spread *spread* (counts²). ``joined``
+    (B,) bool: the block ends where the next one starts (None: all do); after one that does not,
+    the next rest's phase is anybody's — its rate is read anew (components.estimation.count_phase)
+    and what the phase turned through the gap is not known to a count."""
     adv = np.asarray(advance, float)
     nb = len(adv)
     known = np.isfinite(adv) & np.isfinite(spread)
+    joined = np.ones(nb, bool) if joined is None else np.asarray(joined, bool)
     cols = {k: [] for k in ("phi", "spin", "q", "c", "cross")}
     partner, rest, carried = [], np.zeros(nb), 0.0
     for n in range(1, harmonics + 1):
@@ -80,13 +85,15 @@ def remainder_form(count: float, advance: np.ndarray, spread: np.ndarray, harmon
         cos, sin = np.cos(turn), np.sin(turn)
         fresh = (1 - rho**2) / 2
         i = len(partner)
-        # cosine state, then sine state: F = ρ [[cos, −sin], [sin, cos]]
-        cols["phi"] += [rho * cos, rho * cos]
-        cols["spin"] += [-rho * sin, rho * sin]
+        # cosine state, then sine state: F = ρ [[cos, −sin], [sin, cos]]; across a gap the block's
+        # sum still loads its own end (turned from its start), but the next state is new
+        hold = np.where(joined, rho, 0.0)
+        cols["phi"] += [hold * cos, hold * cos]
+        cols["spin"] += [-hold * sin, hold * sin]
         partner += [i + 1, i]
-        cols["q"] += [fresh, fresh]
+        cols["q"] += [np.where(joined, fresh, 0.5)] * 2
         cols["c"] += [rho * beta * sin, -beta + rho * beta * cos]
-        cols["cross"] += [np.zeros(nb), fresh * beta]
+        cols["cross"] += [np.zeros(nb), np.where(joined, fresh * beta, 0.0)]
         rest += beta**2 * fresh
         carried += beta**2 / 2  # the harmonic's share of var(w r) at a boundary
     stack = {k: np.column_stack(v) if v else np.zeros((nb, 0)) for k, v in cols.items()}

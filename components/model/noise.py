@@ -394,8 +394,10 @@ def flicker_upper(span: float, t_lo: float) -> float:
 
 
 def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, span: float,
-                t_lo: float, advance: np.ndarray | None = None) -> BlockNoise:
-    """The discrete form of *ch* on blocks of *durations* [s] (contiguous, in time order).
+                t_lo: float, advance: np.ndarray | None = None, gaps: np.ndarray | None = None) -> BlockNoise:
+    """The discrete form of *ch* on blocks of *durations* [s] in time order, each *gaps* [s]
+    after the one before it (None: contiguous; samples left out — a gap in the clock, the mask,
+    an exclusion, a dropped move — lie between blocks, and the state runs on through them).
     ``white_var`` (B,): the block sums' variance from white noise and anything else independent
     per block (rest angles); ``span`` [s]: the log's duration (a floor without a range of its own
     is realised up to :func:`flicker_upper`, and the random walk's starting value has that much
@@ -405,21 +407,25 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
     turns through the rests (components.model.count_remainder)."""
     d = np.asarray(durations, float)
     nb = len(d)
+    # what lies between a block's end and the next one's start: a state's transition spans both
+    after = np.zeros(nb) if gaps is None else np.append(np.asarray(gaps, float)[1:], 0.0)
+    joined = after == 0  # the block's end is the next one's start
     cols_phi, cols_q, cols_c, cols_x, p0 = [], [], [], [], []
     rest = np.asarray(white_var, float).copy()
     terms = ch.gm_terms(t_lo, flicker_upper(span, t_lo))
     for s, T in terms:
         phi = np.exp(-d / T)
-        cols_phi.append(phi)
-        cols_q.append(s**2 * (1 - phi**2))
+        on = np.exp(-after / T)  # (the decay through the gap after the block)
+        cols_phi.append(phi * on)
+        cols_q.append(s**2 * (1 - (phi * on) ** 2))
         cols_c.append(T * (1 - phi))
-        cols_x.append(s**2 * T * (1 - phi) ** 2)
+        cols_x.append(s**2 * T * (1 - phi) ** 2 * on)
         rest += s**2 * T * (2 * d - T * (3 - 4 * phi + phi**2))
         p0.append(s**2)
     K = ch.random_walk
     if K > 0:
         cols_phi.append(np.ones(nb))
-        cols_q.append(K**2 * d)
+        cols_q.append(K**2 * (d + after))
         cols_c.append(d.copy())
         cols_x.append(K**2 * d**2 / 2)
         rest += K**2 * d**3 / 3
@@ -435,19 +441,20 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
         spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
         n = kept_harmonics(spread)
         if n:
-            spread = spread + slow_wander_in_rest(terms, ch.random_walk, d, rest_spans(d, advance)) / count**2
+            spread = spread + slow_wander_in_rest(terms, ch.random_walk, d, rest_spans(d, advance, joined)) / count**2
             n = kept_harmonics(spread)
         if n:
-            form = remainder_form(count, advance / count, spread, n)
+            form = remainder_form(count, advance / count, spread, n, joined)
             Q = math.sqrt(form.independent)
             rest += form.rest
     if Q > 0:
         # the state is the remainder at the block's start; the new one (at its end) is the next
-        # state's process noise and enters this block's sum with the opposite sign
+        # state's process noise, unless a gap lies between, and enters this block's sum with the
+        # opposite sign
         cols_phi.append(np.zeros(nb))
         cols_q.append(np.full(nb, Q**2))
         cols_c.append(np.ones(nb))
-        cols_x.append(np.full(nb, -(Q**2)))
+        cols_x.append(np.where(joined, -(Q**2), 0.0))
         rest += Q**2
         p0.append(Q**2)
 

@@ -10,16 +10,16 @@ from functools import lru_cache
 import numpy as np
 
 
-def rest_spans(durations: np.ndarray, advance: np.ndarray) -> np.ndarray:
+def rest_spans(durations: np.ndarray, advance: np.ndarray, joined: np.ndarray | None = None) -> np.ndarray:
     """Each block's rest length [s] (NaN where the advance is not known): a rest is a run of
-    blocks with a known advance at one rate (count_phase reads one rate per rest, so two rests
-    with no move between them still differ in it)."""
+    blocks with a known advance, each starting where the one before it ended (``joined`` (B,)
+    bool: the block ends where the next one starts; None: all do) — count_phase's rests, each
+    read at its own rate."""
     d = np.asarray(durations, float)
-    adv = np.asarray(advance, float)
-    known = np.isfinite(adv)
-    rate = np.where(known, adv, 0.0) / d
+    known = np.isfinite(np.asarray(advance, float))
+    joined = np.ones(len(d), bool) if joined is None else np.asarray(joined, bool)
     same = np.zeros(len(d), bool)  # the block continues the rest before it
-    same[1:] = known[1:] & known[:-1] & np.isclose(rate[1:], rate[:-1], rtol=1e-9, atol=0.0)
+    same[1:] = known[1:] & known[:-1] & joined[:-1]
     rest_id = np.cumsum(~same)
     span = np.bincount(rest_id, weights=d)[rest_id]
     return np.where(known, span, np.nan)
