@@ -463,3 +463,35 @@ def test_a_white_level_the_blocks_do_not_bound_below_has_its_one_and_three_sigma
     assert upper3 > upper
     deviance3 = 2 * (profile(upper3) - at_max)
     assert deviance3 == pytest.approx(9.0, abs=0.3), (upper3, deviance3)
+
+
+@pytest.mark.parametrize("rw,present", [(0.1, False), (0.2, True)])
+def test_a_terms_likelihood_ratio_is_its_tests_whether_kept_or_dropped(rw, present):
+    """The likelihood ratio reported for a slow term — kept, or dropped by its presence test —
+    is 2 (max ℓ with it − max ℓ without), both maxima found here by a separate search over the
+    term's magnitude and the blocks' variance scale: 20 minutes of 1 s blocks, white noise 10 µg
+    and a random walk weak enough that the test drops it (LR ~1.3 against 5.41) or keeps it."""
+    from scipy.optimize import minimize
+
+    from components.estimation.noise_likelihood import restricted_loglik
+
+    rng = np.random.default_rng(0)
+    nb, per, N = 1200, int(1 / DT), 10 * UG
+    y, H = _blocks(record(nb * per, rng, white=N, rw=rw * UG), nb, per)
+    d = np.ones(nb)
+    wv = N**2 * d
+    _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, wv, float(nb), 1.0, terms=("random_walk",))
+    r = rep["random_walk"]
+    assert r["present"] == present
+
+    def nll(K: float, v: float) -> float:
+        return -restricted_loglik(ChannelNoise(white=N, random_walk=K), y, H, d, wv * math.exp(v), float(nb), 1.0)
+
+    opts = {"xatol": 1e-6, "fatol": 1e-8}
+    with_term = min((minimize(lambda z: nll(math.exp(z[0]), z[1]), [math.log(s * UG), 0.0], method="Nelder-Mead",
+                              options=opts) for s in (0.03, 0.1, 0.3, 1.0)), key=lambda o: o.fun)
+    without = minimize(lambda z: nll(0.0, z[0]), [0.0], method="Nelder-Mead", options=opts)
+    lr = 2 * (without.fun - with_term.fun)
+    assert (lr > r["critical"]) == present
+    assert r["likelihood_ratio"] == pytest.approx(lr, abs=0.01)
+    assert lr > 0.5  # (a dropped term's ratio is not simply 0)

@@ -59,25 +59,29 @@ class NoiseIdentification:
         """The identified terms per channel in readable units, with σ; absent terms with their
         upper bound."""
         lines = [f"{'channel':8s} {'term':18s} {'value':>12s} {'sigma':>10s}  unit           present  "
-                 "(slow terms, and a white level bounded from above only: the 3σ profile-likelihood interval)"]
+                 "(slow terms, and a white level bounded from above only: the 3σ profile-likelihood interval; "
+                 "a slow term's presence test: its likelihood ratio against the one it must exceed)"]
         for k, c in enumerate(self.channels):
             terms = TERMS[sensor_of(k)]
             for t in BASIC:
                 vname, _, dunit, scale = terms[t]
                 v = getattr(c.noise, t)
                 s = c.sigma.get(t, float("nan"))
+                test = c.slow.get(t) if isinstance(c.slow.get(t), dict) else {}
+                tested = (f"  LR {max(test['likelihood_ratio'], 0.0):.1f} against {test['critical']:.1f}"
+                          if "critical" in test else "")
                 if t in c.present:
                     iv = self.model.intervals.get(term_name(k, t))
                     within = f"  [{iv[0] / scale:.3g}, {iv[1] / scale:.3g}]" if iv else ""
                     sd = f"{s / scale:10.2g}" if np.isfinite(s) else f"{'-':>10s}"
                     lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {sd}  "
-                                 f"{dunit:14s} yes{within}")
+                                 f"{dunit:14s} yes{within}{tested}")
                 else:
                     up = c.fast.upper.get(t) if t in c.fast.upper else None
                     if t in c.slow:
                         up = c.slow[t].get("upper", c.slow[t]["value"])
                     bound = f"< {up / scale:.3g}" if up is not None and np.isfinite(up) else "-"
-                    lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {bound:>12s} {'':10s}  {dunit:14s} no")
+                    lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {bound:>12s} {'':10s}  {dunit:14s} no{tested}")
             if c.noise.bias_instability and c.noise.flicker_range:
                 lines.append(f"{c.name:8s} {'bi floor from':18s} {c.noise.flicker_range[0]:12.3g} {'':10s}  s")
             for s_, T in c.noise.gauss_markov:

@@ -80,7 +80,8 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     the terms the data do not need dropped one at a time (backward elimination: bias instability
     and random walk can stand in for each other, so a term's likelihood ratio is taken against
     the others refitted without it). Returns the channel and, per term: value, σ, likelihood
-    ratio, present, and for an absent term a profile upper bound; ``loglik`` at the estimate and
+    ratio (a dropped term's at the test that dropped it) with the ``critical`` one, present, and
+    for an absent term a profile upper bound; ``loglik`` at the estimate and
     ``loglik_without`` with none of *terms*. ``critical``: the likelihood ratio a term must
     exceed (default: the 1 % level of one test; :func:`family_critical` for several)."""
     from scipy.optimize import minimize  # at use: ~0.1 s of every command's start otherwise
@@ -179,7 +180,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     # the maximum with every term in, before any is tested away: what the log says of each
     # magnitude when a term below detection is not set to 0 (noise_sensitivity's σ at estimates)
     every_term = model(active, x)
-    lr = {}
+    lr, dropped_at = {}, {}  # (dropped_at: a dropped term's likelihood ratio at its test)
     while active:
         drops = {t: optimise([u for u in active if u != t]) for t in active}
         # a model with a term more fits at least as well as any without it: where the simplex
@@ -201,6 +202,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         weakest = min(active, key=lambda t: drops[t][1])
         if lr[weakest] > critical:
             break
+        dropped_at[weakest] = max(lr[weakest], 0.0)
         active.remove(weakest)
         x, f = drops[weakest]
     out = model(active, x)
@@ -251,7 +253,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             lo, hi = profile_interval(lambda z: nll(active, z), x, f, i, PROFILE_LEVEL, step, sd, spread=spread)
             report[t] = {"value": value, "sigma": value * math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else float("nan"),
                          "interval": (math.exp(lo), math.exp(hi)),
-                         "likelihood_ratio": float(lr.get(t, 2 * (f_none - f))), "present": True}
+                         "likelihood_ratio": float(lr.get(t, 2 * (f_none - f))), "critical": critical, "present": True}
         else:
             # a profile bound: the magnitude at which adding the term costs 4.5 in likelihood
             # (three σ of a one-parameter interval), the present terms held at their estimate
@@ -266,8 +268,8 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
                 f_best = min(f_best, val)
                 if val - f_best > 4.5:
                     break
-            report[t] = {"value": 0.0, "sigma": float("nan"), "likelihood_ratio": 0.0, "present": False,
-                         "upper": math.exp(xi)}
+            report[t] = {"value": 0.0, "sigma": float("nan"), "likelihood_ratio": float(dropped_at.get(t, 0.0)),
+                         "critical": critical, "present": False, "upper": math.exp(xi)}
     report["every_term"] = every_term
     report["loglik"] = -f
     report["loglik_without"] = -f_none
