@@ -495,3 +495,41 @@ def test_a_terms_likelihood_ratio_is_its_tests_whether_kept_or_dropped(rw, prese
     assert (lr > r["critical"]) == present
     assert r["likelihood_ratio"] == pytest.approx(lr, abs=0.01)
     assert lr > 0.5  # (a dropped term's ratio is not simply 0)
+
+
+@pytest.mark.parametrize("axes,tests", [(3, 4), (3, 1), (2, 6), (1, 12)])
+def test_the_pooled_critical_value_of_a_sensors_axes(axes, tests):
+    """Under the null each axis's ratio is ½ χ²₀ + ½ χ²₁, so their sum is χ² with Binomial(axes, ½)
+    degrees of freedom: the pooled critical value leaves α / tests above it (written here from
+    scipy.stats), and one axis's is the family's own."""
+    from components.estimation.noise_likelihood import family_critical, pooled_critical
+
+    c = pooled_critical(axes, tests)
+    tail = sum(stats.binom.pmf(j, axes, 0.5) * stats.chi2.sf(c, j) for j in range(1, axes + 1))
+    assert tail == pytest.approx(0.01 / tests, rel=1e-9)
+    if axes == 1:
+        assert c == pytest.approx(family_critical(tests), rel=1e-9)
+
+
+def test_a_presence_decided_by_the_pooled_test_overrides_the_channels_own():
+    """fit_slow_terms with the presence decided beyond the channel (its sensor's axes pooled):
+    a random walk this channel alone drops (LR ~1.3) is kept at its likelihood maximum, one it
+    alone keeps (LR ~18) is dropped with its upper bound, and either way the ratio reported is
+    the channel's own."""
+    nb, per, N = 1200, int(1 / DT), 10 * UG
+    d = np.ones(nb)
+    for rw, own in ((0.1, False), (0.2, True)):
+        y, H = _blocks(record(nb * per, np.random.default_rng(0), white=N, rw=rw * UG), nb, per)
+        _, alone = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, float(nb), 1.0, terms=("random_walk",))
+        ch, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, float(nb), 1.0, terms=("random_walk",),
+                                 decided={"random_walk": not own})
+        assert alone["random_walk"]["present"] == own
+        assert rep["random_walk"]["present"] == (not own)
+        assert rep["random_walk"]["likelihood_ratio"] == pytest.approx(alone["random_walk"]["likelihood_ratio"],
+                                                                       abs=0.01)
+        if own:
+            assert ch.random_walk == 0.0 and rep["random_walk"]["upper"] > 0
+        else:
+            # kept: its maximum, where the likelihood ratio says it is (~ the truth, within its interval)
+            lo, hi = rep["random_walk"]["interval"]
+            assert ch.random_walk > 0 and lo <= 0.1 * UG <= hi

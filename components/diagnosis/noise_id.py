@@ -27,7 +27,7 @@ from components.estimation.allan import first_runs, static_runs
 from components.estimation.chunks import forked_map
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel, white_ceiling
-from components.estimation.noise_likelihood import VARIANCE_REACH, family_critical, fit_slow_terms
+from components.estimation.noise_likelihood import VARIANCE_REACH, family_critical, fit_slow_terms, pooled_critical
 from components.estimation.whitening import block_timing, channel_rows
 from components.logs.spill import release
 from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of, term_name
@@ -68,8 +68,12 @@ class NoiseIdentification:
                 v = getattr(c.noise, t)
                 s = c.sigma.get(t, float("nan"))
                 test = c.slow.get(t) if isinstance(c.slow.get(t), dict) else {}
-                tested = (f"  LR {max(test['likelihood_ratio'], 0.0):.1f} against {test['critical']:.1f}"
-                          if "critical" in test else "")
+                tested = ""
+                if "pooled_critical" in test:
+                    tested = (f"  LR {max(test['likelihood_ratio'], 0.0):.1f}; the {sensor_of(k)}'s axes together "
+                              f"{test['pooled_likelihood_ratio']:.1f} against {test['pooled_critical']:.1f}")
+                elif "critical" in test:
+                    tested = f"  LR {max(test['likelihood_ratio'], 0.0):.1f} against {test['critical']:.1f}"
                 if t in c.present:
                     iv = self.model.intervals.get(term_name(k, t))
                     within = f"  [{iv[0] / scale:.3g}, {iv[1] / scale:.3g}]" if iv else ""
@@ -89,6 +93,34 @@ class NoiseIdentification:
                 lines.append(f"{c.name:8s} {'gauss-markov':18s} {s_ / gu[3]:12.4g} {'':10s}  {gu[2]:14s} yes "
                              f"(T = {T:.3g} s)")
         return lines
+
+
+def pooled_terms(slow_terms: list) -> list:
+    """[(axes, term)]: the slow terms tested on a sensor's three axes at once — those every axis
+    of the sensor tests (*slow_terms*: per channel 0-5, the terms its likelihood stage looks for).
+
+    A triad's axes share their noise terms' presence (every gyro of a triad has a flicker floor,
+    each at its own level), so the sum of the axes' likelihood ratios is the test: one axis's
+    marginal floor no longer drops out alone, taking its bias's σ with it (the 2" counts log of
+    an IMU FMU with a floor on every gyro, 1 % of its samples left out: gyro_y's floor dropped
+    at LR 9.6 against 9.9 beside gyro_x's 36 and gyro_z's 51, and gyro.bias.y 7.5 σ off)."""
+    return [(axes, t) for axes in ((0, 1, 2), (3, 4, 5)) for t in ("bias_instability", "random_walk")
+            if all(t in slow_terms[k] for k in axes)]
+
+
+def pooled_presence(reports: list, pooled: list, critical: float) -> tuple[list, dict]:
+    """(per channel: term -> present, as the pooled tests decide; channel -> term -> what the
+    test saw) for the channels' likelihood reports (fit_slow_terms, each with the term's own
+    ratio at its test) and the *pooled* (axes, term) tests at *critical*
+    (components.estimation.noise_likelihood.pooled_critical)."""
+    decided = [{} for _ in reports]
+    tested: dict = {}
+    for axes, t in pooled:
+        total = sum(max(float(reports[k][t]["likelihood_ratio"]), 0.0) for k in axes)
+        for k in axes:
+            decided[k][t] = total > critical
+            tested.setdefault(k, {})[t] = {"pooled_likelihood_ratio": total, "pooled_critical": critical}
+    return decided, tested
 
 
 def at_scale(ceiling: float, scale: float) -> float:
@@ -168,9 +200,12 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     # estimate it touches)
     slow_terms = [[t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
                   for k in range(6)]
-    critical = family_critical(sum(map(len, slow_terms)))
+    pooled = pooled_terms(slow_terms)
+    tests = len(pooled) + sum(1 for k in range(6) for t in slow_terms[k] if not any(
+        k in axes and t == u for axes, u in pooled))
+    critical = family_critical(tests)
 
-    def slow_channel(k: int) -> tuple[ChannelNoise, dict]:
+    def slow_channel(k: int, decided: dict | None = None) -> tuple[ChannelNoise, dict]:
         idx = channel_rows(rows, k)
         H = rows["H"][idx]
         active = np.any(H != 0, axis=0)
@@ -182,10 +217,21 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         # logs, a false verdict on 6 of 20 with the datasheet's slow terms over it; independent,
         # 6.7e-7 and 19 of 20, no false verdict)
         return fit_slow_terms(base, rows["y"][idx], H[:, active], durations, 1.0 / rows["weight"][idx] ** 2, span,
-                              chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden, gaps=gaps)
+                              chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden, gaps=gaps,
+                              decided=decided)
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
+    if rows is not None and pooled:
+        decided, tested = pooled_presence([r for _, r in slow_fits], pooled, pooled_critical(3, tests))
+        redo = [k for k in range(6) if any(slow_fits[k][1][t]["present"] != v for t, v in decided[k].items())]
+        with progress.steps("noise likelihood, the pooled tests' channels", len(redo)) as bar:
+            again = forked_map(lambda i: slow_channel(redo[i], decided[redo[i]]), len(redo), bar)
+        for k, fit_k in zip(redo, again):
+            slow_fits[k] = fit_k
+        for k, by_term in tested.items():
+            for t, test in by_term.items():
+                slow_fits[k][1][t].update(test)
     read_from_blocks, at_one_sigma, white_interval = [], [], {}
     for k, (ch, report) in enumerate(slow_fits):
         sigma, present = dict(fast[k].sigma), list(fast[k].present)

@@ -51,6 +51,29 @@ def family_critical(tests: int, alpha: float = 0.01) -> float:
     return float(chi2_isf(2.0 * alpha / max(tests, 1), 1))
 
 
+def pooled_critical(axes: int, tests: int, alpha: float = 0.01) -> float:
+    """The critical value of the sum of *axes* independent presence tests' likelihood ratios (a
+    term tested on every axis of a sensor at once), so that *tests* such tests together name a
+    term that is not there with probability at most *alpha*: each ratio ½ χ²₀ + ½ χ²₁ under the
+    null, so the sum is χ² with Binomial(axes, ½) degrees of freedom."""
+    from components.estimation.distributions import chi2_sf
+
+    weights = [math.comb(axes, j) / 2.0**axes for j in range(1, axes + 1)]
+
+    def tail(c: float) -> float:
+        return sum(w * float(chi2_sf(c, j)) for j, w in zip(range(1, axes + 1), weights))
+
+    target, lo, hi = alpha / max(tests, 1), 0.0, 1.0
+    while tail(hi) > target:
+        hi *= 2.0
+    for _ in range(200):  # bisection to the last bit: the tail is monotone
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        lo, hi = (mid, hi) if tail(mid) > target else (lo, mid)
+    return hi
+
+
 def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                       white_var: np.ndarray, span: float, t_lo: float, restricted: bool = True,
                       advance: np.ndarray | None = None, gaps: np.ndarray | None = None) -> float:
@@ -75,7 +98,8 @@ def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations:
 def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                    white_var: np.ndarray, span: float, t_lo: float, terms=SLOW,
                    restricted: bool = True, critical: float = LR_CRITICAL,
-                   variance_bound: bool = False, gaps: np.ndarray | None = None) -> tuple[ChannelNoise, dict]:
+                   variance_bound: bool = False, gaps: np.ndarray | None = None,
+                   decided: dict | None = None) -> tuple[ChannelNoise, dict]:
     """*ch* with the magnitudes of *terms* re-estimated by (restricted) maximum likelihood, and
     the terms the data do not need dropped one at a time (backward elimination: bias instability
     and random walk can stand in for each other, so a term's likelihood ratio is taken against
@@ -83,7 +107,11 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     ratio (a dropped term's at the test that dropped it) with the ``critical`` one, present, and
     for an absent term a profile upper bound; ``loglik`` at the estimate and
     ``loglik_without`` with none of *terms*. ``critical``: the likelihood ratio a term must
-    exceed (default: the 1 % level of one test; :func:`family_critical` for several)."""
+    exceed (default: the 1 % level of one test; :func:`family_critical` for several).
+    ``decided``: term -> present, the presence already decided by a test beyond this channel (a
+    sensor's axes pooled, components.diagnosis.noise_id): the terms decided absent are dropped
+    first, weakest first, those decided present kept, whatever this channel's own ratio; the
+    others are tested here."""
     from scipy.optimize import minimize  # at use: ~0.1 s of every command's start otherwise
 
     lo_min, lo_max = max(float(np.min(durations)), 1e-3), max(span / 8.0, 2 * float(np.min(durations)))
@@ -199,8 +227,13 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         # corner free): the floor's test ratio is against the corner held, and ranked by those a
         # random walk the full fit put at ~0 outlived a floor it had at full size (6 of 30
         # 5-minute tactical logs named a random walk 100x the true one in the floor's place)
-        weakest = min(active, key=lambda t: drops[t][1])
-        if lr[weakest] > critical:
+        decided = decided or {}
+        gone = [t for t in active if decided.get(t) is False]
+        open_ = [t for t in active if t not in decided]
+        if not gone and not open_:
+            break
+        weakest = min(gone or open_, key=lambda t: drops[t][1])
+        if not gone and lr[weakest] > critical:
             break
         dropped_at[weakest] = max(lr[weakest], 0.0)
         active.remove(weakest)
