@@ -172,6 +172,19 @@ def test_the_tick_rate_is_known_to_a_samples_advance_at_each_end():
         assert np.all(np.abs(err) <= 3 * sd_rate), (r, err[0], sd_rate)
 
 
+def rest_rate_fit(rests, rate_true: float) -> tuple[float, float]:
+    """(mean χ² per degree of freedom, RMS error/σ of the rate) of each rest's rate by generalised
+    least squares: *rests* [(block sums y, their BlockNoise)]."""
+    chi2, z = [], []
+    for y, bn in rests:
+        w, _ = whiten_channel(np.column_stack([y, np.ones(len(y))]), bn)
+        yw, hw = w[:, 0], w[:, 1]
+        rate = (hw @ yw) / (hw @ hw)
+        chi2.append(float(np.sum((yw - hw * rate) ** 2)) / (len(y) - 1))
+        z.append((rate - rate_true) * math.sqrt(hw @ hw))
+    return float(np.mean(chi2)), float(np.sqrt(np.mean(np.square(z))))
+
+
 def simulated_counts_under_a_slow_term(rng, rests, nb, per, advance, white, gm_sigma, T):
     """Per-sample counts as simulated_rest_counts, the input also carrying a Gauss–Markov rate
     of *gm_sigma* counts a block (RMS) and time constant *T* blocks."""
@@ -203,20 +216,13 @@ def test_a_slow_terms_wander_within_the_rest_dithers_the_remainder(advance, gm_s
     counts = simulated_counts_under_a_slow_term(rng, rests, nb, per, advance, white, gm_sigma, T)
     sums = counts.reshape(rests, nb, per).sum(axis=2) * W
     ch = ChannelNoise(quantization=W / math.sqrt(12), gauss_markov=((gm_sigma * W, T),))
-    rows, x = rest_rows(nb, per), np.ones((nb, 1))
+    rows = rest_rows(nb, per)
     advances = [count_advance(SimpleNamespace(count_weight=(W, None), gyro=np.column_stack([c * W, 0 * c, 0 * c]),
                                               acc=None), rows)["advance"] for c in counts]
 
     def fit():
-        chi2, z = [], []
-        for y, adv in zip(sums, advances):
-            bn = block_noise(ch, np.ones(nb), np.full(nb, (white * W) ** 2), 1e4, 1.0, adv)
-            w, _ = whiten_channel(np.column_stack([y, x]), bn)
-            yw, hw = w[:, 0], w[:, 1]
-            rate = (hw @ yw) / (hw @ hw)
-            chi2.append(float(np.sum((yw - hw * rate) ** 2)) / (nb - 1))
-            z.append((rate - advance * W) * math.sqrt(hw @ hw))
-        return float(np.mean(chi2)), float(np.sqrt(np.mean(np.square(z))))
+        return rest_rate_fit([(y, block_noise(ch, np.ones(nb), np.full(nb, (white * W) ** 2), 1e4, 1.0, adv))
+                              for y, adv in zip(sums, advances)], advance * W)
 
     top = 1 + 2 * 3 * math.sqrt(2 / (rests * (nb - 1)))  # (×2: the rows within a rest correlate)
     band = math.sqrt(1 + 3 * math.sqrt(2 / rests))
@@ -260,7 +266,6 @@ def test_a_gap_inside_a_rest_starts_the_phase_anew():
     rng = np.random.default_rng(13)
     rests, nb, per, sigma, advance = 1000, 30, 100, 0.06, 3.02
     half = nb // 2
-    x = np.ones((nb, 1))
     top = 1 + 2 * 3 * math.sqrt(2 / (rests * (nb - 1)))
     band = math.sqrt(1 + 3 * math.sqrt(2 / rests))
     ch = ChannelNoise(quantization=W / math.sqrt(12))
@@ -279,15 +284,8 @@ def test_a_gap_inside_a_rest_starts_the_phase_anew():
         cases.append((y, count_advance(data, rows)["advance"], gaps))
 
     def fit(with_gaps: bool):
-        chi2, z = [], []
-        for y, adv, gaps in cases:
-            bn = block_noise(ch, np.ones(nb), wv, 100.0, 1.0, adv, gaps if with_gaps else None)
-            w, _ = whiten_channel(np.column_stack([y, x]), bn)
-            yw, hw = w[:, 0], w[:, 1]
-            rate = (hw @ yw) / (hw @ hw)
-            chi2.append(float(np.sum((yw - hw * rate) ** 2)) / (nb - 1))
-            z.append((rate - advance * W) * math.sqrt(hw @ hw))
-        return float(np.mean(chi2)), float(np.sqrt(np.mean(np.square(z))))
+        return rest_rate_fit([(y, block_noise(ch, np.ones(nb), wv, 100.0, 1.0, adv, gaps if with_gaps else None))
+                              for y, adv, gaps in cases], advance * W)
 
     chi2, rms = fit(True)
     # (the tick-read advance, taken as exact, sets part of what the sums show: χ² may run low)
