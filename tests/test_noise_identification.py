@@ -533,3 +533,10 @@ def test_a_presence_decided_by_the_pooled_test_overrides_the_channels_own():
             # kept: its maximum, where the likelihood ratio says it is (~ the truth, within its interval)
             lo, hi = rep["random_walk"]["interval"]
             assert ch.random_walk > 0 and lo <= 0.1 * UG <= hi
+    # white noise alone: the likelihood is flat in the random walk (its maximum at ~0), so a
+    # pooled 'present' cannot keep it there; it stays absent with its upper bound
+    y, H = _blocks(record(nb * per, np.random.default_rng(2), white=N), nb, per)
+    ch, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, float(nb), 1.0, terms=("random_walk",),
+                             decided={"random_walk": True})
+    assert rep["random_walk"]["likelihood_ratio"] < 0.01
+    assert not rep["random_walk"]["present"] and ch.random_walk == 0.0 and 0 < rep["random_walk"]["upper"] < 0.3 * UG

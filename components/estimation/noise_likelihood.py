@@ -36,6 +36,7 @@ from components.model.noise import ChannelNoise, block_noise
 LR_CRITICAL = 5.4119  # χ²₁ 98 % point: the 1 % level of ½ χ²₀ + ½ χ²₁
 FLICKER_CORNER_TEST = 10.0  # [s] the floor's lower corner its presence is tested at
 SLOW = ("bias_instability", "random_walk")
+FLAT_DEVIANCE = 0.01  # dropping a term costs less than this: the likelihood does not see it
 SPREAD = (-0.5, 0.5)  # log: where profile_interval also starts along a coordinate of several valleys
 PROFILE_LEVEL = 9.0  # the deviance of the reported interval: three σ of a one-parameter interval (99.7 %)
 MAGNITUDE_REACH = 50.0  # log: how far a slow term's magnitude may go from the white level in a fit (e^50 = 5e21)
@@ -110,8 +111,8 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     exceed (default: the 1 % level of one test; :func:`family_critical` for several).
     ``decided``: term -> present, the presence already decided by a test beyond this channel (a
     sensor's axes pooled, components.diagnosis.noise_id): the terms decided absent are dropped
-    first, weakest first, those decided present kept, whatever this channel's own ratio; the
-    others are tested here."""
+    first, weakest first, those decided present kept, whatever this channel's own ratio (unless
+    the likelihood is flat in one: :data:`FLAT_DEVIANCE`); the others are tested here."""
     from scipy.optimize import minimize  # at use: ~0.1 s of every command's start otherwise
 
     lo_min, lo_max = max(float(np.min(durations)), 1e-3), max(span / 8.0, 2 * float(np.min(durations)))
@@ -228,7 +229,11 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         # random walk the full fit put at ~0 outlived a floor it had at full size (6 of 30
         # 5-minute tactical logs named a random walk 100x the true one in the floor's place)
         decided = decided or {}
-        gone = [t for t in active if decided.get(t) is False]
+        # a term decided present stays, unless this channel's likelihood is flat in it: its
+        # maximum then sits at ~0 (1e-25 of the floor's level), where the term is absent in all
+        # but name and its interval's walk finds no upper end (14-18 s a channel, for (0, inf))
+        gone = [t for t in active if decided.get(t) is False
+                or (decided.get(t) and 2 * (drops[t][1] - f) < FLAT_DEVIANCE)]
         open_ = [t for t in active if t not in decided]
         if not gone and not open_:
             break
@@ -279,12 +284,20 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             i = active.index(t)
             value = getattr(out, t)
             # steps of about one σ (the curvature's): the crossing at three is a few steps out
-            sd = math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else None
+            # (a term kept by a pooled test where this channel's likelihood is flat in it can have
+            # no positive curvature: no σ from it, the interval alone)
+            sd = math.sqrt(cov[i, i]) if cov[i, i] > 0 else None
             step = min(max(sd, 0.02), 0.1) if sd else 0.1
             # the floor's corner can hold two valleys of the likelihood at one magnitude
             spread = {len(active): (math.log(lo_min), math.log(lo_max))} if "bias_instability" in active else {}
-            lo, hi = profile_interval(lambda z: nll(active, z), x, f, i, PROFILE_LEVEL, step, sd, spread=spread)
-            report[t] = {"value": value, "sigma": value * math.sqrt(cov[i, i]) if np.isfinite(cov[i, i]) else float("nan"),
+            # toward 0 the profile runs to the fit without the term: where dropping it costs less
+            # than the level (a term kept by a pooled test, or one present below three σ), the
+            # lower end is 0 and not walked to the reach (70 minimisations per side's walk)
+            sides = (-1.0, 1.0) if 2 * (drops[t][1] - f) >= PROFILE_LEVEL else (1.0,)
+            ends = profile_interval(lambda z: nll(active, z), x, f, i, PROFILE_LEVEL, step, sd, spread=spread,
+                                    sides=sides)
+            lo, hi = ends if len(ends) == 2 else (-math.inf, ends[0])
+            report[t] = {"value": value, "sigma": value * sd if sd else float("nan"),
                          "interval": (math.exp(lo), math.exp(hi)),
                          "likelihood_ratio": float(lr.get(t, 2 * (f_none - f))), "critical": critical, "present": True}
         else:
