@@ -39,7 +39,8 @@ ALLAN_SAMPLES = 1 << 22  # static samples the Allan stage uses, at most (70 minu
 class ChannelIdentification:
     name: str
     fast: ChannelFit            # the Allan-variance stage
-    slow: dict                  # the likelihood stage: term -> value, sigma, likelihood_ratio, present
+    slow: dict                  # the likelihood stage: term -> value, sigma, likelihood_ratio, critical, present
+                                # (and pooled_likelihood_ratio, pooled_critical: its sensor's axes tested together)
     noise: ChannelNoise         # the final model of the channel (present terms only)
     sigma: dict                 # term -> σ of its magnitude
     present: list
