@@ -202,8 +202,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     slow_terms = [[t for t in ("bias_instability", "random_walk") if t in terms and t not in (known.get(k) or {})]
                   for k in range(6)]
     pooled = pooled_terms(slow_terms)
-    tests = len(pooled) + sum(1 for k in range(6) for t in slow_terms[k] if not any(
-        k in axes and t == u for axes, u in pooled))
+    tests = sum(map(len, slow_terms)) - 2 * len(pooled)  # (a pooled test stands for its three axes' tests)
     critical = family_critical(tests)
 
     def slow_channel(k: int, decided: dict | None = None) -> tuple[ChannelNoise, dict]:

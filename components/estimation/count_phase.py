@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.estimation.whitening import channel_rows
+from components.estimation.whitening import block_timing, channel_rows
 from components.logs.spill import release
 
 
@@ -46,11 +46,12 @@ def count_advance(data, rows: dict) -> dict:
             continue
         column = (data.gyro if ch < 3 else data.acc)
         idx = channel_rows(rows, ch)
-        idx = idx[np.argsort(rows["start"][idx], kind="stable")]
         start, stop, still = rows["start"][idx], rows["stop"][idx], ~rows["moving"][idx]
-        # rests: runs of static blocks, each starting where the last one stopped
+        # rests: runs of static blocks, each starting where the last one stopped (block_noise's
+        # gaps, from the same rule: the phase starts anew after one)
+        gaps = block_timing(rows, idx, 1.0)[1]
         new = np.ones(len(idx), bool)
-        new[1:] = ~still[:-1] | (start[1:] != stop[:-1])
+        new[1:] = ~still[:-1] | (gaps[1:] > 0)
         for h in np.flatnonzero(still & new):
             e = h
             while e + 1 < len(idx) and still[e + 1] and not new[e + 1]:

@@ -57,22 +57,20 @@ def pooled_critical(axes: int, tests: int, alpha: float = 0.01) -> float:
     term tested on every axis of a sensor at once), so that *tests* such tests together name a
     term that is not there with probability at most *alpha*: each ratio ½ χ²₀ + ½ χ²₁ under the
     null, so the sum is χ² with Binomial(axes, ½) degrees of freedom."""
+    from scipy.optimize import brentq
+
     from components.estimation.distributions import chi2_sf
 
     weights = [math.comb(axes, j) / 2.0**axes for j in range(1, axes + 1)]
+    target = alpha / max(tests, 1)
 
-    def tail(c: float) -> float:
-        return sum(w * float(chi2_sf(c, j)) for j, w in zip(range(1, axes + 1), weights))
+    def excess(c: float) -> float:
+        return sum(w * float(chi2_sf(c, j)) for j, w in zip(range(1, axes + 1), weights)) - target
 
-    target, lo, hi = alpha / max(tests, 1), 0.0, 1.0
-    while tail(hi) > target:
+    hi = 1.0
+    while excess(hi) > 0:  # (the tail falls with c: the root lies below the first c past it)
         hi *= 2.0
-    for _ in range(200):  # bisection to the last bit: the tail is monotone
-        mid = 0.5 * (lo + hi)
-        if mid in (lo, hi):
-            break
-        lo, hi = (mid, hi) if tail(mid) > target else (lo, mid)
-    return hi
+    return float(brentq(excess, 0.0, hi, xtol=1e-12, rtol=1e-15))
 
 
 def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
@@ -210,6 +208,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     # magnitude when a term below detection is not set to 0 (noise_sensitivity's σ at estimates)
     every_term = model(active, x)
     lr, dropped_at = {}, {}  # (dropped_at: a dropped term's likelihood ratio at its test)
+    decided = decided or {}
     while active:
         drops = {t: optimise([u for u in active if u != t]) for t in active}
         # a model with a term more fits at least as well as any without it: where the simplex
@@ -228,7 +227,6 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         # corner free): the floor's test ratio is against the corner held, and ranked by those a
         # random walk the full fit put at ~0 outlived a floor it had at full size (6 of 30
         # 5-minute tactical logs named a random walk 100x the true one in the floor's place)
-        decided = decided or {}
         # a term decided present stays, unless this channel's likelihood is flat in it: its
         # maximum then sits at ~0 (1e-25 of the floor's level), where the term is absent in all
         # but name and its interval's walk finds no upper end (14-18 s a channel, for (0, inf))

@@ -41,18 +41,15 @@ def median(values: np.ndarray, *, overwrite_input: bool = False) -> float:
     return median_of_pieces(lambda: (d[s] for s in pieces(n, d)), n, d[::stride(n)])
 
 
-def median_of_pieces(pieces, n: int, sample: np.ndarray, whole=None) -> float:
+def median_of_pieces(pieces, n: int, sample: np.ndarray) -> float:
     """np.median of the *n* finite values that ``pieces()`` yields as 1-D arrays (a new pass at
     each call, the same values), bit for bit, holding only a piece, the values inside the bracket
     (at most :data:`MOST_INSIDE`) and its bins' counts: a long log's derived values (its
     intervals, its differences) need not exist whole. *sample*: some of the values (every
-    :func:`stride`-th, say), which only place the first bracket: the counts decide. ``whole()``:
-    the median of fewer than DIRECT_BELOW values (default: np.median of the pieces joined)."""
-    if whole is None:
-        def whole():
-            return float(np.median(np.concatenate(list(pieces()))))
+    :func:`stride`-th, say), which only place the first bracket: the counts decide. Fewer than
+    DIRECT_BELOW values: np.median of the pieces joined."""
     if n < DIRECT_BELOW:
-        return whole()
+        return float(np.median(np.concatenate(list(pieces()))))
     ranks = ((n - 1) // 2, n // 2)
     sample = np.sort(np.asarray(sample, float).ravel())
     m = len(sample)
