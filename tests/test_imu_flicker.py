@@ -13,7 +13,7 @@ from fmpy.fmi1 import FMICallException
 from scipy.stats import chi2
 
 from components.errors import ScenarioError, UserError
-from components.model.flicker import flicker_count, flicker_terms, gm_avar
+from components.model.flicker import flicker_count, flicker_terms, gm_avar, gm_avar_unit
 
 from support import Slave
 
@@ -140,10 +140,14 @@ def test_gm_avar_against_high_precision():
     """gm_avar against the closed form at 50 digits, also where the double-precision form
     cancels (u = tau/T down to 1e-8)."""
     getcontext().prec = 50
-    for u in (1e-8, 1e-6, 1e-4, 0.01, 0.3, 0.4999, 0.5, 1.0, 1.89262, 7.0, 300.0, 1e6):
+    us = (1e-8, 1e-6, 1e-4, 0.01, 0.3, 0.4999, 0.5, 1.0, 1.89262, 7.0, 300.0, 1e6)
+    refs = []
+    for u in us:
         x = Decimal(u)
-        ref = float(2 / x - (3 - 4 * (-x).exp() + (-2 * x).exp()) / (x * x))
-        assert gm_avar(2.0, 3.0, 3.0 * u) == pytest.approx(4.0 * ref, rel=2e-15), u
+        refs.append(float(2 / x - (3 - 4 * (-x).exp() + (-2 * x).exp()) / (x * x)))
+        assert gm_avar(2.0, 3.0, 3.0 * u) == pytest.approx(4.0 * refs[-1], rel=2e-15), u
+    # the array form (the flicker construction's sums over its fit points) to the same digits
+    np.testing.assert_allclose(gm_avar_unit(np.array(us)), refs, rtol=2e-15)
     # the Gauss-Markov peak used by the single-process model: sqrt(g) peaks at 0.617364 at 1.89262
     assert math.sqrt(gm_avar(1.0, 1.0, 1.89262)) == pytest.approx(0.617364, abs=1e-6)
 
