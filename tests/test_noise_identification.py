@@ -540,3 +540,31 @@ def test_a_presence_decided_by_the_pooled_test_overrides_the_channels_own():
                              decided={"random_walk": True})
     assert rep["random_walk"]["likelihood_ratio"] < 0.01
     assert not rep["random_walk"]["present"] and ch.random_walk == 0.0 and 0 < rep["random_walk"]["upper"] < 0.3 * UG
+
+
+def test_a_refit_with_the_first_fits_maximisations_gives_the_same_bits_and_redoes_none(monkeypatch):
+    """The pooled tests' refit of a channel is handed the maximisations of its first fit: its
+    result is that of a refit from scratch, bit for bit, and it runs only the minimisations the
+    first fit did not (the interval of the term it now keeps), none of the elimination's."""
+    import scipy.optimize
+
+    nb, per, N = 1200, int(1 / DT), 10 * UG
+    d = np.ones(nb)
+    y, H = _blocks(record(nb * per, np.random.default_rng(0), white=N, rw=0.1 * UG), nb, per)
+    args = (ChannelNoise(white=N), y, H, d, N**2 * d, float(nb), 1.0)
+    runs = []
+    minimize = scipy.optimize.minimize
+    monkeypatch.setattr(scipy.optimize, "minimize", lambda *a, **k: runs.append(1) or minimize(*a, **k))
+    fits: dict = {}
+    fit_slow_terms(*args, terms=("random_walk",), fits=fits)
+    assert fits  # (the elimination's maximisations, kept)
+    runs.clear()
+    ch0, rep0 = fit_slow_terms(*args, terms=("random_walk",), decided={"random_walk": True})
+    scratch = len(runs)
+    runs.clear()
+    ch1, rep1 = fit_slow_terms(*args, terms=("random_walk",), decided={"random_walk": True}, fits=fits)
+    assert ch1 == ch0 and rep1["random_walk"] == rep0["random_walk"]
+    assert rep1["loglik"] == rep0["loglik"] and rep1["loglik_without"] == rep0["loglik_without"]
+    # the maximisations with and without the term (each a first simplex and its restarts) are not rerun
+    print(f"minimisations: {scratch} from scratch, {len(runs)} with the first fit's")
+    assert len(runs) < scratch - 2

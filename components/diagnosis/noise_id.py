@@ -205,7 +205,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     tests = sum(map(len, slow_terms)) - 2 * len(pooled)  # (a pooled test stands for its three axes' tests)
     critical = family_critical(tests)
 
-    def slow_channel(k: int, decided: dict | None = None) -> tuple[ChannelNoise, dict]:
+    def slow_channel(k: int, decided: dict | None = None, fits: dict | None = None) -> tuple[ChannelNoise, dict, dict]:
         idx = channel_rows(rows, k)
         H = rows["H"][idx]
         active = np.any(H != 0, axis=0)
@@ -216,24 +216,26 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         # came out low with it — gyro_x 4.7e-7 for 5.8e-7 on 2" counts, within 3σ on 12 of 20
         # logs, a false verdict on 6 of 20 with the datasheet's slow terms over it; independent,
         # 6.7e-7 and 19 of 20, no false verdict)
-        return fit_slow_terms(base, rows["y"][idx], H[:, active], durations, 1.0 / rows["weight"][idx] ** 2, span,
-                              chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden, gaps=gaps,
-                              decided=decided)
+        fits = {} if fits is None else fits  # (the maximisations, back from a forked worker for a refit)
+        return (*fit_slow_terms(base, rows["y"][idx], H[:, active], durations, 1.0 / rows["weight"][idx] ** 2, span,
+                                chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden, gaps=gaps,
+                                decided=decided, fits=fits), fits)
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
-        slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}) for c in chans]
+        slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}, {}) for c in chans]
     if rows is not None and pooled:
-        decided, tested = pooled_presence([r for _, r in slow_fits], pooled, pooled_critical(3, tests))
+        decided, tested = pooled_presence([r for _, r, _ in slow_fits], pooled, pooled_critical(3, tests))
         redo = [k for k in range(6) if any(slow_fits[k][1][t]["present"] != v for t, v in decided[k].items())]
         with progress.steps("noise likelihood, the pooled tests' channels", len(redo)) as bar:
-            again = forked_map(lambda i: slow_channel(redo[i], decided[redo[i]]), len(redo), bar)
+            again = forked_map(lambda i: slow_channel(redo[i], decided[redo[i]], slow_fits[redo[i]][2]), len(redo),
+                               bar)
         for k, fit_k in zip(redo, again):
             slow_fits[k] = fit_k
         for k, by_term in tested.items():
             for t, test in by_term.items():
                 slow_fits[k][1][t].update(test)
     read_from_blocks, at_one_sigma, white_interval = [], [], {}
-    for k, (ch, report) in enumerate(slow_fits):
+    for k, (ch, report, _) in enumerate(slow_fits):
         sigma, present = dict(fast[k].sigma), list(fast[k].present)
         if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
             present = [t for t in present if t in ("quantization", "white")] + \

@@ -98,7 +98,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
                    white_var: np.ndarray, span: float, t_lo: float, terms=SLOW,
                    restricted: bool = True, critical: float = LR_CRITICAL,
                    variance_bound: bool = False, gaps: np.ndarray | None = None,
-                   decided: dict | None = None) -> tuple[ChannelNoise, dict]:
+                   decided: dict | None = None, fits: dict | None = None) -> tuple[ChannelNoise, dict]:
     """*ch* with the magnitudes of *terms* re-estimated by (restricted) maximum likelihood, and
     the terms the data do not need dropped one at a time (backward elimination: bias instability
     and random walk can stand in for each other, so a term's likelihood ratio is taken against
@@ -110,7 +110,9 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     ``decided``: term -> present, the presence already decided by a test beyond this channel (a
     sensor's axes pooled, components.diagnosis.noise_id): the terms decided absent are dropped
     first, weakest first, those decided present kept, whatever this channel's own ratio (unless
-    the likelihood is flat in one: :data:`FLAT_DEVIANCE`); the others are tested here."""
+    the likelihood is flat in one: :data:`FLAT_DEVIANCE`); the others are tested here.
+    ``fits``: the maximisations of an earlier call on the same channel (same data and *ch*), read
+    and added to in place: a channel refitted with its presence decided redoes none of them."""
     from scipy.optimize import minimize  # at use: ~0.1 s of every command's start otherwise
 
     lo_min, lo_max = max(float(np.min(durations)), 1e-3), max(span / 8.0, 2 * float(np.min(durations)))
@@ -158,7 +160,19 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
 
     corner0 = math.log(min(max(FLICKER_CORNER_TEST, lo_min), lo_max))
 
+    fits = {} if fits is None else fits
+
     def optimise(active: list[str], free_corner: bool = True, start=None):
+        # each maximisation is a function of its arguments alone: the pooled tests' refit of a
+        # channel (components.diagnosis.noise_id) starts with every one its first fit made, and
+        # the elimination's last model without any term is the fit without terms asked again
+        key = (tuple(active), free_corner, None if start is None else tuple(np.asarray(start, float).tolist()))
+        if key not in fits:
+            fits[key] = maximise(active, free_corner, start)
+        x, f = fits[key]
+        return x.copy(), f
+
+    def maximise(active: list[str], free_corner: bool, start):
         x0 = [math.log(getattr(ch, t) or scale * (1.0 if t == "bias_instability" else 0.1 / math.sqrt(span)))
               for t in active]
         k = len(active)
