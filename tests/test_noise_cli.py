@@ -31,6 +31,29 @@ def test_white_noise_log_is_identified_as_white_at_its_levels(noise_file):
     assert set(d["allan"]) == {"gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"}
 
 
+def test_the_noise_file_holds_each_slow_terms_presence_test(noise_file):
+    """White noise: on every channel the floor and the random walk are tested and absent — each
+    ratio below its critical value (where a sensor's axes were tested together, their sum below
+    theirs), at the 1 % family level: above the one-test 1 % point of χ²(1), 6.63 — with an upper
+    bound in the term's SI unit that sits above 0 (a bound, not a value)."""
+    from scipy import stats
+
+    d = json.loads(noise_file.read_text())
+    tests = d["presence_tests"]
+    assert set(tests) == set(d["channels"])
+    for name, by_term in tests.items():
+        assert set(by_term) == {"bias_instability", "random_walk"}, name
+        for term, t in by_term.items():
+            assert t["present"] is False and term not in d["channels"][name], (name, term, t)
+            assert t["critical"] > stats.chi2.isf(0.01, 1), (name, term, t)
+            if "pooled_critical" in t:
+                assert t["pooled_likelihood_ratio"] <= t["pooled_critical"], (name, term, t)
+            else:
+                assert t["likelihood_ratio"] <= t["critical"], (name, term, t)
+            assert t["upper"] > 0 and t["unit"] == ("rad/s" if name.startswith("gyro") else "m/s2") + \
+                ("" if term == "bias_instability" else "/sqrt(s)"), (name, term, t)
+
+
 def test_noise_file_goes_into_calibrate_and_the_result(noise_file, conformance, tmp_path, capsys):
     out = tmp_path / "r.json"
     assert main(["calibrate", str(conformance / "example"), "--out", str(out), "--noise", str(noise_file)]) == 0

@@ -68,6 +68,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     for note in ident.notes:
         print(f"note: {note}")
     out = ident.model.to_dict()
+    out["presence_tests"] = ident.presence_tests()
     out["allan"] = allan
     out["log"] = str(args.log)
     if args.out:

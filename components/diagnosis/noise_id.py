@@ -27,7 +27,13 @@ from components.estimation.allan import first_runs, static_runs
 from components.estimation.chunks import forked_map
 from components.estimation.log_data import LogData
 from components.estimation.noise_fit import BASIC, ChannelFit, identify_channel, white_ceiling
-from components.estimation.noise_likelihood import VARIANCE_REACH, family_critical, fit_slow_terms, pooled_critical
+from components.estimation.noise_likelihood import (
+    SLOW,
+    VARIANCE_REACH,
+    family_critical,
+    fit_slow_terms,
+    pooled_critical,
+)
 from components.estimation.whitening import block_timing, channel_rows
 from components.logs.spill import release
 from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of, term_name
@@ -94,6 +100,35 @@ class NoiseIdentification:
                 lines.append(f"{c.name:8s} {'gauss-markov':18s} {s_ / gu[3]:12.4g} {'':10s}  {gu[2]:14s} yes "
                              f"(T = {T:.3g} s)")
         return lines
+
+
+    def presence_tests(self) -> dict:
+        """The noise file's ``presence_tests``: per channel, each slow term's test — present, its
+        likelihood ratio against the critical one (and its sensor's axes' sum against theirs,
+        where they were tested together), an absent term's profile upper bound in its SI unit
+        (null where not finite: JSON has no infinity)."""
+        def number(v):
+            return float(v) if v is not None and math.isfinite(v) else None
+
+        out = {}
+        for k, c in enumerate(self.channels):
+            tests = {}
+            for t in SLOW:
+                test = c.slow.get(t)
+                if not isinstance(test, dict):
+                    continue
+                e = {"present": bool(test["present"]), "likelihood_ratio": number(max(test["likelihood_ratio"], 0.0)),
+                     "critical": number(test["critical"])}
+                if "pooled_critical" in test:
+                    e["pooled_likelihood_ratio"] = number(test["pooled_likelihood_ratio"])
+                    e["pooled_critical"] = number(test["pooled_critical"])
+                if not test["present"]:
+                    e["upper"] = number(test.get("upper"))
+                    e["unit"] = TERMS[sensor_of(k)][t][1]
+                tests[t] = e
+            if tests:
+                out[c.name] = tests
+        return out
 
 
 def pooled_terms(slow_terms: list) -> list:
