@@ -10,7 +10,7 @@ from scipy.signal import lfilter
 
 from components.estimation.allan import pooled_allan, static_runs
 from components.estimation.noise_fit import identify_channel
-from components.estimation.noise_likelihood import fit_slow_terms
+from components.estimation.noise_likelihood import FLAT_DEVIANCE, LR_CRITICAL, fit_slow_terms
 from components.model.effects import UG
 from components.model.flicker import FLICKER_AVAR
 from components.model.noise import ChannelNoise
@@ -568,3 +568,53 @@ def test_a_refit_with_the_first_fits_maximisations_gives_the_same_bits_and_redoe
     # the maximisations with and without the term (each a first simplex and its restarts) are not rerun
     print(f"minimisations: {scratch} from scratch, {len(runs)} with the first fit's")
     assert len(runs) < scratch - 2
+
+
+def _report(against_all: dict, alone: dict, own: dict) -> dict:
+    """A channel's likelihood report as pooled_presence reads it: each term's ratio at its own
+    test (``own``) and the elimination's two steps."""
+    return {**{t: {"likelihood_ratio": v} for t, v in own.items()},
+            "elimination": {"against_all": against_all, "alone": alone}}
+
+
+def test_the_pooled_tests_eliminate_on_the_axes_sums_step_by_step():
+    """A triad whose x axis's random walk stands in for its floor (each alone ~40, against the
+    other ~1) and whose y and z axes have a floor and no random walk: the sums against the model
+    with both are 62 for the floor and 2.2 for the random walk, so the random walk goes from
+    every axis (2.2 < 11.6) and the floor, tested alone (40 + 35 + 35), stays on every axis.
+    The axes' ratios at their own tests (x kept its random walk at 45 against no term) summed
+    to 45.2 for the random walk: present on all three axes beside the floor."""
+    from components.diagnosis.noise_id import pooled_presence
+
+    bi, rw = "bias_instability", "random_walk"
+    x = _report({bi: 0.5, rw: 2.0}, {bi: 40.0, rw: 45.0}, {bi: 0.5, rw: 45.0})
+    yz = _report({bi: 30.0, rw: 0.1}, {bi: 35.0, rw: 20.0}, {bi: 35.0, rw: 0.1})
+    pooled = [((0, 1, 2), bi), ((0, 1, 2), rw)]
+    decided, tested = pooled_presence([x, yz, yz], pooled, 11.6)
+    assert decided == [{bi: True, rw: False}] * 3
+    assert tested[0][rw]["pooled_likelihood_ratio"] == pytest.approx(2.2)
+    assert tested[0][bi]["pooled_likelihood_ratio"] == pytest.approx(110.0)
+    # both strong against the model with both: both stay
+    both = _report({bi: 9.0, rw: 8.0}, {bi: 50.0, rw: 50.0}, {bi: 9.0, rw: 8.0})
+    assert pooled_presence([both] * 3, pooled, 11.6)[0] == [{bi: True, rw: True}] * 3
+    # the weaker absent and the other, alone, too
+    weak = _report({bi: 1.0, rw: 0.5}, {bi: 3.0, rw: 2.0}, {bi: 1.0, rw: 0.5})
+    assert pooled_presence([weak] * 3, pooled, 11.6)[0] == [{bi: False, rw: False}] * 3
+    # one term pooled: the axes' own ratios
+    assert pooled_presence([x, yz, yz], [((0, 1, 2), rw)], 11.6)[0] == [{rw: True}] * 3
+
+
+def test_a_term_decided_absent_goes_before_one_decided_present_is_judged_flat():
+    """A random walk the sensor's pooled tests decided absent and a floor they decided present,
+    on a channel whose wander is a random walk: beside the random walk the floor adds nothing
+    (its likelihood flat), but the random walk goes first, and alone the floor takes the wander
+    (its ratio far above the critical one): kept, not dropped with the random walk after it."""
+    nb, per, N = 1200, int(1 / DT), 10 * UG
+    d = np.ones(nb)
+    y, H = _blocks(record(nb * per, np.random.default_rng(1), white=N, rw=5 * UG), nb, per)
+    ch, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, float(nb), 1.0,
+                             decided={"bias_instability": True, "random_walk": False})
+    assert rep["elimination"]["against_all"]["bias_instability"] < FLAT_DEVIANCE  # (the case: flat beside it)
+    assert not rep["random_walk"]["present"] and ch.random_walk == 0.0
+    assert rep["bias_instability"]["present"] and ch.bias_instability > 0
+    assert rep["elimination"]["alone"]["bias_instability"] > 2 * LR_CRITICAL

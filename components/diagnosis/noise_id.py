@@ -146,16 +146,44 @@ def pooled_terms(slow_terms: list) -> list:
 
 def pooled_presence(reports: list, pooled: list, critical: float) -> tuple[list, dict]:
     """(per channel: term -> present, as the pooled tests decide; channel -> term -> what the
-    test saw) for the channels' likelihood reports (fit_slow_terms, each with the term's own
-    ratio at its test) and the *pooled* (axes, term) tests at *critical*
-    (components.estimation.noise_likelihood.pooled_critical)."""
+    test saw) for the channels' likelihood reports (fit_slow_terms) and the *pooled* (axes, term)
+    tests at *critical* (components.estimation.noise_likelihood.pooled_critical).
+
+    Where a sensor's axes pool both slow terms, the elimination each channel does alone is done
+    on the sums: each term's ratio against the model with both (``elimination.against_all``),
+    summed over the axes; the weaker sum, if below *critical*, drops its term from every axis,
+    and the other is then tested by the sums of its ratios as the only term
+    (``elimination.alone``). Summing each axis's ratio at the step its own elimination reached
+    instead mixed tests of different models: an axis whose random walk stood in for its floor
+    (ratio 76 against no term) made the random walk present on all three axes beside the floor
+    the other two kept (ratios ~0.1 against it). A sensor that pools one term sums its axes'
+    ratios at their own tests."""
     decided = [{} for _ in reports]
     tested: dict = {}
-    for axes, t in pooled:
-        total = sum(max(float(reports[k][t]["likelihood_ratio"]), 0.0) for k in axes)
+    for axes in dict.fromkeys(a for a, _ in pooled):
+        terms = [t for a, t in pooled if a == axes]
+
+        def total(t, which=None):
+            return sum(max(float(reports[k]["elimination"][which][t] if which else reports[k][t]["likelihood_ratio"]),
+                           0.0) for k in axes)
+
+        if len(terms) == 1:
+            sums = {terms[0]: total(terms[0])}
+            present = {terms[0]: sums[terms[0]] > critical}
+        else:
+            sums = {t: total(t, "against_all") for t in terms}
+            weakest = min(terms, key=sums.get)
+            present = {t: True for t in terms}
+            if sums[weakest] <= critical:
+                present[weakest] = False
+                for t in terms:
+                    if t != weakest:
+                        sums[t] = total(t, "alone")
+                        present[t] = sums[t] > critical
         for k in axes:
-            decided[k][t] = total > critical
-            tested.setdefault(k, {})[t] = {"pooled_likelihood_ratio": total, "pooled_critical": critical}
+            for t in terms:
+                decided[k][t] = present[t]
+                tested.setdefault(k, {})[t] = {"pooled_likelihood_ratio": sums[t], "pooled_critical": critical}
     return decided, tested
 
 

@@ -222,6 +222,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     # magnitude when a term below detection is not set to 0 (noise_sensitivity's σ at estimates)
     every_term = model(active, x)
     lr, dropped_at = {}, {}  # (dropped_at: a dropped term's likelihood ratio at its test)
+    against_all = None  # each term's ratio against the model with every term: the elimination's first step
     decided = decided or {}
     while active:
         drops = {t: optimise([u for u in active if u != t]) for t in active}
@@ -237,15 +238,19 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         # LR_CRITICAL is for (it named a floor ten times the true one in 2 of 12 short logs)
         f_test = optimise(active, free_corner=False)[1] if "bias_instability" in active else f
         lr = {t: 2 * (drops[t][1] - (f_test if t == "bias_instability" else f)) for t in active}
+        against_all = against_all if against_all is not None else dict(lr)
         # the term to drop is the one the model misses least, each loss against the same fit (the
         # corner free): the floor's test ratio is against the corner held, and ranked by those a
         # random walk the full fit put at ~0 outlived a floor it had at full size (6 of 30
         # 5-minute tactical logs named a random walk 100x the true one in the floor's place)
-        # a term decided present stays, unless this channel's likelihood is flat in it: its
-        # maximum then sits at ~0 (1e-25 of the floor's level), where the term is absent in all
-        # but name and its interval's walk finds no upper end (14-18 s a channel, for (0, inf))
-        gone = [t for t in active if decided.get(t) is False
-                or (decided.get(t) and 2 * (drops[t][1] - f) < FLAT_DEVIANCE)]
+        # the terms decided absent go first; then a term decided present stays, unless this
+        # channel's likelihood is flat in it: its maximum then sits at ~0 (1e-25 of the floor's
+        # level), where the term is absent in all but name and its interval's walk finds no
+        # upper end (14-18 s a channel, for (0, inf)). (Judged flat beside a random walk decided
+        # absent, a 5-minute count log's acc_x floor went, then the random walk: neither, where
+        # the floor alone has a ratio of 70)
+        gone = [t for t in active if decided.get(t) is False] or \
+            [t for t in active if decided.get(t) and 2 * (drops[t][1] - f) < FLAT_DEVIANCE]
         open_ = [t for t in active if t not in decided]
         if not gone and not open_:
             break
@@ -291,6 +296,10 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         report["block_variance_upper"] = variance_scale(hi1) if math.isfinite(hi1) else float("nan")
         report["block_variance_upper_3sigma"] = variance_scale(hi3) if math.isfinite(hi3) else float("nan")
     f_none = optimise([])[1]
+    # each term's ratio as the only one (the floor's with its corner held, as its test): with
+    # against_all, the two steps of an elimination a test beyond this channel can pool
+    # (components.diagnosis.noise_id.pooled_presence)
+    alone = {t: 2 * (f_none - optimise([t], free_corner=t != "bias_instability")[1]) for t in terms}
     for t in terms:
         if t in active:
             i = active.index(t)
@@ -329,6 +338,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             report[t] = {"value": 0.0, "sigma": float("nan"), "likelihood_ratio": float(dropped_at.get(t, 0.0)),
                          "critical": critical, "present": False, "upper": math.exp(xi)}
     report["every_term"] = every_term
+    report["elimination"] = {"against_all": against_all or {}, "alone": alone}
     report["loglik"] = -f
     report["loglik_without"] = -f_none
     return out, report
