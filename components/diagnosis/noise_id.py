@@ -163,7 +163,8 @@ def pooled_presence(reports: list, pooled: list, critical: float) -> tuple[list,
     for axes in dict.fromkeys(a for a, _ in pooled):
         terms = [t for a, t in pooled if a == axes]
 
-        def total(t, which=None):
+        def total(t, which=None, axes=axes):
+            """The axes' ratios of *t* summed: at their own tests, or at a step of the elimination."""
             return sum(max(float(reports[k]["elimination"][which][t] if which else reports[k][t]["likelihood_ratio"]),
                            0.0) for k in axes)
 
