@@ -101,7 +101,6 @@ class NoiseIdentification:
                              f"(T = {T:.3g} s)")
         return lines
 
-
     def presence_tests(self) -> dict:
         """The noise file's ``presence_tests``: per channel, each slow term's test — present, its
         likelihood ratio against the critical one (and its sensor's axes' sum against theirs,
@@ -177,10 +176,9 @@ def pooled_presence(reports: list, pooled: list, critical: float) -> tuple[list,
             present = {t: True for t in terms}
             if sums[weakest] <= critical:
                 present[weakest] = False
-                for t in terms:
-                    if t != weakest:
-                        sums[t] = total(t, "alone")
-                        present[t] = sums[t] > critical
+                (other,) = [t for t in terms if t != weakest]
+                sums[other] = total(other, "alone")
+                present[other] = sums[other] > critical
         for k in axes:
             for t in terms:
                 decided[k][t] = present[t]
