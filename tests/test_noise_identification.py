@@ -570,11 +570,12 @@ def test_a_refit_with_the_first_fits_maximisations_gives_the_same_bits_and_redoe
     assert len(runs) < scratch - 2
 
 
-def _report(against_all: dict, alone: dict, own: dict) -> dict:
+def _report(against_all: dict, alone: dict, own: dict, loss: dict | None = None) -> dict:
     """A channel's likelihood report as pooled_presence reads it: each term's ratio at its own
-    test (``own``) and the elimination's two steps."""
+    test (``own``) and the elimination's two steps (``loss``: what dropping each term costs
+    against the fit with every term, the floor's corner free; by default its test ratio)."""
     return {**{t: {"likelihood_ratio": v} for t, v in own.items()},
-            "elimination": {"against_all": against_all, "alone": alone}}
+            "elimination": {"against_all": against_all, "loss_against_all": loss or against_all, "alone": alone}}
 
 
 def test_the_pooled_tests_eliminate_on_the_axes_sums_step_by_step():
@@ -602,6 +603,40 @@ def test_the_pooled_tests_eliminate_on_the_axes_sums_step_by_step():
     assert pooled_presence([weak] * 3, pooled, 11.6)[0] == [{bi: False, rw: False}] * 3
     # one term pooled: the axes' own ratios
     assert pooled_presence([x, yz, yz], [((0, 1, 2), rw)], 11.6)[0] == [{rw: True}] * 3
+
+
+def test_the_pooled_elimination_ranks_the_terms_as_each_channel_does():
+    """Each channel's elimination drops first the term whose loss, against the fit with the
+    floor's corner free, is least; the floor's test ratio holds its corner and can be the smaller
+    where the corner moves to take the wander. A triad whose floors each cost 8 to drop but test
+    at 1, beside random walks that cost and test 2: the random walk goes (its sum 6 < 11.6) and
+    the floor, alone (20 + 20 + 20), stays. Ranked by the test ratios, the floor went (3) and the
+    random walk, alone (30 + 30 + 30), stood in for it."""
+    from components.diagnosis.noise_id import pooled_presence
+
+    bi, rw = "bias_instability", "random_walk"
+    axis = _report({bi: 1.0, rw: 2.0}, {bi: 20.0, rw: 30.0}, {bi: 1.0, rw: 2.0}, loss={bi: 8.0, rw: 2.0})
+    decided, tested = pooled_presence([axis] * 3, [((0, 1, 2), bi), ((0, 1, 2), rw)], 11.6)
+    assert decided == [{bi: True, rw: False}] * 3
+    assert tested[0][rw]["pooled_likelihood_ratio"] == pytest.approx(6.0)
+    assert tested[0][bi]["pooled_likelihood_ratio"] == pytest.approx(60.0)
+
+
+def test_a_channel_reports_what_dropping_each_term_costs_against_the_full_fit():
+    """The elimination's ranking is in the report: each term's loss against the fit with every
+    term (the floor's corner free) is at least its test ratio (the floor's test holds the corner,
+    a constraint that can only lower the full fit), and equals it for the random walk."""
+    from components.model.flicker import flicker_terms
+
+    nb, per, N = 600, int(1 / DT), 10 * UG
+    d = np.ones(nb)
+    y, H = _blocks(record(nb * per, np.random.default_rng(3), white=N, rw=2 * UG,
+                          gm=flicker_terms(3 * UG, 10.0, 3600.0)), nb, per)
+    _, rep = fit_slow_terms(ChannelNoise(white=N), y, H, d, N**2 * d, float(nb), 1.0)
+    el = rep["elimination"]
+    assert set(el["loss_against_all"]) == set(el["against_all"]) == {"bias_instability", "random_walk"}
+    assert el["loss_against_all"]["random_walk"] == pytest.approx(el["against_all"]["random_walk"])
+    assert el["loss_against_all"]["bias_instability"] >= el["against_all"]["bias_instability"] - 1e-9
 
 
 def test_a_term_decided_absent_goes_before_one_decided_present_is_judged_flat():

@@ -150,7 +150,8 @@ def pooled_presence(reports: list, pooled: list, critical: float) -> tuple[list,
 
     Where a sensor's axes pool both slow terms, the elimination each channel does alone is done
     on the sums: each term's ratio against the model with both (``elimination.against_all``),
-    summed over the axes; the weaker sum, if below *critical*, drops its term from every axis,
+    summed over the axes; the term whose loss the axes feel least (``elimination.loss_against_all``,
+    the channel's own ranking), if its sum is below *critical*, is dropped from every axis,
     and the other is then tested by the sums of its ratios as the only term
     (``elimination.alone``). Summing each axis's ratio at the step its own elimination reached
     instead mixed tests of different models: an axis whose random walk stood in for its floor
@@ -172,7 +173,11 @@ def pooled_presence(reports: list, pooled: list, critical: float) -> tuple[list,
             present = {terms[0]: sums[terms[0]] > critical}
         else:
             sums = {t: total(t, "against_all") for t in terms}
-            weakest = min(terms, key=sums.get)
+            # the term the axes miss least, as each channel's own elimination ranks it: by what
+            # dropping it costs against the fit with the floor's corner free, not by its test
+            # ratio (the floor's, with the corner held, can be small where a corner elsewhere
+            # takes a wander the random walk then stands in for)
+            weakest = min(terms, key=lambda t: total(t, "loss_against_all"))
             present = {t: True for t in terms}
             if sums[weakest] <= critical:
                 present[weakest] = False

@@ -222,7 +222,9 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
     # magnitude when a term below detection is not set to 0 (noise_sensitivity's σ at estimates)
     every_term = model(active, x)
     lr, dropped_at = {}, {}  # (dropped_at: a dropped term's likelihood ratio at its test)
-    against_all = None  # each term's ratio against the model with every term: the elimination's first step
+    # the elimination's first step: each term's test ratio against the model with every term, and
+    # what dropping it costs against that fit with the floor's corner free (what ranks the terms)
+    against_all, loss_against_all = None, {}
     decided = decided or {}
     while active:
         drops = {t: optimise([u for u in active if u != t]) for t in active}
@@ -238,7 +240,9 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
         # LR_CRITICAL is for (it named a floor ten times the true one in 2 of 12 short logs)
         f_test = optimise(active, free_corner=False)[1] if "bias_instability" in active else f
         lr = {t: 2 * (drops[t][1] - (f_test if t == "bias_instability" else f)) for t in active}
-        against_all = against_all if against_all is not None else dict(lr)
+        if against_all is None:
+            against_all = dict(lr)
+            loss_against_all = {t: 2 * (drops[t][1] - f) for t in active}
         # the term to drop is the one the model misses least, each loss against the same fit (the
         # corner free): the floor's test ratio is against the corner held, and ranked by those a
         # random walk the full fit put at ~0 outlived a floor it had at full size (6 of 30
@@ -338,7 +342,7 @@ def fit_slow_terms(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations: np
             report[t] = {"value": 0.0, "sigma": float("nan"), "likelihood_ratio": float(dropped_at.get(t, 0.0)),
                          "critical": critical, "present": False, "upper": math.exp(xi)}
     report["every_term"] = every_term
-    report["elimination"] = {"against_all": against_all or {}, "alone": alone}
+    report["elimination"] = {"against_all": against_all or {}, "loss_against_all": loss_against_all, "alone": alone}
     report["loglik"] = -f
     report["loglik_without"] = -f_none
     return out, report
