@@ -18,12 +18,15 @@ polynomial of its two knots' values and slopes.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_banded
 
 
 def knot_slopes(x: np.ndarray, y: np.ndarray, clamp_start: bool, clamp_end: bool) -> np.ndarray:
     """dy/dx at the knots *x* (n,) of the values *y* (n, k). Not-a-knot needs four knots or
     more; with fewer both ends must be clamped."""
+    # imported here: the CLI's parser imports this module, and scipy.linalg costs 0.15 s of
+    # every command's start
+    from scipy.linalg import solve_banded
+
     x = np.asarray(x, float)
     y = np.asarray(y, float).reshape(len(x), -1)
     n = len(x)
