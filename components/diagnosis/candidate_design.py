@@ -209,7 +209,7 @@ def _qr_r(H: np.ndarray, y: np.ndarray, rows: int | None = None) -> np.ndarray:
     rows so far stacked on the next rows and factored again (R of [A; B] is the R of
     [R_A; B], Q being orthonormal), so [H | y] is never copied whole (on an 8-hour log with every
     candidate 170 MB, the peak of a diagnose). numpy's QR (the same geqrf) works on a copy of
-    one piece, ≤ 20 MB; scipy.linalg's in place cost ~0.1 s of every diagnose to import."""
+    one piece, ≤ 20 MB (scipy.linalg.lapack worked in place)."""
     n, p = H.shape
     R = np.zeros((0, p + 1))
     for a in range(0, n, rows or QR_ROWS):
