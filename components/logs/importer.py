@@ -84,7 +84,8 @@ def import_log(m: Mapping) -> Imported:
     seg = _labels(m, cols, t)
     _check_label_keys(m, seg)
     clock: dict = {}
-    gimbal, command, names, vectors, keep = _table(m, cols, t, gyro, gkind, notes, clock)
+    after_gap = gaps(t, max_int) if timing == "measured" else np.zeros(len(t), bool)
+    gimbal, command, names, vectors, keep = _table(m, cols, t, gyro, gkind, notes, clock, ~after_gap)
     if keep is not None:
         t, gyro, acc = t[keep], gyro[keep], acc[keep]
         temp = None if temp is None else temp[keep]
@@ -191,9 +192,10 @@ def _counted(m: Mapping, angle: np.ndarray, notes: list[str]) -> np.ndarray:
     return np.round(angle / q) * q
 
 
-def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict):
+def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole: np.ndarray):
     """(gimbal, command, axis names, axis vectors, samples kept) from the IMU file's own columns
-    or a separate table file on its own clock."""
+    or a separate table file on its own clock (its offset from the *whole* samples: those not
+    after a gap)."""
     if not m.axes:
         return {}, {}, [], [], None
     names = [a.name for a in m.axes]
@@ -222,7 +224,7 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict):
             inc = gyro * dt[:, None]
         else:
             inc = gyro
-        co = estimate_clock_offset(t, dt, inc, tt, ang, np.array(vectors))
+        co = estimate_clock_offset(t, dt, inc, tt, ang, np.array(vectors), use=whole)
         clock["estimate"] = co
         offset = co.offset_s
         notes.append(f"clock offset table -> IMU estimated {co.offset_s * 1e3:+.4f} ± {co.sigma_s * 1e3:.2g} ms "
