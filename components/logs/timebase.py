@@ -32,7 +32,7 @@ from components.errors import MappingError
 @dataclass
 class Regularised:
     time: np.ndarray
-    rate_hz: float           # fitted over all runs (weighted by their length)
+    rate_hz: float           # the one interval of every run's grid, fitted on every stamp
     jitter_rms_s: float      # RMS of the stamps about the fitted grid
     runs: int
 
@@ -45,24 +45,78 @@ def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
 
 
 def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regularised:
-    """Stamps replaced by the least-squares regular grid of each run between gaps."""
+    """Stamps replaced by a regular grid in each run between gaps: one interval for the whole log
+    (the sensor's own clock), by least squares on every stamp, and one grid for the runs whose
+    starts lie a whole number of intervals apart within their stamps' scatter (samples lost
+    between them; a sensor restarted out of phase starts a grid of its own).
+
+    One interval, not one per run: a short run's own fit is mostly its stamps' jitter (3 samples
+    under ±0.3 ms gave 5.161 ms for 5 ms), and the log's increments are then set against the
+    motion over intervals 3 % too long (an accelerometer at rest 1.6e-3 m/s off in each such
+    sample: on a count log with 0.2 % of its packets lost, χ²/dof 20.7 instead of 1.0). One grid
+    through the lost samples: a run of 100 samples places itself to jitter/10 alone (17 us under
+    ±0.3 ms), which a move's motion turns into misfit (χ²/dof 1.14 for 0.99 with 1 % lost). The
+    grids are kept only where they fit the stamps as well (within 5 % RMS) as each run's own
+    start (a clock that drifts against the host's)."""
     cut = np.nonzero(gaps(t, max_interval))[0]
     edges = np.concatenate([[0], cut, [len(t)]])
-    out = np.empty_like(t)
-    dts, weights, sq = [], [], 0.0
-    for a, b in zip(edges[:-1], edges[1:]):
-        k = np.arange(b - a, dtype=float)
-        if b - a >= 2:
-            A = np.column_stack([np.ones_like(k), k])
-            (t0, d), *_ = np.linalg.lstsq(A, t[a:b], rcond=None)
-        else:
-            t0, d = t[a], nominal_dt
-        out[a:b] = t0 + d * k
-        sq += float(np.sum((t[a:b] - out[a:b]) ** 2))
-        dts.append(d)
-        weights.append(b - a)
-    d_mean = float(np.average(dts, weights=weights))
-    return Regularised(out, 1.0 / d_mean, math.sqrt(sq / len(t)), len(dts))
+    run = np.repeat(np.arange(len(edges) - 1), np.diff(edges))
+    k = np.arange(len(t), dtype=float) - edges[:-1][run]  # index within the run
+    d, out = _common_interval(t, run, k, nominal_dt)
+    rms = math.sqrt(float(np.mean((t - out) ** 2)))
+    runs = len(edges) - 1
+    if runs > 1:
+        grid, offset = _grids(t, run, k, d, rms)
+        d1, one = _common_interval(t, grid[run], k + offset[run], nominal_dt)
+        rms1 = math.sqrt(float(np.mean((t - one) ** 2)))
+        if rms1 <= 1.05 * rms:
+            return Regularised(one, 1.0 / d1, rms1, runs)
+    return Regularised(out, 1.0 / d, rms, runs)
+
+
+def _common_interval(t: np.ndarray, group: np.ndarray, k: np.ndarray, nominal_dt: float):
+    """(d, times): the least-squares t ≈ start[group] + d k, one interval d for every group."""
+    counts = np.bincount(group).astype(float)
+    k_mean = np.bincount(group, k) / np.maximum(counts, 1)
+    t_mean = np.bincount(group, t) / np.maximum(counts, 1)
+    dk = k - k_mean[group]
+    spread = float(dk @ dk)
+    # groups of one sample carry no interval; a log of such keeps the nominal one
+    d = float(dk @ (t - t_mean[group])) / spread if spread > 0 else nominal_dt
+    return d, t_mean[group] + d * dk
+
+
+def _grids(t: np.ndarray, run: np.ndarray, k: np.ndarray, d: float, rms: float):
+    """(grid of each run, its first sample's index on that grid): a run joins the grid before it
+    where its start lies a whole number of intervals on, within four times the scatter of the
+    run's start and the grid's prediction there (the stamps' RMS over √samples). The grid is
+    the line through every stamp on it so far; its slope the runs' common interval *d* until the
+    grid's own spans more (far ahead, d's error was half an interval 200,000 samples on)."""
+    n = np.bincount(run).astype(float)
+    s_k, s_kk = np.bincount(run, k), np.bincount(run, k * k)
+    s_t, s_kt = np.bincount(run, t), np.bincount(run, k * t)
+    spread_runs = float(np.sum(s_kk - s_k**2 / n))
+    start = (s_t - d * s_k) / n
+    grid, offset = np.zeros(len(n), int), np.zeros(len(n))
+    sums = None
+    for r in range(len(n)):
+        if sums is not None:
+            sn, sx, sxx, st, sxt = sums
+            sxx_c = sxx - sx * sx / sn
+            b = (sxt - sx * st / sn) / sxx_c if sxx_c > spread_runs else d
+            a = (st - b * sx) / sn
+            m = (start[r] - a) / b
+            # the prediction's scatter at m: the line's, from its sums
+            var = rms**2 * (1 / sn + (m - sx / sn) ** 2 / max(sxx_c, spread_runs)) / (d * d)
+            if abs(m - round(m)) <= 4 * math.sqrt(var + rms**2 / n[r] / (d * d)):
+                o = round(m)
+                offset[r], grid[r] = o, grid[r - 1]
+                sums = (sn + n[r], sx + n[r] * o + s_k[r], sxx + n[r] * o * o + 2 * o * s_k[r] + s_kk[r],
+                        st + s_t[r], sxt + o * s_t[r] + s_kt[r])
+                continue
+            grid[r] = grid[r - 1] + 1
+        sums = (n[r], s_k[r], s_kk[r], s_t[r], s_kt[r])
+    return grid, offset
 
 
 @dataclass
