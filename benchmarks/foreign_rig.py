@@ -3,21 +3,22 @@ sensor that is not white, outputs that are pulse counts, a hidden effect — thr
 line only.
 
 Per seed:
-1. ``calbench simulate``: the demo's navigation-grade IMU (its hidden K2 on z, 40 µg/g²) with
+1. ``calbench simulate``: the demo's navigation-grade IMU (its hidden K2 on z at 80 µg/g²) with
    coloured noise (flicker floor gyro 0.003 °/h and accelerometer 10 µg as Gauss–Markov sums
    from 10 s to an hour, random walk gyro 0.0003 °/h/√h and accelerometer 1 µg/√h) on the
    26-position schedule (36 minutes, 200 Hz).
 2. The log rewritten the way a foreign rig writes it, with plain numpy text output: the IMU as
    pulse counts (gyro 1e-6 rad, accelerometer 1e-5 m/s; each count's remainder carried from a
    random start), x of the gyro reversed and the columns reordered, host stamps in µs with
-   ±0.3 ms uniform jitter, temperature in °F; the table angles in their own file on a clock
+   ±0.3 ms uniform jitter, 0.2 % of the packets lost (their counts with them), temperature in
+   °F; the table angles in their own file on a clock
    7.7 ms behind the IMU's, degrees with a decimal comma and ';', two lines of preamble; no
    segment labels, no encoder resolution stated.
 3. ``calbench import`` (the clock offset estimated), ``calibrate`` (a count log: the noise
    identified on the log), ``noise``, ``diagnose`` under the identified noise, ``add`` the
    verdict, ``noise`` again around the corrected model, ``calibrate`` with it, ``diagnose``.
 
-Printed per seed and summed: the clock offset's error in its σ; the first verdict and the K2
+Printed per seed and summed: the clock offset's error in its σ; the verdicts in turn and the K2
 against the truth in σ; the accelerometer floors identified around the corrected model against
 the injected one; the final χ²/dof against its 99 % band and the final verdict; every
 parameter of the corrected model against the truth in σ (RMS and the largest).
@@ -55,8 +56,13 @@ from components.model.effects import DEFAULT_EFFECTS  # noqa: E402
 
 CLOCK = 7.7e-3  # s: table time + CLOCK = IMU time
 JITTER = 3e-4  # s: the host stamps' uniform jitter, either side
+LOST = 0.002  # the share of the IMU's packets lost, at random
 COUNTS = {"gyro": 1e-6, "acc": 1e-5}  # rad, m/s per pulse
-HIDDEN = ("acc.k2", "acc.k2.z")
+# K2 at 80 ug/g2: 1.5 x its naming threshold on this schedule under this noise (53 ug/g2 from
+# acc.sf_asym, cosine 0.97: benchmarks/coloured_noise_26position_effects.txt); at the demo's 40 the
+# diagnosis names either of the two and says so
+HIDDEN = ("acc.k2", "acc.k2.z", "80 ug/g2")
+MOST_ADDED = 3
 UG_PER_G2 = 9.80665e6  # µg/g² per SI unit of K2 (1/(m/s²))
 
 MAPPING = """description = "foreign rig: pulse-count IMU, host-stamped, table controller on its own clock"
@@ -100,12 +106,14 @@ height_m = 50.0
 
 
 def scenario_text(seed: int) -> str:
-    """The demo's scenario (its hidden K2 kept) on the 26-position schedule with coloured noise."""
+    """The demo's scenario on the 26-position schedule with coloured noise and the hidden K2 at
+    HIDDEN's magnitude."""
     d = copy.deepcopy(tomllib.loads(SCENARIO.read_text()))
     d["scenario"]["seed"] = seed
     d["scenario"]["description"] = "foreign-rig benchmark: navigation grade, coloured noise, hidden K2 on z"
     d["schedule"] = {"name": "twentysix_position"}
     d["imu"]["noise"] = noise_spec("navigation")
+    d["imu"]["effects"][HIDDEN[1]] = HIDDEN[2]
     return _toml(d)
 
 
@@ -125,7 +133,9 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator) -> None:
     stamps = np.round((log.time + rng.uniform(-JITTER, JITTER, log.n)) * 1e6)
     g, a = counts["gyro"], counts["acc"]
     cols = [stamps, g[:, 2], g[:, 1], -g[:, 0], a[:, 0], a[:, 1], a[:, 2], log.temperature * 9 / 5 + 32]
-    np.savetxt(out / "imu.csv", np.column_stack(cols), fmt=["%d"] * 7 + ["%.4f"], delimiter=",", comments="",
+    kept = rng.random(log.n) >= LOST
+    kept[[0, -1]] = True
+    np.savetxt(out / "imu.csv", np.column_stack(cols)[kept], fmt=["%d"] * 7 + ["%.4f"], delimiter=",", comments="",
                header="stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F")
     rows = np.column_stack([log.time - CLOCK] + [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")])
     with open(out / "table.csv", "w") as f:
@@ -161,33 +171,36 @@ def one_seed(seed: int, d: Path) -> dict:
     said = calbench("import", "rig/map.toml", "--out", "imp", cwd=d)
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
     offset, offset_sigma = float(m.group(1)) * 1e-3, float(m.group(2)) * 1e-3
-    calbench("calibrate", "imp.csv", "--out", "base.json", cwd=d)
-    calbench("noise", "imp.csv", "--model", "base.json", "--out", "noise.json", cwd=d)
-    calbench("diagnose", "imp.csv", "--model", "base.json", "--noise", "noise.json", "--json", "d1.json", cwd=d)
-    d1 = json.loads((d / "d1.json").read_text())
-    verdict = d1["verdict"]
-    out = {"seed": seed, "offset_z": (offset - CLOCK) / offset_sigma, "offset_sigma_us": offset_sigma * 1e6,
-           "verdict1": verdict}
-    if verdict is None:
-        return out
-    calbench("add", "imp.csv", "--model", "base.json", "--effect", verdict, "--noise", "noise.json",
-             "--out", "added.json", cwd=d)
-    calbench("noise", "imp.csv", "--model", "added.json", "--out", "noise2.json", cwd=d)
-    effects = ",".join(list(DEFAULT_EFFECTS) + [verdict])
-    calbench("calibrate", "imp.csv", "--effects", effects, "--noise", "noise2.json", "--out", "final.json", cwd=d)
-    calbench("diagnose", "imp.csv", "--model", "final.json", "--noise", "noise2.json", "--json", "d2.json", cwd=d)
-    d2 = json.loads((d / "d2.json").read_text())
-    z = z_scores(d / "final.json", truth["effects"])
-    final = json.loads((d / "final.json").read_text())
-    noise = json.loads((d / "noise2.json").read_text())["channels"]
-    floors = [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0) for a in "xyz"]
+    calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
+    # the user's loop: the noise identified around the model, the diagnosis under it, the verdict
+    # added, until nothing is missing (at most MOST_ADDED effects)
+    verdicts, k = [], 0
+    while True:
+        calbench("noise", "imp.csv", "--model", f"model{k}.json", "--out", f"noise{k}.json", cwd=d)
+        if k:
+            # refitted under the noise identified around it (add kept the noise it was given)
+            calbench("calibrate", "imp.csv", "--effects", ",".join(list(DEFAULT_EFFECTS) + verdicts),
+                     "--noise", f"noise{k}.json", "--out", f"model{k}.json", cwd=d)
+        calbench("diagnose", "imp.csv", "--model", f"model{k}.json", "--noise", f"noise{k}.json",
+                 "--json", f"diagnose{k}.json", cwd=d)
+        diag = json.loads((d / f"diagnose{k}.json").read_text())
+        if diag["verdict"] is None or len(verdicts) == MOST_ADDED:
+            break
+        verdicts.append(diag["verdict"])
+        calbench("add", "imp.csv", "--model", f"model{k}.json", "--effect", verdicts[-1], "--noise",
+                 f"noise{k}.json", "--out", f"model{k + 1}.json", cwd=d)
+        k += 1
+    final = json.loads((d / f"model{k}.json").read_text())
+    z = z_scores(d / f"model{k}.json", truth["effects"])
+    noise = json.loads((d / f"noise{k}.json").read_text())["channels"]
     k2 = final["parameters"].get(HIDDEN[1])
-    dof = final["fit"]["dof"]
-    out.update(k2=k2 and (k2["value"], k2["sigma"]), k2_z=z.get(HIDDEN[1]), floors=floors,
-               floor_truth=truth["noise"]["acc.noise.bi"], chi2=d2["base_chi2_per_dof"], dof=dof,
-               verdict2=d2["verdict"], rms_z=math.sqrt(sum(v * v for v in z.values()) / len(z)),
-               worst=max(z.items(), key=lambda kv: abs(kv[1])), n_params=len(z))
-    return out
+    return {"seed": seed, "offset_z": (offset - CLOCK) / offset_sigma, "offset_sigma_us": offset_sigma * 1e6,
+            "verdicts": verdicts, "last_verdict": diag["verdict"], "k2": k2 and (k2["value"], k2["sigma"]),
+            "k2_z": z.get(HIDDEN[1]), "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0)
+                                               for a in "xyz"],
+            "floor_truth": truth["noise"]["acc.noise.bi"], "chi2": diag["base_chi2_per_dof"],
+            "dof": final["fit"]["dof"], "rms_z": math.sqrt(sum(v * v for v in z.values()) / len(z)),
+            "worst": max(z.items(), key=lambda kv: abs(kv[1])), "n_params": len(z)}
 
 
 def main() -> int:
@@ -201,35 +214,33 @@ def main() -> int:
         tmp = tempfile.TemporaryDirectory()
         a.dir = Path(tmp.name)
     print(f"foreign rig: {a.seeds} seed(s) from {a.first_seed}; pulse counts {COUNTS['gyro']:g} rad, "
-          f"{COUNTS['acc']:g} m/s; stamps ±{JITTER * 1e3:g} ms; table clock {CLOCK * 1e3:g} ms behind; "
+          f"{COUNTS['acc']:g} m/s; stamps ±{JITTER * 1e3:g} ms; {LOST:.1%} of the packets lost; table clock {CLOCK * 1e3:g} ms behind; "
           f"hidden {HIDDEN[1]} under navigation-grade coloured noise, 26-position schedule")
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
         r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}")
         rows.append(r)
-        line = f"seed {r['seed']}: clock offset error {r['offset_z']:+.2f} σ (σ {r['offset_sigma_us']:.1f} us); " \
-               f"verdict {r['verdict1']}"
-        if "k2" in r:
-            v, s = r["k2"]
-            fl = ", ".join(f"{f / 9.80665e-6:.2f}" for f in r["floors"])
-            lo, hi = (chi2.ppf(q, r["dof"]) / r["dof"] for q in (0.005, 0.995))
-            line += (f"; {HIDDEN[1]} {v * UG_PER_G2:+.2f} ± {s * UG_PER_G2:.2f} ug/g2 ({r['k2_z']:+.2f} σ from the "
-                     f"truth); acc floors {fl} ug (injected {r['floor_truth'] / 9.80665e-6:.3g}); after: chi2/dof "
-                     f"{r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}), verdict "
-                     f"{r['verdict2'] or 'none'}; {r['n_params']} parameters RMS z {r['rms_z']:.2f}, largest "
-                     f"{r['worst'][0]} {r['worst'][1]:+.2f}")
+        lo, hi = (chi2.ppf(q, r["dof"]) / r["dof"] for q in (0.005, 0.995))
+        fl = ", ".join(f"{f / 9.80665e-6:.2f}" for f in r["floors"])
+        k2 = (f"{r['k2'][0] * UG_PER_G2:+.2f} ± {r['k2'][1] * UG_PER_G2:.2f} ug/g2 ({r['k2_z']:+.2f} σ from the "
+              f"truth)" if r["k2"] else "not in the model")
+        line = (f"seed {r['seed']}: clock offset error {r['offset_z']:+.2f} σ (σ {r['offset_sigma_us']:.1f} us); "
+                f"verdicts {' then '.join(r['verdicts']) or 'none'}, then {r['last_verdict'] or 'none'}; "
+                f"{HIDDEN[1]} {k2}; acc floors {fl} ug (injected {r['floor_truth'] / 9.80665e-6:.3g}); final "
+                f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "
+                f"{r['rms_z']:.2f}, largest {r['worst'][0]} {r['worst'][1]:+.2f}")
         print(line + f"  ({time.perf_counter() - t:.0f} s)", flush=True)
-    named = sum(r["verdict1"] == HIDDEN[0] for r in rows)
-    clean = sum(r.get("verdict2", "x") is None for r in rows)
-    done = [r for r in rows if "rms_z" in r]
+    named = sum(r["verdicts"][:1] == [HIDDEN[0]] for r in rows)
+    clean = sum(r["verdicts"] == [HIDDEN[0]] and r["last_verdict"] is None for r in rows)
     print(f"summary: {HIDDEN[0]} named first in {named}/{len(rows)}; no further verdict after adding it in "
           f"{clean}/{len(rows)}; clock offset |error| <= 3 σ in {sum(abs(r['offset_z']) <= 3 for r in rows)}/{len(rows)}")
-    if done:
-        zk = np.array([r["k2_z"] for r in done])
-        print(f"  {HIDDEN[1]} RMS z {math.sqrt(np.mean(zk ** 2)):.2f}; parameters' RMS z per seed "
-              + ", ".join(f"{r['rms_z']:.2f}" for r in done) + "; final chi2/dof "
-              + ", ".join(f"{r['chi2']:.3f}" for r in done))
+    with_k2 = [r for r in rows if r["k2"]]
+    if with_k2:
+        zk = np.array([r["k2_z"] for r in with_k2])
+        print(f"  {HIDDEN[1]} RMS z {math.sqrt(np.mean(zk ** 2)):.2f} over {len(with_k2)}; parameters' RMS z per "
+              "seed " + ", ".join(f"{r['rms_z']:.2f}" for r in rows) + "; final chi2/dof "
+              + ", ".join(f"{r['chi2']:.3f}" for r in rows))
     if tmp is not None:
         tmp.cleanup()
     return 0
