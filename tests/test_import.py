@@ -594,3 +594,50 @@ def test_import_names_an_empty_number_in_a_parquet_source(tmp_path, capsys):
     m = _mapping(tmp_path / "map.toml", _PLAIN_MAPPING.replace("rec.csv", "rec.parquet") + SITE)
     assert main(["import", str(m), "--out", str(tmp_path / "o")]) == 2
     assert "rec.parquet: column 'g': row 8: empty value; expected a number" in capsys.readouterr().err
+
+
+def test_jitter_that_passes_for_gaps_is_said_with_the_interval_to_give(kilohertz_run, tmp_path, capsys):
+    """A 1 kHz sensor stamped with ±0.1 ms of jitter under a max_interval_s of 1.2 ms: a late
+    stamp after an early one stretches an interval past it, and jitter is taken for gaps (runs
+    chosen by their long ends fit a clock too fast). The import says so and names the range a
+    gap test needs: above 1 ms + the jitter's reach (3√2 × its RMS), below 2 ms − that."""
+    fast, _, _ = kilohertz_run
+    rng = np.random.default_rng(6)
+    t_ms = (fast.time + rng.uniform(-1e-4, 1e-4, fast.n)) * 1e3
+    inc = np.degrees(fast.gyro)
+    vel = fast.acc * 1e3
+    ang = [np.degrees(fast.gimbal[a]) for a in ("outer", "middle", "inner")]
+    _write_delimited(tmp_path / "imu.csv", ["t_ms", "dx", "dy", "dz", "vx", "vy", "vz", "A", "B", "C"],
+                     [t_ms, *inc.T, *vel.T, *ang])
+    m = _mapping(tmp_path / "map.toml", f"""
+[imu]
+file = "imu.csv"
+sample_rate_hz = 1000.0
+[imu.time]
+column = "t_ms"
+unit = "ms"
+timing = "regularise"
+max_interval_s = 0.0012
+[imu.gyro]
+output = "increment"
+unit = "deg"
+x = "dx"
+y = "dy"
+z = "dz"
+[imu.acc]
+output = "increment"
+unit = "mm/s"
+x = "vx"
+y = "vy"
+z = "vz"
+[table]
+encoder_resolution = "exact"
+{_axes_toml(["A", "B", "C"])}
+{SITE}""")
+    assert main(["import", str(m), "--out", str(tmp_path / "merged")]) == 0
+    out = capsys.readouterr().out
+    said = [ln for ln in out.splitlines() if "jitter is taken for gaps" in ln]
+    assert len(said) == 1, out
+    lo, hi = (float(v) for v in re.search(r"between ([\d.]+) and ([\d.]+) ms", said[0]).groups())
+    reach = 3 * math.sqrt(2) * 1e-4 / math.sqrt(3) * 1e3  # ms, from the uniform jitter's RMS
+    assert lo == pytest.approx(1 + reach, abs=0.01) and hi == pytest.approx(2 - reach, abs=0.01)

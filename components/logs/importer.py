@@ -4,6 +4,7 @@ where), as a :class:`~components.logs.logfile.MeasurementLog` of format ``calben
 returned notes and in the log's ``description`` and ``import`` metadata."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,6 +61,15 @@ def import_log(m: Mapping) -> Imported:
         notes.append(f"time stamps regularised: {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz "
                      f"({(reg.rate_hz / m.sample_rate_hz - 1) * 1e6:+.3g} ppm from the nominal {m.sample_rate_hz:g}), "
                      f"stamps' RMS jitter {reg.jitter_rms_s * 1e6:.3g} us")
+        reach = 3 * math.sqrt(2) * reg.jitter_rms_s  # how far jitter stretches one interval, at most about
+        if max_int - 1 / reg.rate_hz < reach:
+            # a jittered interval then passes for a gap, and the runs between such gaps, chosen by
+            # their long ends, fit a clock ~90 ppm fast (±0.3 ms stamps of a 1 kHz sensor)
+            lo, hi = 1 / reg.rate_hz + reach, 2 / reg.rate_hz - reach
+            notes.append(f"warning: the stamps' jitter ({reg.jitter_rms_s * 1e6:.3g} us RMS) stretches an interval by up "
+                         f"to ~{reach * 1e3:.3g} ms, past imu.time.max_interval_s ({max_int * 1e3:g} ms): jitter is taken "
+                         "for gaps; " + (f"give a max_interval_s between {lo * 1e3:.3g} and {hi * 1e3:.3g} ms" if hi > lo
+                                         else "at this jitter no interval tells a lost sample from a late stamp"))
         if reg.runs > 1:
             timing = "measured"
         # the sensor's rates are per its own nominal interval: the fitted rate (the host's view of

@@ -108,7 +108,7 @@ def _grids(t: np.ndarray, run: np.ndarray, k: np.ndarray, d: float, rms: float):
             m = (start[r] - a) / b
             # the prediction's scatter at m: the line's, from its sums
             var = rms**2 * (1 / sn + (m - sx / sn) ** 2 / max(sxx_c, spread_runs)) / (d * d)
-            if abs(m - round(m)) <= 4 * math.sqrt(var + rms**2 / n[r] / (d * d)):
+            if abs(m - round(m)) <= 5 * math.sqrt(var + rms**2 / n[r] / (d * d)):
                 o = round(m)
                 offset[r], grid[r] = o, grid[r - 1]
                 sums = (sn + n[r], sx + n[r] * o + s_k[r], sxx + n[r] * o * o + 2 * o * s_k[r] + s_kk[r],
