@@ -64,6 +64,12 @@ def _axes_toml(columns: list[str], unit: str = "deg") -> str:
                    for n, c in zip(("outer", "middle", "inner"), columns))
 
 
+def _sensor_toml(sensor: str, output: str, unit: str, columns: list[str]) -> str:
+    """An [imu.gyro] or [imu.acc] table: its output kind, unit and the x, y, z columns."""
+    return f'[imu.{sensor}]\noutput = "{output}"\nunit = "{unit}"\n' + "".join(
+        f'{a} = "{c}"\n' for a, c in zip("xyz", columns))
+
+
 def _rec_csv_imu(rate_hz) -> str:
     """The [imu] of rec.csv: t [s], gx gy gz [deg/s], ax ay az [g]."""
     return f'''[imu]
@@ -212,19 +218,7 @@ sample_rate_hz = 200.0
 column = "t_ms"
 unit = "ms"
 timing = "regularise"
-[imu.gyro]
-output = "increment"
-unit = "deg"
-x = "dx"
-y = "dy"
-z = "dz"
-[imu.acc]
-output = "increment"
-unit = "mm/s"
-x = "vx"
-y = "vy"
-z = "vz"
-[table]
+{_sensor_toml("gyro", "increment", "deg", ["dx", "dy", "dz"])}{_sensor_toml("acc", "increment", "mm/s", ["vx", "vy", "vz"])}[table]
 file = "table.csv"
 clock_offset_s = "estimate"
 encoder_resolution = "exact"
@@ -618,19 +612,7 @@ column = "t_ms"
 unit = "ms"
 timing = "regularise"
 max_interval_s = 0.0012
-[imu.gyro]
-output = "increment"
-unit = "deg"
-x = "dx"
-y = "dy"
-z = "dz"
-[imu.acc]
-output = "increment"
-unit = "mm/s"
-x = "vx"
-y = "vy"
-z = "vz"
-[table]
+{_sensor_toml("gyro", "increment", "deg", ["dx", "dy", "dz"])}{_sensor_toml("acc", "increment", "mm/s", ["vx", "vy", "vz"])}[table]
 encoder_resolution = "exact"
 {_axes_toml(["A", "B", "C"])}
 {SITE}""")

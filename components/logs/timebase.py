@@ -88,7 +88,7 @@ def _common_interval(t: np.ndarray, group: np.ndarray, k: np.ndarray, nominal_dt
 
 def _grids(t: np.ndarray, run: np.ndarray, k: np.ndarray, d: float, rms: float):
     """(grid of each run, its first sample's index on that grid): a run joins the grid before it
-    where its start lies a whole number of intervals on, within four times the scatter of the
+    where its start lies a whole number of intervals on, within five times the scatter of the
     run's start and the grid's prediction there (the stamps' RMS over √samples). The grid is
     the line through every stamp on it so far; its slope the runs' common interval *d* until the
     grid's own spans more (far ahead, d's error was half an interval 200,000 samples on)."""
