@@ -64,7 +64,9 @@ def import_log(m: Mapping) -> Imported:
         reach = 3 * math.sqrt(2) * reg.jitter_rms_s  # how far jitter stretches one interval, at most about
         if max_int - 1 / reg.rate_hz < reach:
             # a jittered interval then passes for a gap, and the runs between such gaps, chosen by
-            # their long ends, fit a clock ~90 ppm fast (±0.3 ms stamps of a 1 kHz sensor)
+            # their long ends, fit a clock too fast, with samples a whole interval off (±0.3 ms
+            # stamps of a 1 kHz sensor: one interval over the runs 90 ppm fast, each run's own
+            # 2,000 ppm, as regularise did before)
             lo, hi = 1 / reg.rate_hz + reach, 2 / reg.rate_hz - reach
             notes.append(f"warning: the stamps' jitter ({reg.jitter_rms_s * 1e6:.3g} us RMS) stretches an interval by up "
                          f"to ~{reach * 1e3:.3g} ms, past imu.time.max_interval_s ({max_int * 1e3:g} ms): jitter is taken "
