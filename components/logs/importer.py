@@ -81,7 +81,9 @@ def import_log(m: Mapping) -> Imported:
         d = np.diff(t)
         notes.append(f"measured timing: intervals {d.min() * 1e3:.4g}-{d.max() * 1e3:.4g} ms, RMS deviation from "
                      f"{nominal * 1e3:g} ms {np.sqrt(np.mean((d - nominal) ** 2)) * 1e6:.3g} us")
-    n_gaps = int(gaps(t, max_int).sum()) if timing == "measured" else 0
+    # the samples after a gap: left out of the log and of the clock offset's match
+    after_gap = gaps(t, max_int) if timing == "measured" else np.zeros(len(t), bool)
+    n_gaps = int(after_gap.sum())
     if n_gaps:
         notes.append(f"{n_gaps} gap(s) longer than {max_int * 1e3:g} ms: the sample after each is left out")
     gyro, gkind = _sensor_values(cols, m.gyro, "gyro", ("rate",))
@@ -96,7 +98,6 @@ def import_log(m: Mapping) -> Imported:
     seg = _labels(m, cols, t)
     _check_label_keys(m, seg)
     clock: dict = {}
-    after_gap = gaps(t, max_int) if timing == "measured" else np.zeros(len(t), bool)
     gimbal, command, names, vectors, keep = _table(m, cols, t, gyro, gkind, notes, clock, ~after_gap)
     if keep is not None:
         t, gyro, acc = t[keep], gyro[keep], acc[keep]
