@@ -62,51 +62,59 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regular
     edges = np.concatenate([[0], cut, [len(t)]])
     run = np.repeat(np.arange(len(edges) - 1), np.diff(edges))
     k = np.arange(len(t), dtype=float) - edges[:-1][run]  # index within the run
-    d, out = _common_interval(t, run, k, nominal_dt)
-    rms = math.sqrt(float(np.mean((t - out) ** 2)))
+    t0 = float(t[0])
+    u = t - t0  # from the first stamp: the sums of k·t of epoch stamps would lose their digits
+    sums = tuple(np.bincount(run, w) for w in (None, k, k * k, u, k * u))
+    d, start = _line(sums, nominal_dt)
+    out = start[run] + d * k
+    rms = math.sqrt(float(np.mean((u - out) ** 2)))
     runs = len(edges) - 1
     if runs > 1:
-        grid, offset = _grids(t, run, k, d, rms)
-        d1, one = _common_interval(t, grid[run], k + offset[run], nominal_dt)
-        rms1 = math.sqrt(float(np.mean((t - one) ** 2)))
+        grid, offset = _grids(sums, d, rms)
+        d1, grid_start = _line(tuple(np.bincount(grid, w) for w in _shifted(sums, offset)), nominal_dt)
+        one = grid_start[grid[run]] + d1 * (k + offset[run])
+        rms1 = math.sqrt(float(np.mean((u - one) ** 2)))
         # what fewer starts cost the fit by chance alone (their share of the stamps, and four σ
         # of a mean square of N): more is a clock drifting against the host's, whose runs
         # placed by their own starts follow it (5 ppm over 8 hours: 55 us RMS off on one grid,
         # 11 us on the runs' own starts)
         grids = int(grid.max()) + 1
         if rms1**2 <= rms**2 * (1 + (runs - grids) / len(t) + 4 * math.sqrt(2 / len(t))):
-            return Regularised(one, 1.0 / d1, rms1, runs)
-    return Regularised(out, 1.0 / d, rms, runs)
+            return Regularised(t0 + one, 1.0 / d1, rms1, runs)
+    return Regularised(t0 + out, 1.0 / d, rms, runs)
 
 
-def _common_interval(t: np.ndarray, group: np.ndarray, k: np.ndarray, nominal_dt: float):
-    """(d, times): the least-squares t ≈ start[group] + d k, one interval d for every group."""
-    counts = np.bincount(group).astype(float)
-    k_mean = np.bincount(group, k) / np.maximum(counts, 1)
-    t_mean = np.bincount(group, t) / np.maximum(counts, 1)
-    dk = k - k_mean[group]
-    spread = float(dk @ dk)
+def _shifted(sums, o):
+    """The sums (n, Σk, Σk², Σt, Σkt) of a run's samples with their index k moved on by *o*."""
+    n, s_k, s_kk, s_t, s_kt = sums
+    return n, s_k + n * o, s_kk + 2 * o * s_k + n * o * o, s_t, s_kt + o * s_t
+
+
+def _line(sums, nominal_dt: float):
+    """(d, start of each group): the least-squares t ≈ start + d k, one interval d for every
+    group, from the groups' sums (n, Σk, Σk², Σt, Σkt)."""
+    n, s_k, s_kk, s_t, s_kt = sums
+    spread = float(np.sum(s_kk - s_k * s_k / n))
     # groups of one sample carry no interval; a log of such keeps the nominal one
-    d = float(dk @ (t - t_mean[group])) / spread if spread > 0 else nominal_dt
-    return d, t_mean[group] + d * dk
+    d = float(np.sum(s_kt - s_k * s_t / n)) / spread if spread > 0 else nominal_dt
+    return d, (s_t - d * s_k) / n
 
 
-def _grids(t: np.ndarray, run: np.ndarray, k: np.ndarray, d: float, rms: float):
-    """(grid of each run, its first sample's index on that grid): a run joins the grid before it
-    where its start lies a whole number of intervals on, within five times the scatter of the
-    run's start and the grid's prediction there (the stamps' RMS over √samples). The grid is
-    the line through every stamp on it so far; its slope the runs' common interval *d* until the
-    grid's own spans more (far ahead, d's error was half an interval 200,000 samples on)."""
-    n = np.bincount(run).astype(float)
-    s_k, s_kk = np.bincount(run, k), np.bincount(run, k * k)
-    s_t, s_kt = np.bincount(run, t), np.bincount(run, k * t)
+def _grids(sums, d: float, rms: float):
+    """(grid of each run, its first sample's index on that grid) from the runs' sums
+    (n, Σk, Σk², Σt, Σkt): a run joins the grid before it where its start lies a whole number of
+    intervals on, within five times the scatter of the run's start and the grid's prediction
+    there (the stamps' RMS over √samples). The grid is the line through every stamp on it so
+    far; its slope the runs' common interval *d* until the grid's own spans more (far ahead,
+    d's error was half an interval 200,000 samples on)."""
+    n, s_k, s_kk, s_t, s_kt = sums
     spread_runs = float(np.sum(s_kk - s_k**2 / n))
     start = (s_t - d * s_k) / n
     grid, offset = np.zeros(len(n), int), np.zeros(len(n))
-    sums = None
+    on = None  # the sums of the grid being built
     for r in range(len(n)):
-        if sums is not None:
-            sn, sx, sxx, st, sxt = sums
+        if on is not None:
+            sn, sx, sxx, st, sxt = on
             sxx_c = sxx - sx * sx / sn
             b = (sxt - sx * st / sn) / sxx_c if sxx_c > spread_runs else d
             a = (st - b * sx) / sn
@@ -114,13 +122,11 @@ def _grids(t: np.ndarray, run: np.ndarray, k: np.ndarray, d: float, rms: float):
             # the prediction's scatter at m: the line's, from its sums
             var = rms**2 * (1 / sn + (m - sx / sn) ** 2 / max(sxx_c, spread_runs)) / (d * d)
             if abs(m - round(m)) <= 5 * math.sqrt(var + rms**2 / n[r] / (d * d)):
-                o = round(m)
-                offset[r], grid[r] = o, grid[r - 1]
-                sums = (sn + n[r], sx + n[r] * o + s_k[r], sxx + n[r] * o * o + 2 * o * s_k[r] + s_kk[r],
-                        st + s_t[r], sxt + o * s_t[r] + s_kt[r])
+                offset[r], grid[r] = round(m), grid[r - 1]
+                on = tuple(p + q for p, q in zip(on, _shifted([x[r] for x in sums], offset[r])))
                 continue
             grid[r] = grid[r - 1] + 1
-        sums = (n[r], s_k[r], s_kk[r], s_t[r], s_kt[r])
+        on = tuple(x[r] for x in sums)
     return grid, offset
 
 
