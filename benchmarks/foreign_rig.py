@@ -41,18 +41,20 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import chi2
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from coloured_noise import noise_spec  # noqa: E402  (beside this script)
+from coloured_noise import band99, noise_spec  # noqa: E402  (beside this script)
 from pulse_counts import PulseLogger  # noqa: E402
 
 from components.cli.demo import SCENARIO  # noqa: E402
 from components.logs.logfile import read_log  # noqa: E402
 from components.model.effects import DEFAULT_EFFECTS  # noqa: E402
+from components.model.noise import TERMS  # noqa: E402
+from components.model.result import CalibrationResult  # noqa: E402
+from components.procedures.common import errors_against_truth  # noqa: E402
 
 CLOCK = 7.7e-3  # s: table time + CLOCK = IMU time
 JITTER = 3e-4  # s: the host stamps' uniform jitter, either side
@@ -63,7 +65,6 @@ COUNTS = {"gyro": 1e-6, "acc": 1e-5}  # rad, m/s per pulse
 # diagnosis names either of the two and says so
 HIDDEN = ("acc.k2", "acc.k2.z", "80 ug/g2")
 MOST_ADDED = 3
-UG_PER_G2 = 9.80665e6  # µg/g² per SI unit of K2 (1/(m/s²))
 
 MAPPING = """description = "foreign rig: pulse-count IMU, host-stamped, table controller on its own clock"
 [imu]
@@ -155,11 +156,6 @@ def calbench(*args: str, cwd: Path) -> str:
     return r.stdout + r.stderr
 
 
-def z_scores(result: Path, truth: dict) -> dict:
-    p = json.loads(result.read_text())["parameters"]
-    return {k: (v["value"] - truth.get(k, 0.0)) / v["sigma"] for k, v in p.items()}
-
-
 def one_seed(seed: int, d: Path) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed))
@@ -190,16 +186,17 @@ def one_seed(seed: int, d: Path) -> dict:
         calbench("add", "imp.csv", "--model", f"model{k}.json", "--effect", verdicts[-1], "--noise",
                  f"noise{k}.json", "--out", f"model{k + 1}.json", cwd=d)
         k += 1
-    final = json.loads((d / f"model{k}.json").read_text())
-    z = z_scores(d / f"model{k}.json", truth["effects"])
+    # the errors in σ as `calbench simulate --check` gives them (display units)
+    errors = {r["parameter"]: r for r in errors_against_truth(CalibrationResult.load(d / f"model{k}.json"), truth)}
+    z = {p: r["error"] / r["sigma"] for p, r in errors.items()}
     noise = json.loads((d / f"noise{k}.json").read_text())["channels"]
-    k2 = final["parameters"].get(HIDDEN[1])
+    _, _, unit, scale = TERMS["acc"]["bias_instability"]  # the floor's display unit and its SI size
     return {"seed": seed, "offset_z": (offset - CLOCK) / offset_sigma, "offset_sigma_us": offset_sigma * 1e6,
-            "verdicts": verdicts, "last_verdict": diag["verdict"], "k2": k2 and (k2["value"], k2["sigma"]),
-            "k2_z": z.get(HIDDEN[1]), "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0)
-                                               for a in "xyz"],
-            "floor_truth": truth["noise"]["acc.noise.bi"], "chi2": diag["base_chi2_per_dof"],
-            "dof": final["fit"]["dof"], "rms_z": math.sqrt(sum(v * v for v in z.values()) / len(z)),
+            "verdicts": verdicts, "last_verdict": diag["verdict"], "k2": errors.get(HIDDEN[1]),
+            "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0) / scale for a in "xyz"],
+            "floor_unit": unit, "floor_truth": truth["noise"]["acc.noise.bi"] / scale, "chi2": diag["base_chi2_per_dof"],
+            "dof": json.loads((d / f"model{k}.json").read_text())["fit"]["dof"],
+            "rms_z": math.sqrt(sum(v * v for v in z.values()) / len(z)),
             "worst": max(z.items(), key=lambda kv: abs(kv[1])), "n_params": len(z)}
 
 
@@ -221,13 +218,14 @@ def main() -> int:
         t = time.perf_counter()
         r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}")
         rows.append(r)
-        lo, hi = (chi2.ppf(q, r["dof"]) / r["dof"] for q in (0.005, 0.995))
-        fl = ", ".join(f"{f / 9.80665e-6:.2f}" for f in r["floors"])
-        k2 = (f"{r['k2'][0] * UG_PER_G2:+.2f} ± {r['k2'][1] * UG_PER_G2:.2f} ug/g2 ({r['k2_z']:+.2f} σ from the "
-              f"truth)" if r["k2"] else "not in the model")
+        lo, hi = band99(r["dof"])
+        fl = ", ".join(f"{f:.2f}" for f in r["floors"])
+        k2 = r["k2"]
+        k2 = (f"{k2['value']:+.2f} ± {k2['sigma']:.2f} {k2['unit']} ({k2['error'] / k2['sigma']:+.2f} σ from the "
+              "truth)" if k2 else "not in the model")
         line = (f"seed {r['seed']}: clock offset error {r['offset_z']:+.2f} σ (σ {r['offset_sigma_us']:.1f} us); "
                 f"verdicts {' then '.join(r['verdicts']) or 'none'}, then {r['last_verdict'] or 'none'}; "
-                f"{HIDDEN[1]} {k2}; acc floors {fl} ug (injected {r['floor_truth'] / 9.80665e-6:.3g}); final "
+                f"{HIDDEN[1]} {k2}; acc floors {fl} {r['floor_unit']} (injected {r['floor_truth']:.3g}); final "
                 f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "
                 f"{r['rms_z']:.2f}, largest {r['worst'][0]} {r['worst'][1]:+.2f}")
         print(line + f"  ({time.perf_counter() - t:.0f} s)", flush=True)
@@ -237,7 +235,7 @@ def main() -> int:
           f"{clean}/{len(rows)}; clock offset |error| <= 3 σ in {sum(abs(r['offset_z']) <= 3 for r in rows)}/{len(rows)}")
     with_k2 = [r for r in rows if r["k2"]]
     if with_k2:
-        zk = np.array([r["k2_z"] for r in with_k2])
+        zk = np.array([r["k2"]["error"] / r["k2"]["sigma"] for r in with_k2])
         print(f"  {HIDDEN[1]} RMS z {math.sqrt(np.mean(zk ** 2)):.2f} over {len(with_k2)}; parameters' RMS z per "
               "seed " + ", ".join(f"{r['rms_z']:.2f}" for r in rows) + "; final chi2/dof "
               + ", ".join(f"{r['chi2']:.3f}" for r in rows))
