@@ -70,7 +70,7 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regular
     rms = math.sqrt(float(np.mean((u - out) ** 2)))
     runs = len(edges) - 1
     if runs > 1:
-        grid, offset = _grids(sums, d, rms)
+        grid, offset = _grids(sums, start, d, rms)
         d1, grid_start = _line(tuple(np.bincount(grid, w) for w in _shifted(sums, offset)), nominal_dt)
         one = grid_start[grid[run]] + d1 * (k + offset[run])
         rms1 = math.sqrt(float(np.mean((u - one) ** 2)))
@@ -100,16 +100,15 @@ def _line(sums, nominal_dt: float):
     return d, (s_t - d * s_k) / n
 
 
-def _grids(sums, d: float, rms: float):
+def _grids(sums, start: np.ndarray, d: float, rms: float):
     """(grid of each run, its first sample's index on that grid) from the runs' sums
-    (n, Σk, Σk², Σt, Σkt): a run joins the grid before it where its start lies a whole number of
+    (n, Σk, Σk², Σt, Σkt) and their starts on the common interval *d*: a run joins the grid before it where its start lies a whole number of
     intervals on, within five times the scatter of the run's start and the grid's prediction
     there (the stamps' RMS over √samples). The grid is the line through every stamp on it so
     far; its slope the runs' common interval *d* until the grid's own spans more (far ahead,
     d's error was half an interval 200,000 samples on)."""
     n, s_k, s_kk, s_t, s_kt = sums
     spread_runs = float(np.sum(s_kk - s_k**2 / n))
-    start = (s_t - d * s_k) / n
     grid, offset = np.zeros(len(n), int), np.zeros(len(n))
     on = None  # the sums of the grid being built
     for r in range(len(n)):
