@@ -16,6 +16,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -361,6 +362,33 @@ def test_case_child_dies_with_its_worker(campaign_file, tmp_path):
     if survived:
         os.kill(kids[0], signal.SIGKILL)  # leave no spinning process to the other tests
     assert not survived, "the case child outlived its server"
+
+
+@pytest.mark.parametrize("isolation", ["fork", "spawn"])
+def test_killed_case_leaves_no_temporary_files(campaign_file, tmp_path, monkeypatch, isolation):
+    """A case killed at its timeout runs no clean-up of its own: what it unpacked (its FMUs) must
+    still go with it. Found: two unpacked FMUs left in the temporary directory per killed case."""
+    from components.campaign import isolate
+    from components.campaign.spec import task_for
+
+    if isolation == "fork" and not isolate._use_server():
+        pytest.skip("case servers fork on Linux only")
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    # this process and every process it starts (a fresh case server, a spawned case) use *temp*
+    monkeypatch.setenv("TMPDIR", str(temp))
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    monkeypatch.setenv("CALBENCH_CASE_ISOLATION", isolation)
+    monkeypatch.setattr(isolate, "_pool", [])
+    camp = load_campaign(campaign_file)
+    task = task_for(camp, next(c for c in camp.cases if c.id.startswith("lsq-hang")))
+    try:
+        rec = isolate.run_isolated(task, timeout_s=10.0 if isolation == "spawn" else 4.0)
+    finally:
+        for server in isolate._pool:
+            server.close()
+    assert "timeout" in rec["reason"], rec["reason"]
+    assert sorted(p.name for p in temp.iterdir()) == []
 
 
 def test_existing_cluster_by_address_gives_the_same_records(campaign_file, two_workers, tmp_path):

@@ -40,6 +40,10 @@ def _child(req: dict, server: int) -> None:  # pragma: no cover  (runs in the fo
         os.dup2(fd, 2)
         os.close(fd)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        if req.get("tmpdir"):
+            import tempfile
+
+            os.environ["TMPDIR"] = tempfile.tempdir = req["tmpdir"]
         from components.campaign.case import main
 
         code = main([req["task"], req["result"]])

@@ -90,12 +90,13 @@ def warm() -> int:
     return os.getpid()
 
 
-def _spawn(tin: Path, tout: Path, terr: Path, timeout: float) -> dict:
+def _spawn(tin: Path, tout: Path, terr: Path, scratch: Path, timeout: float) -> dict:
     cmd = [sys.executable, "-m", "components.campaign.case", str(tin), str(tout)]
     with open(terr, "wb") as err:
         try:
             # one BLAS thread per case, whatever the caller's environment: the workers are the parallelism
-            p = subprocess.run(cmd, env={**os.environ, **ONE_BLAS_THREAD}, stdout=err, stderr=err, timeout=timeout,
+            p = subprocess.run(cmd, env={**os.environ, **ONE_BLAS_THREAD, "TMPDIR": str(scratch)},
+                               stdout=err, stderr=err, timeout=timeout,
                                preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
         except subprocess.TimeoutExpired:
             return {"status": "timeout"}
@@ -111,16 +112,21 @@ def run_isolated(task: dict, timeout_s: float | None = None) -> dict:
     with tempfile.TemporaryDirectory(prefix="calbench-case-") as tmp:
         tin, tout, terr = Path(tmp) / "task.json", Path(tmp) / "result.json", Path(tmp) / "stderr.txt"
         tin.write_text(json.dumps(task))
+        # the case's own temporary files (its unpacked FMUs) live in the case's directory: a case
+        # killed at its timeout, or dying of a signal, cleans up nothing itself (found: two
+        # unpacked FMUs left in /tmp by every killed case)
+        scratch = Path(tmp) / "tmp"
+        scratch.mkdir()
         if _use_server():
             try:
                 server = _take()
                 st = server.run({"task": str(tin), "result": str(tout), "stderr": str(terr),
-                                 "timeout": timeout}, timeout)
+                                 "tmpdir": str(scratch), "timeout": timeout}, timeout)
                 _give(server)
             except (RuntimeError, OSError, ValueError):
-                st = _spawn(tin, tout, terr, timeout)
+                st = _spawn(tin, tout, terr, scratch, timeout)
         else:
-            st = _spawn(tin, tout, terr, timeout)
+            st = _spawn(tin, tout, terr, scratch, timeout)
         if st["status"] == "timeout":
             return record(task, None, f"timeout: no result after {timeout:g} s (the case was killed)")
         if st["status"] == "signal":
