@@ -61,6 +61,13 @@ def import_log(m: Mapping) -> Imported:
         notes.append(f"time stamps regularised: {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz "
                      f"({(reg.rate_hz / m.sample_rate_hz - 1) * 1e6:+.3g} ppm from the nominal {m.sample_rate_hz:g}), "
                      f"stamps' RMS jitter {reg.jitter_rms_s * 1e6:.3g} us")
+        if reg.drift is not None:
+            span = float(t[-1] - t[0])
+            shape = ("changing steadily over the log" if reg.drift.spacing_s >= 0.99 * span else
+                     f"piecewise linear between knots {reg.drift.spacing_s:.0f} s apart")
+            notes.append(f"the sensor's clock drifts against the host's: its stamps bow up to {reg.drift.bow_s * 1e3:.3g} ms "
+                         f"away from one regular clock, its rate moving over {reg.drift.rate_span_ppm:.3g} ppm; the samples "
+                         f"follow the stamps on a smooth clock (its rate {shape})")
         reach = 3 * math.sqrt(2) * reg.jitter_rms_s  # how far jitter stretches one interval, at most about
         if max_int - 1 / reg.rate_hz < reach:
             # a jittered interval then passes for a gap, and the runs between such gaps, chosen by

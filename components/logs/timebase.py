@@ -4,7 +4,9 @@ another clock at another rate.
 - **Jitter.** A sensor that samples on its own clock, time-stamped by a host, has regular
   samples and irregular stamps. ``regularise`` fits t_k = t_0 + k Δ by least squares over each
   run between gaps (an interval above ``max_interval``) and replaces the stamps; the fitted rate
-  and the stamps' RMS deviation are reported.
+  and the stamps' RMS deviation are reported. Where the stamps bow away from that grid (a
+  sensor's clock drifting against the host's), a smooth correction follows them
+  (components.logs.clock_drift).
 - **Two clocks.** The table's time plus an offset is the IMU's. The offset is estimated by
   matching how far the plate turns with how far the gyros say it turned (the same motion,
   whatever the axes' mapping; the gyros' errors scale it by parts per thousand at most): a coarse
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.errors import MappingError
+from components.logs.clock_drift import ClockDrift, fit_drift
 
 
 @dataclass
@@ -35,6 +38,7 @@ class Regularised:
     rate_hz: float           # the one interval of every run's grid, fitted on every stamp
     jitter_rms_s: float      # RMS of the stamps about the fitted grid
     runs: int
+    drift: ClockDrift | None = None  # the smooth correction of a clock drifting against the host's
 
 
 def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
@@ -45,7 +49,38 @@ def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
 
 
 def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regularised:
-    """Stamps replaced by a regular grid in each run between gaps: one interval for the whole log
+    """Stamps replaced by a regular grid (:func:`_regular`) and, where they bow away from it by more
+    than their jitter, a smooth correction of it (components.logs.clock_drift): the grid is
+    fitted again to the stamps less the correction, and the correction to what the new grid
+    leaves, until no further correction beats none (at most four rounds; one grid joins the
+    runs through lost samples only once the bow no longer hides their whole intervals)."""
+    cut = np.nonzero(gaps(t, max_interval))[0]
+    edges = np.concatenate([[0], cut, [len(t)]])
+    reg, residual = _regular(t, nominal_dt, edges)
+    u = t - float(t[0])
+    drift = fit_drift(u, residual, nominal_dt)
+    if drift is None:
+        return reg
+    first = drift
+    correction = np.zeros(len(t))
+    for _ in range(4):
+        correction += drift.at(u)
+        reg, residual = _regular(t - correction, nominal_dt, edges)
+        drift = fit_drift(u, residual, nominal_dt)
+        if drift is None:
+            break
+    rms = math.sqrt(float(np.mean((t - correction - reg.time) ** 2)))
+    # as said to the user: the rate as the first round found it (the rounds after refine it by
+    # little), and how far the samples bow away from one regular clock (the correction less its line)
+    bow = float(np.max(np.abs(_off_line(u, correction))))
+    said = ClockDrift(first.origin, first.spacing_s, first.coefficients, bow)
+    return Regularised(reg.time + correction, reg.rate_hz, rms, reg.runs, said)
+
+
+def _regular(t: np.ndarray, nominal_dt: float, edges: np.ndarray) -> tuple[Regularised, np.ndarray]:
+    """(the stamps *t* replaced by a regular grid in each run between the *edges* of the gaps, the
+    stamps' residual against one grid through the runs where one was tried, else against the
+    result). One interval for the whole log
     (the sensor's own clock), by least squares on every stamp, and one grid for the runs whose
     starts lie a whole number of intervals apart within their stamps' scatter (samples lost
     between them; a sensor restarted out of phase starts a grid of its own).
@@ -58,8 +93,6 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regular
     ±0.3 ms), which a move's motion turns into misfit (χ²/dof 1.14 for 0.99 with 1 % lost). The
     grids are kept only where they fit the stamps as well as each run's own start, up to what
     fewer starts cost by chance (not so a clock that drifts against the host's)."""
-    cut = np.nonzero(gaps(t, max_interval))[0]
-    edges = np.concatenate([[0], cut, [len(t)]])
     run = np.repeat(np.arange(len(edges) - 1), np.diff(edges))
     k = np.arange(len(t), dtype=float) - edges[:-1][run]  # index within the run
     t0 = float(t[0])
@@ -80,8 +113,21 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regular
         # 11 us on the runs' own starts)
         grids = int(grid.max()) + 1
         if rms1**2 <= rms**2 * (1 + (runs - grids) / len(t) + 4 * math.sqrt(2 / len(t))):
-            return Regularised(t0 + one, 1.0 / d1, rms1, runs)
-    return Regularised(t0 + out, 1.0 / d, rms, runs)
+            return Regularised(t0 + one, 1.0 / d1, rms1, runs), u - one
+        # the bow a drifting clock leaves in the stamps shows against one line through every run,
+        # not against the runs' own starts, which follow it; the runs' whole intervals apart
+        # counted from each one's start to the next (the grids' joins, drawn from lines through
+        # the stamps before, miss by the bow's slope)
+        index = k + np.concatenate([[0], np.cumsum(np.round(np.diff(start) / d))])[run]
+        return Regularised(t0 + out, 1.0 / d, rms, runs), _off_line(index, u)
+    return Regularised(t0 + out, 1.0 / d, rms, runs), u - out
+
+
+def _off_line(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """y less its least-squares line in x."""
+    xc = x - x.mean()
+    yc = y - y.mean()
+    return yc - xc * (float(np.dot(xc, yc)) / float(np.dot(xc, xc)))
 
 
 def _shifted(sums, o):
@@ -100,6 +146,9 @@ def _line(sums, nominal_dt: float):
     return d, (s_t - d * s_k) / n
 
 
+GRID_MEMORY_S = 60.0  # s: how far back the stamps predict where the next run starts
+
+
 def _grids(sums, start: np.ndarray, d: float, rms: float):
     """(grid of each run, its first sample's index on that grid) from the runs' sums
     (n, Σk, Σk², Σt, Σkt) and their starts on the common interval *d*: a run joins the grid before it where its start lies a whole number of
@@ -110,16 +159,26 @@ def _grids(sums, start: np.ndarray, d: float, rms: float):
     n, s_k, s_kk, s_t, s_kt = sums
     spread_runs = float(np.sum(s_kk - s_k**2 / n))
     grid, offset = np.zeros(len(n), int), np.zeros(len(n))
+    memory = GRID_MEMORY_S / d  # samples
     on = None  # the sums of the grid being built
     for r in range(len(n)):
         if on is not None:
+            # the stamps long before weigh less in the prediction: a clock drifting against the
+            # host's bows the stamps away from any one line by milliseconds over an hour, which a
+            # line through all of them would carry to the next run's start
+            fade = math.exp(-(start[r] - start[r - 1]) / d / memory)
+            on = tuple(x * fade for x in on)
             sn, sx, sxx, st, sxt = on
             sxx_c = sxx - sx * sx / sn
-            b = (sxt - sx * st / sn) / sxx_c if sxx_c > spread_runs else d
+            # the grid's own slope once it spans a good part of its memory (the local rate of a
+            # drifting clock, ppm off the log's mean rate over seconds back), else the runs'
+            # common interval (a short grid's own slope carried far ahead misses by intervals)
+            own = sxx_c > spread_runs or sxx_c > sn * (0.1 * memory) ** 2
+            b = (sxt - sx * st / sn) / sxx_c if own else d
             a = (st - b * sx) / sn
             m = (start[r] - a) / b
             # the prediction's scatter at m: the line's, from its sums
-            var = rms**2 * (1 / sn + (m - sx / sn) ** 2 / max(sxx_c, spread_runs)) / (d * d)
+            var = rms**2 * (1 / sn + (m - sx / sn) ** 2 / (sxx_c if own else spread_runs)) / (d * d)
             if abs(m - round(m)) <= 5 * math.sqrt(var + rms**2 / n[r] / (d * d)):
                 offset[r], grid[r] = round(m), grid[r - 1]
                 on = tuple(p + q for p, q in zip(on, _shifted([x[r] for x in sums], offset[r])))
