@@ -127,18 +127,28 @@ def _toml(d: dict, prefix: str = "") -> str:
     return out + "".join(_toml(v, f"{prefix}.{k}" if prefix else k) for k, v in tables.items())
 
 
-def write_rig(sim: Path, out: Path, rng: np.random.Generator) -> None:
-    """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*."""
+def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0) -> None:
+    """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*.
+    ``drift_ppm``: the IMU's clock rate soaks by that much (towards it with a time constant of a
+    quarter of the log, a crystal warming) against the host's and the table's, which keep time.
+    Emulated: the host's time is the simulation's warped by it (the IMU's samples then stand
+    where its drifting clock puts them), and each interval's increment of gravity is longer by
+    it (the gyros' turn is the table's, whatever the clock)."""
     log = read_log(sim)
-    counts = {s: PulseLogger(w, rng.random(3) * w).counts(getattr(log, s)) for s, w in COUNTS.items()}
-    stamps = np.round((log.time + rng.uniform(-JITTER, JITTER, log.n)) * 1e6)
+    tau = log.time - log.time[0]
+    rate = 1 + drift_ppm * 1e-6 * (1 - np.exp(-tau / (tau[-1] / 4)))  # the host's seconds per simulated one
+    host = log.time[0] + np.concatenate([[0.0], np.cumsum(np.diff(tau) * 0.5 * (rate[1:] + rate[:-1]))]) \
+        if drift_ppm else log.time
+    acc = log.acc * rate[:, None]
+    counts = {s: PulseLogger(w, rng.random(3) * w).counts(v) for (s, w), v in zip(COUNTS.items(), (log.gyro, acc))}
+    stamps = np.round((host + rng.uniform(-JITTER, JITTER, log.n)) * 1e6)
     g, a = counts["gyro"], counts["acc"]
     cols = [stamps, g[:, 2], g[:, 1], -g[:, 0], a[:, 0], a[:, 1], a[:, 2], log.temperature * 9 / 5 + 32]
     kept = rng.random(log.n) >= LOST
     kept[[0, -1]] = True
     np.savetxt(out / "imu.csv", np.column_stack(cols)[kept], fmt=["%d"] * 7 + ["%.4f"], delimiter=",", comments="",
                header="stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F")
-    rows = np.column_stack([log.time - CLOCK] + [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")])
+    rows = np.column_stack([host - CLOCK] + [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")])
     with open(out / "table.csv", "w") as f:
         f.write("# turntable controller export\n# firmware 3.1\nt;A0;A1;A2\n")
         for r in rows:
@@ -156,17 +166,18 @@ def calbench(*args: str, cwd: Path) -> str:
     return r.stdout + r.stderr
 
 
-def one_seed(seed: int, d: Path) -> dict:
+def one_seed(seed: int, d: Path, drift_ppm: float = 0.0) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed))
     calbench("simulate", "scenario.toml", "--out", "sim", cwd=d)
     rig = d / "rig"
     rig.mkdir(exist_ok=True)
-    write_rig(d / "sim", rig, np.random.default_rng(seed))
+    write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm)
     truth = json.loads((d / "sim.truth.json").read_text())
     said = calbench("import", "rig/map.toml", "--out", "imp", cwd=d)
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
     offset, offset_sigma = float(m.group(1)) * 1e-3, float(m.group(2)) * 1e-3
+    drift = re.search(r"bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm", said)
     calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
     # the user's loop: the noise identified around the model, the diagnosis under it, the verdict
     # added, until nothing is missing (at most MOST_ADDED effects)
@@ -192,6 +203,7 @@ def one_seed(seed: int, d: Path) -> dict:
     noise = json.loads((d / f"noise{k}.json").read_text())["channels"]
     _, _, unit, scale = TERMS["acc"]["bias_instability"]  # the floor's display unit and its SI size
     return {"seed": seed, "offset_z": (offset - CLOCK) / offset_sigma, "offset_sigma_us": offset_sigma * 1e6,
+            "drift_said": drift and f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; ",
             "verdicts": verdicts, "last_verdict": diag["verdict"], "k2": errors.get(HIDDEN[1]),
             "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0) / scale for a in "xyz"],
             "floor_unit": unit, "floor_truth": truth["noise"]["acc.noise.bi"] / scale, "chi2": diag["base_chi2_per_dof"],
@@ -205,6 +217,8 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--first-seed", type=int, default=23)
     ap.add_argument("--dir", type=Path, help="where each seed's files go (default: a temporary directory)")
+    ap.add_argument("--drift-ppm", type=float, default=0.0,
+                    help="the IMU's clock rate soaking by this much against the host's (default 0)")
     a = ap.parse_args()
     tmp = None
     if a.dir is None:
@@ -212,18 +226,19 @@ def main() -> int:
         a.dir = Path(tmp.name)
     print(f"foreign rig: {a.seeds} seed(s) from {a.first_seed}; pulse counts {COUNTS['gyro']:g} rad, "
           f"{COUNTS['acc']:g} m/s; stamps ±{JITTER * 1e3:g} ms; {LOST:.1%} of the packets lost; table clock {CLOCK * 1e3:g} ms behind; "
-          f"hidden {HIDDEN[1]} under navigation-grade coloured noise, 26-position schedule")
+          f"hidden {HIDDEN[1]} under navigation-grade coloured noise, 26-position schedule"
+          + (f"; the IMU's clock rate soaking by {a.drift_ppm:g} ppm against the host's" if a.drift_ppm else ""))
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
-        r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}")
+        r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm)
         rows.append(r)
         lo, hi = band99(r["dof"])
         fl = ", ".join(f"{f:.2f}" for f in r["floors"])
         k2 = r["k2"]
         k2 = (f"{k2['value']:+.2f} ± {k2['sigma']:.2f} {k2['unit']} ({k2['error'] / k2['sigma']:+.2f} σ from the "
               "truth)" if k2 else "not in the model")
-        line = (f"seed {r['seed']}: clock offset error {r['offset_z']:+.2f} σ (σ {r['offset_sigma_us']:.1f} us); "
+        line = (f"seed {r['seed']}: {r['drift_said'] or ''}clock offset error {r['offset_z']:+.2f} σ (σ {r['offset_sigma_us']:.1f} us); "
                 f"verdicts {' then '.join(r['verdicts']) or 'none'}, then {r['last_verdict'] or 'none'}; "
                 f"{HIDDEN[1]} {k2}; acc floors {fl} {r['floor_unit']} (injected {r['floor_truth']:.3g}); final "
                 f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "

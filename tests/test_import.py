@@ -195,6 +195,30 @@ unit = "s"
     _same(_fit(back), ref)
 
 
+def _regularised_rig(tmp_path: Path, table_time: np.ndarray, fast, time_column: str, time_unit: str, gyro: str,
+                     acc: str, clock_offset: str) -> Path:
+    """The table's angles of *fast* at *table_time* in table.csv and the mapping of an imu.csv
+    stamped by a host (timing = "regularise") beside it."""
+    _write_delimited(tmp_path / "table.csv", ["t", "A", "B", "C"],
+                     [table_time] + [np.degrees(fast.gimbal[a]) for a in ("outer", "middle", "inner")])
+    return _mapping(tmp_path / "map.toml", f'''
+[imu]
+file = "imu.csv"
+sample_rate_hz = 200.0
+[imu.time]
+column = "{time_column}"
+unit = "{time_unit}"
+timing = "regularise"
+{gyro}{acc}[table]
+file = "table.csv"
+clock_offset_s = {clock_offset}
+encoder_resolution = "exact"
+[table.time]
+column = "t"
+{_axes_toml(["A", "B", "C"])}
+{SITE}''')
+
+
 def test_lost_packets_of_an_increment_output_do_not_shift_the_clock_offset(kilohertz_run, tmp_path, capsys):
     """Packets lost from an increment output (1 % of the rows, at random) take their increments
     with them: the sample after each covers its own interval, not the gap. Matched against the
@@ -208,24 +232,9 @@ def test_lost_packets_of_an_increment_output_do_not_shift_the_clock_offset(kiloh
     inc, vel = np.degrees(log.gyro), log.acc * 1e3
     _write_delimited(tmp_path / "imu.csv", ["t_ms", "dx", "dy", "dz", "vx", "vy", "vz"],
                      [c[kept] for c in (t_ms, inc[:, 0], inc[:, 1], inc[:, 2], vel[:, 0], vel[:, 1], vel[:, 2])])
-    _write_delimited(tmp_path / "table.csv", ["t", "A", "B", "C"],
-                     [fast.time - CLOCK] + [np.degrees(fast.gimbal[a]) for a in ("outer", "middle", "inner")])
-    m = _mapping(tmp_path / "map.toml", f'''
-[imu]
-file = "imu.csv"
-sample_rate_hz = 200.0
-[imu.time]
-column = "t_ms"
-unit = "ms"
-timing = "regularise"
-{_sensor_toml("gyro", "increment", "deg", ["dx", "dy", "dz"])}{_sensor_toml("acc", "increment", "mm/s", ["vx", "vy", "vz"])}[table]
-file = "table.csv"
-clock_offset_s = "estimate"
-encoder_resolution = "exact"
-[table.time]
-column = "t"
-{_axes_toml(["A", "B", "C"])}
-{SITE}''')
+    m = _regularised_rig(tmp_path, fast.time - CLOCK, fast, "t_ms", "ms",
+                         _sensor_toml("gyro", "increment", "deg", ["dx", "dy", "dz"]),
+                         _sensor_toml("acc", "increment", "mm/s", ["vx", "vy", "vz"]), '"estimate"')
     assert main(["import", str(m), "--out", str(tmp_path / "merged")]) == 0
     out = capsys.readouterr().out
     assert "gap(s) longer than" in out
@@ -263,24 +272,9 @@ def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp
     rate, force = log.gyro / log.dt, log.acc / log.dt * stretch[:, None]
     _write_delimited(tmp_path / "imu.csv", ["t", "wx", "wy", "wz", "fx", "fy", "fz"],
                      [t_s, *rate.T, *force.T])
-    _write_delimited(tmp_path / "table.csv", ["t", "A", "B", "C"],
-                     [host(fast.time)] + [np.degrees(fast.gimbal[a]) for a in ("outer", "middle", "inner")])
-    m = _mapping(tmp_path / "map.toml", f'''
-[imu]
-file = "imu.csv"
-sample_rate_hz = 200.0
-[imu.time]
-column = "t"
-unit = "s"
-timing = "regularise"
-{_sensor_toml("gyro", "rate", "rad/s", ["wx", "wy", "wz"])}{_sensor_toml("acc", "specific_force", "m/s2", ["fx", "fy", "fz"])}[table]
-file = "table.csv"
-clock_offset_s = 0.0
-encoder_resolution = "exact"
-[table.time]
-column = "t"
-{_axes_toml(["A", "B", "C"])}
-{SITE}''')
+    m = _regularised_rig(tmp_path, host(fast.time), fast, "t", "s",
+                         _sensor_toml("gyro", "rate", "rad/s", ["wx", "wy", "wz"]),
+                         _sensor_toml("acc", "specific_force", "m/s2", ["fx", "fy", "fz"]), "0.0")
     assert main(["import", str(m), "--out", str(tmp_path / "merged")]) == 0
     out = capsys.readouterr().out
     said = re.search(r"clock drifts against the host's: its stamps bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm",
