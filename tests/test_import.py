@@ -249,16 +249,20 @@ def test_lost_packets_of_an_increment_output_do_not_shift_the_clock_offset(kiloh
     assert fit.chi2 / fit.dof < 1 + 4 * math.sqrt(2 / fit.dof), (fit.chi2 / fit.dof, fit.dof)
 
 
-def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp_path, capsys):
-    """The sensor's clock drifts (its rate moving by 100 ppm over the two-minute log: exaggerated
-    so that it shows here; a crystal in a thermal chamber moves tens of ppm over half an hour),
-    the host's is true and stamps the IMU's samples (±0.2 ms jitter) and the table's angles. The
-    sensor's samples then bow ~1 ms away from any one regular grid, and the samples set against
-    the table's motion there misfit (χ²/dof in the thousands); followed on a smooth clock, the
+@pytest.mark.parametrize("drifts", ["sensor", "host"])
+def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp_path, capsys, drifts):
+    """One clock drifts against the other (its rate moving by 100 ppm over the two-minute log:
+    exaggerated so that it shows here; a crystal in a thermal chamber moves tens of ppm over half
+    an hour); the host stamps the IMU's samples (±0.2 ms jitter) and the table's angles. The
+    sensor's samples then bow ~1 ms away from any one regular grid on the host's clock, and the
+    samples set against the table's motion there misfit; followed on a smooth clock, the
     calibration fits as the exact log does: χ²/dof within 1 + 4√(2/dof).
-    Emulated from the simulated log: host time = its time warped by the rate change, and each
-    interval's increment of gravity longer by it (the gyros' turn is the table's, whatever the
-    clock)."""
+    - the sensor's clock drifts (the host keeps time, the default): the log follows the host;
+    - the host's clock drifts (``keeps_time = "sensor"``): the log's time is the sensor's regular
+      grid, the table's angles taken at the host's stamps.
+    Emulated from the simulated log: host time = its time warped by the rate change; where the
+    sensor's clock is the one that drifts, each interval's increment of gravity is longer by it
+    (the gyros' turn is the table's, whatever the clock)."""
     fast, log, _ = kilohertz_run
     rng = np.random.default_rng(6)
     span = float(fast.time[-1] - fast.time[0])
@@ -267,7 +271,7 @@ def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp
     def host(t):
         return t + 0.5 * beta * (t - fast.time[0]) ** 2
 
-    stretch = 1 + beta * (log.time - fast.time[0])
+    stretch = 1 + beta * (log.time - fast.time[0]) if drifts == "sensor" else np.ones(log.n)
     t_s = host(log.time) + rng.uniform(-2e-4, 2e-4, log.n)
     rate, force = log.gyro / log.dt, log.acc / log.dt * stretch[:, None]
     _write_delimited(tmp_path / "imu.csv", ["t", "wx", "wy", "wz", "fx", "fy", "fz"],
@@ -275,6 +279,8 @@ def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp
     m = _regularised_rig(tmp_path, host(fast.time), fast, "t", "s",
                          _sensor_toml("gyro", "rate", "rad/s", ["wx", "wy", "wz"]),
                          _sensor_toml("acc", "specific_force", "m/s2", ["fx", "fy", "fz"]), "0.0")
+    if drifts == "host":
+        m.write_text(m.read_text().replace('timing = "regularise"', 'timing = "regularise"\nkeeps_time = "sensor"'))
     assert main(["import", str(m), "--out", str(tmp_path / "merged")]) == 0
     out = capsys.readouterr().out
     said = re.search(r"clock drifts against the host's: its stamps bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm",
@@ -284,7 +290,11 @@ def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp
     # t² on [0, T] lies within T²/6 of its best line: the bow is Δ·T/12
     assert bow * 1e-3 == pytest.approx(100e-6 * span / 12, rel=0.1), said.group(0)
     assert moving == pytest.approx(100, rel=0.1), said.group(0)
-    fit = _fit(read_log(tmp_path / "merged"))
+    merged = read_log(tmp_path / "merged")
+    if drifts == "host":
+        # the log's time the sensor's regular clock: its intervals equal to the float's last digits
+        assert np.ptp(np.diff(merged.time)) < 1e-12
+    fit = _fit(merged)
     print(f"chi2/dof {fit.chi2 / fit.dof:.4f} over {fit.dof}; the exact log "
           f"{kilohertz_run[2].chi2 / kilohertz_run[2].dof:.4f}")
     assert fit.chi2 / fit.dof < 1 + 4 * math.sqrt(2 / fit.dof), (fit.chi2 / fit.dof, fit.dof)
@@ -436,6 +446,10 @@ LABELS = '\n[labels]\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n'
     (lambda s: s.replace('output = "specific_force"', 'output = "force"'), r"key 'imu.acc.output' = 'force'"),
     (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\ntiming = "jittery"'),
      r"key 'imu.time.timing' = 'jittery'"),
+    (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\nkeeps_time = "table"'),
+     r"key 'imu.time.keeps_time' = 'table': expected one of host, sensor"),
+    (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\nkeeps_time = "sensor"'),
+     r"key 'imu.time.keeps_time' = 'sensor': .* only timing = 'regularise' follows \(timing is 'nominal'\)"),
     (lambda s: s.replace('file = "rec.csv"', 'file = "nope.csv"'), r"nope.csv: the input file does not exist"),
     (lambda s: s.replace('[site]\nlatitude_deg = 39.9', '[site]\nlatitude_deg = 99'), r"key 'site.latitude_deg' = 99"),
     (lambda s: s + '\n[labels]\ncolumn = "t"\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n',

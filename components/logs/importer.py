@@ -55,6 +55,7 @@ def import_log(m: Mapping) -> Imported:
     _check_rate(m, t, nominal)
     max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
     timing, fs = "nominal", m.sample_rate_hz
+    logged = None  # the log's time where it is not the host's (a drift, the sensor keeping time)
     if m.timing == "regularise":
         reg = regularise(t, nominal, max_int)
         t = reg.time
@@ -68,6 +69,12 @@ def import_log(m: Mapping) -> Imported:
             notes.append(f"the sensor's clock drifts against the host's: its stamps bow up to {reg.drift.bow_s * 1e3:.3g} ms "
                          f"away from one regular clock, its rate moving over {reg.drift.rate_span_ppm:.3g} ppm; the samples "
                          f"follow the stamps on a smooth clock (its rate {shape})")
+            if m.keeps_time == "sensor":
+                # the sensor's intervals are its nominal ones, and its samples stand where the
+                # host's stamps put them against the table (stamped by the same host)
+                logged = reg.sensor_time
+                notes.append("keeps_time = 'sensor': the log's time is the sensor's regular clock; the table's angles "
+                             "are taken at the host's stamps of its samples")
         reach = 3 * math.sqrt(2) * reg.jitter_rms_s  # how far jitter stretches one interval, at most about
         if max_int - 1 / reg.rate_hz < reach:
             # a jittered interval then passes for a gap, and the runs between such gaps, chosen by
@@ -106,6 +113,8 @@ def import_log(m: Mapping) -> Imported:
     _check_label_keys(m, seg)
     clock: dict = {}
     gimbal, command, names, vectors, keep = _table(m, cols, t, gyro, gkind, notes, clock, ~after_gap)
+    if logged is not None:
+        t = logged
     if keep is not None:
         t, gyro, acc = t[keep], gyro[keep], acc[keep]
         temp = None if temp is None else temp[keep]

@@ -25,6 +25,7 @@ TEMPERATURE_UNITS = ("degC", "K", "degF")
 GYRO_KINDS = {"rate": RATE_UNITS, "increment": ANGLE_UNITS, "counts": ANGLE_UNITS}
 ACC_KINDS = {"specific_force": FORCE_UNITS, "increment": VELOCITY_UNITS, "counts": VELOCITY_UNITS}
 TIMINGS = ("nominal", "measured", "regularise")
+CLOCKS = ("host", "sensor")  # imu.time.keeps_time: which clock keeps time where the two drift apart
 
 
 @dataclass
@@ -96,6 +97,7 @@ class Mapping:
     # than the count: an interpolating encoder, a filtered angle)
     round_to_count: bool = False
     description: str = ""
+    keeps_time: str = "host"    # a drift followed by regularise: the host's clock keeps time, or the sensor's
 
 
 def _get(d: dict, key: str, where: str, expected: str, required: bool = True, default=None):
@@ -236,6 +238,11 @@ def load_mapping(path: str | Path) -> Mapping:
         mx = _number(mx, "imu.time.max_interval_s", where, "the longest interval that is not a gap [s]")
         if mx * fs <= 1.0:
             raise MappingError(f"{where}: key 'imu.time.max_interval_s' = {mx!r}: expected more than 1/sample_rate_hz")
+    keeps = _unit(t.get("keeps_time", "host"), "imu.time.keeps_time", where, CLOCKS)
+    if "keeps_time" in t and timing != "regularise":
+        raise MappingError(f"{where}: key 'imu.time.keeps_time' = {keeps!r}: it says which clock keeps time where a "
+                           f"sensor's and its host's drift apart, which only timing = 'regularise' follows (timing is "
+                           f"{timing!r})")
     m = Mapping(where, src, time, tu, fs, timing, mx,
                 _sensor(_get(imu, "gyro", f"{where} [imu]", "an [imu.gyro] table"), "imu.gyro", where, GYRO_KINDS,
                         ANGLE_UNITS),
@@ -265,6 +272,7 @@ def load_mapping(path: str | Path) -> Mapping:
     if not isinstance(desc, str):
         raise MappingError(f"{where}: key 'description' = {desc!r}: expected text")
     m.description = desc
+    m.keeps_time = keeps
     return m
 
 

@@ -39,6 +39,7 @@ class Regularised:
     jitter_rms_s: float      # RMS of the stamps about the fitted grid
     runs: int
     drift: ClockDrift | None = None  # the smooth correction of a clock drifting against the host's
+    sensor_time: np.ndarray | None = None  # with a drift: the regular grid, the sensor's own clock
 
 
 def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
@@ -74,7 +75,7 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regular
     # little), and how far the samples bow away from one regular clock (the correction less its line)
     bow = float(np.max(np.abs(_off_line(u, correction))))
     said = ClockDrift(first.origin, first.spacing_s, first.coefficients, bow)
-    return Regularised(reg.time + correction, reg.rate_hz, rms, reg.runs, said)
+    return Regularised(reg.time + correction, reg.rate_hz, rms, reg.runs, said, reg.time)
 
 
 def _regular(t: np.ndarray, nominal_dt: float, edges: np.ndarray) -> tuple[Regularised, np.ndarray]:
