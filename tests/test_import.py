@@ -219,6 +219,49 @@ column = "t"
 {SITE}''')
 
 
+def test_a_table_clock_running_at_another_rate_is_estimated(kilohertz_run, tmp_path, capsys):
+    """The table's controller on a crystal of its own, 300 ppm fast against the IMU's (exaggerated so
+    that it shows on two minutes: two crystals are tens of ppm apart, 43 ms over 36 minutes at 20
+    ppm, and one offset left a 26-position log at χ²/dof 10,000), its clock's origin 30 s off.
+    The offset and the rate from the rates' match: each within 4 of its σ of the truth; the log
+    calibrates within 1 + 4√(2/dof)."""
+    fast, log, _ = kilohertz_run
+    rng = np.random.default_rng(9)
+    gain = 300e-6
+    t_tab = (fast.time - CLOCK) * (1 + gain) + 30.0  # the controller's clock, started 30 s before
+    t_ms = (log.time + rng.uniform(-2e-4, 2e-4, log.n)) * 1e3
+    inc, vel = np.degrees(log.gyro), log.acc * 1e3
+    _write_delimited(tmp_path / "imu.csv", ["t_ms", "dx", "dy", "dz", "vx", "vy", "vz"],
+                     [t_ms, inc[:, 0], inc[:, 1], inc[:, 2], vel[:, 0], vel[:, 1], vel[:, 2]])
+    m = _regularised_rig(tmp_path, t_tab, fast, "t_ms", "ms", _sensor_toml("gyro", "increment", "deg", ["dx", "dy", "dz"]),
+                         _sensor_toml("acc", "increment", "mm/s", ["vx", "vy", "vz"]), '"estimate"')
+    assert main(["import", str(m), "--out", str(tmp_path / "merged")]) == 0
+    out = capsys.readouterr().out
+    said = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.e-]+) ms at the table's first sample, the IMU's "
+                     r"clock ([+-][\d.e+-]+) ± ([\d.e-]+) ppm against the table's", out)
+    assert said, out
+    offset, s_offset, rate, s_rate = (float(v) for v in said.groups())
+    truth_offset = fast.time[0] - t_tab[0]  # IMU time - table time at the table's first sample
+    truth_rate = 1 / (1 + gain) - 1         # the IMU's seconds per table second, less one
+    print(f"offset {offset:+.6f} ± {s_offset:.2g} ms (truth {truth_offset * 1e3:+.6f}); "
+          f"rate {rate:+.6g} ± {s_rate:.2g} ppm (truth {truth_rate * 1e6:+.6g})")
+    assert abs(offset * 1e-3 - truth_offset) < 4 * s_offset * 1e-3
+    assert abs(rate - truth_rate * 1e6) < 4 * s_rate
+    fit = _fit(read_log(tmp_path / "merged"))
+    print(f"chi2/dof {fit.chi2 / fit.dof:.4f} over {fit.dof}")
+    assert fit.chi2 / fit.dof < 1 + 4 * math.sqrt(2 / fit.dof), (fit.chi2 / fit.dof, fit.dof)
+    # the two given, as a user who knows them writes them: the same log
+    m.write_text(m.read_text().replace('clock_offset_s = "estimate"', f"clock_offset_s = {float(truth_offset)!r}\n"
+                                       f"clock_rate_ppm = {float(truth_rate) * 1e6!r}"))
+    assert main(["import", str(m), "--out", str(tmp_path / "given")]) == 0
+    assert "ppm against the table's (given)" in capsys.readouterr().out
+    fit = _fit(read_log(tmp_path / "given"))
+    assert fit.chi2 / fit.dof < 1 + 4 * math.sqrt(2 / fit.dof), (fit.chi2 / fit.dof, fit.dof)
+    with pytest.raises(MappingError, match="'table.clock_rate_ppm': with table.clock_offset_s = 'estimate'"):
+        load_mapping(_mapping(tmp_path / "map.toml", m.read_text().replace(f"clock_offset_s = {float(truth_offset)!r}",
+                                                                           'clock_offset_s = "estimate"')))
+
+
 def test_lost_packets_of_an_increment_output_do_not_shift_the_clock_offset(kilohertz_run, tmp_path, capsys):
     """Packets lost from an increment output (1 % of the rows, at random) take their increments
     with them: the sample after each covers its own interval, not the gap. Matched against the

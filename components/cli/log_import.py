@@ -55,7 +55,7 @@ def refine_clock_offset(m, imp):
             w_rate, w_lsq = (1 / s_rate**2 if s_rate > 0 else 0.0), 1 / s_lsq**2
             offset = (coarse * w_rate + lsq * w_lsq) / (w_rate + w_lsq)
             sigma = (w_rate + w_lsq) ** -0.5
-            m.clock_offset = offset
+            m.clock_offset, m.clock_rate = offset, imp.clock_offset.rate
             again = import_log(m)
             imp = type(imp)(again.log, [n for n in imp.notes if not n.startswith("clock offset")]
                             + [n for n in again.notes if not n.startswith(("clock offset", "gyro:", "time stamps",
@@ -65,8 +65,11 @@ def refine_clock_offset(m, imp):
         imp.notes.append(f"clock offset not refined by the least squares ({e}); the rate-matched value stands")
         return imp
     finally:
-        m.clock_offset = "estimate"
-    imp.notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ± {sigma * 1e3:.2g} ms: matched on the rates "
+        m.clock_offset, m.clock_rate = "estimate", 0.0
+    rate, s_r = imp.clock_offset.rate, imp.clock_offset.rate_sigma
+    imp.notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ± {sigma * 1e3:.2g} ms"
+                     + (f" at the table's first sample, the IMU's clock {rate * 1e6:+.6g} ± {s_r * 1e6:.2g} ppm against "
+                        "the table's" if rate else "") + ": matched on the rates "
                      f"{coarse * 1e3:+.4f} ± {s_rate * 1e3:.2g} ms, by the least squares' imu.time_offset on the "
                      f"merged log {lsq * 1e3:+.4f} ± {s_lsq * 1e3:.2g} ms (it includes any delay inside the IMU), "
                      "combined")

@@ -18,6 +18,7 @@ from components.logs.timebase import (
     estimate_clock_offset,
     gaps,
     regularise,
+    table_to_imu,
 )
 
 
@@ -255,14 +256,17 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
             inc = gyro
         co = estimate_clock_offset(t, dt, inc, tt, ang, np.array(vectors), use=whole)
         clock["estimate"] = co
-        offset = co.offset_s
-        notes.append(f"clock offset table -> IMU estimated {co.offset_s * 1e3:+.4f} ± {co.sigma_s * 1e3:.2g} ms "
-                     f"(first half {co.first_half_s * 1e3:+.4f}, second half {co.second_half_s * 1e3:+.4f} ms; rate "
-                     f"magnitudes correlate {co.correlation:.4f})")
+        offset, rate = co.offset_s, co.rate
+        drift = (f"; the IMU's clock {co.rate * 1e6:+.4g} ± {co.rate_sigma * 1e6:.2g} ppm against the table's: "
+                 f"{abs(co.rate) * (tt[-1] - tt[0]) * 1e3:.3g} ms over the record" if co.rate else "")
+        notes.append(f"clock offset table -> IMU estimated {co.offset_s * 1e3:+.4f} ± {co.sigma_s * 1e3:.2g} ms at the "
+                     f"table's first sample{drift} (each half on its own: {co.first_half_s * 1e3:+.4f}, "
+                     f"{co.second_half_s * 1e3:+.4f} ms at its middle; rate magnitudes correlate {co.correlation:.4f})")
     else:
-        offset = float(m.clock_offset or 0.0)
-        notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ms (given)")
-    ti = tt + offset
+        offset, rate = float(m.clock_offset or 0.0), m.clock_rate
+        notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ms (given)"
+                     + (f", the IMU's clock {rate * 1e6:+.4g} ppm against the table's (given)" if rate else ""))
+    ti = table_to_imu(tt, offset, rate)
     keep = (t >= ti[0]) & (t <= ti[-1])
     if not keep.any():
         raise MappingError(f"{tc.where}: the table record ({ti[0]:.6g}-{ti[-1]:.6g} s on the IMU clock) does not "

@@ -92,6 +92,7 @@ class Mapping:
     table_time_si: float = 1.0
     axes: list[Axis] = field(default_factory=list)
     clock_offset: float | str | None = None  # s (table + offset = IMU time), "estimate", or None (same clock)
+    clock_rate: float = 0.0     # the IMU's clock gains this (s/s) on the table's (table.clock_rate_ppm)
     encoder_resolution: object = None
     # round the logged angles to whole counts of encoder_resolution (readings with noise finer
     # than the count: an interpolating encoder, a filtered angle)
@@ -331,6 +332,12 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
             off = _number(off, "table.clock_offset_s", where, "'estimate' or the offset [s] (table time + offset "
                                                               "= IMU time)")
         m.clock_offset = off
+        if "clock_rate_ppm" in tab:
+            if off == "estimate":
+                raise MappingError(f"{where}: key 'table.clock_rate_ppm': with table.clock_offset_s = 'estimate' the "
+                                   "rate between the clocks is estimated with the offset; give both or neither")
+            m.clock_rate = _number(tab["clock_rate_ppm"], "table.clock_rate_ppm", where,
+                                   "how many ppm the IMU's clock runs fast against the table's") * 1e-6
     axes = _get(tab, "axes", f"{where} [table]", "a list of {name, axis, column, unit}")
     if not isinstance(axes, list) or not axes:
         raise MappingError(f"{where}: key 'table.axes': expected a non-empty list of {{name, axis, column, unit}}")

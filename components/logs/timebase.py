@@ -15,8 +15,10 @@ another clock at another rate.
   magnitude of its gyro increment minus the plate's turn between the table's angles
   interpolated (PCHIP) at the ends of that sample's interval shifted by δ — the IMU's samples
   are integrals and are used as they are, the table's point samples are what is interpolated. σ from that fit's residual and curvature, and at least half
-  the difference of the offsets fitted on the first and the second half (model error, or a drift
-  between the clocks: both halves are reported).
+  the difference of the offsets fitted on the first and the second half (model error: both
+  halves are reported). Two crystals also run at rates ppm apart: the rate between the clocks
+  comes from a line through the offsets of stretches of the record, kept where it is significant
+  against their scatter.
 - **Merging.** The table angles at the IMU's sample times by monotone cubic interpolation
   (PCHIP): between two equal readings (a rest) the angle stays exactly that reading, so rests
   keep their encoder values; during moves the interpolant follows the motion.
@@ -191,11 +193,19 @@ def _grids(sums, start: np.ndarray, d: float, rms: float):
 
 @dataclass
 class ClockOffset:
-    offset_s: float          # table time + offset = IMU time
+    offset_s: float          # table time + offset = IMU time, at the table record's first sample
     sigma_s: float
-    first_half_s: float      # the same on each half of the overlap (a drift between the clocks)
-    second_half_s: float
+    first_half_s: float      # the offset on each half of the overlap, at that half's middle, with
+    second_half_s: float     # the rate below: what they differ by is what the line misses
     correlation: float       # of the two rate magnitudes at the offset
+    rate: float = 0.0        # the IMU's clock gains rate · (table time since its first sample)
+    rate_sigma: float = 0.0
+
+
+def table_to_imu(tt: np.ndarray, offset: float, rate: float = 0.0) -> np.ndarray:
+    """The table's times *tt* on the IMU's clock: an offset at its first sample, and a clock gaining
+    *rate* seconds per second of the table's (two crystals: tens of ppm apart)."""
+    return tt + offset + rate * (tt - tt[0])
 
 
 def rate_magnitude_from_angles(t: np.ndarray, angles: np.ndarray, axis_vectors: np.ndarray) -> np.ndarray:
@@ -230,14 +240,23 @@ def _turn_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     return np.arcsin(np.clip(np.linalg.norm(v, axis=1), 0.0, 1.0))
 
 
+# a rate between the clocks is kept where it stands this many of its σ from none
+RATE_SIGNIFICANT = 5.0
+
+
 def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.ndarray, t_tab: np.ndarray,
                           angles: np.ndarray, axis_vectors: np.ndarray,
                           max_offset: float | None = None, use: np.ndarray | None = None) -> ClockOffset:
-    """The offset δ (table time + δ = IMU time) from the IMU's gyro increments (N, 3) over the
-    intervals (t − dt, t] and the table's angles (M, n_axes) at *t_tab*. *use* (N,) bool: the
-    samples whose increment is known to cover (t − dt, t] (not the sample after a gap: a lost
-    packet's counts are lost with it, or summed into the next, and the log leaves that sample
-    out)."""
+    """The offset δ (table time + δ = IMU time) and the rate between the clocks, from the IMU's gyro
+    increments (N, 3) over the intervals (t − dt, t] and the table's angles (M, n_axes) at
+    *t_tab*. *use* (N,) bool: the samples whose increment is known to cover (t − dt, t] (not the
+    sample after a gap: a lost packet's counts are lost with it, or summed into the next, and the
+    log leaves that sample out).
+
+    Two crystals run tens of ppm apart: 20 ppm over 36 minutes is 43 ms, which one offset set
+    against the table's motion leaves as misfit (χ²/dof 10,000 on a 26-position log). The rate
+    comes from the two halves' offsets, refined with the offset on every moving sample, and is
+    kept where it stands RATE_SIGNIFICANT of its σ from none."""
     from scipy.interpolate import PchipInterpolator
 
     w_imu = np.linalg.norm(gyro_inc, axis=1) / dt_imu
@@ -245,30 +264,101 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     w_tab = rate_magnitude_from_angles(t_tab, angles, axis_vectors)
     delta = _coarse(t_mid, w_imu, t_tab, w_tab, float(np.median(dt_imu)), max_offset)
     # the IMU's samples are integrals and stay as they are; the table's angles are point samples,
-    # interpolated at the ends of each IMU interval shifted to the table's clock
+    # interpolated at the ends of each IMU interval taken to the table's clock
     interp = PchipInterpolator(t_tab, angles, axis=0, extrapolate=False)
     step = np.linalg.norm(gyro_inc, axis=1)
-
-    def residual(d, sel):
-        ta, tb = t_imu[sel] - dt_imu[sel] - d, t_imu[sel] - d
-        return step[sel] - _turn_angle(_plate(interp(ta), axis_vectors), _plate(interp(tb), axis_vectors))
-
     moving = step > 0.02 * float(np.median(dt_imu))     # turning faster than ~1 deg/s
     if use is not None:
         # (a count log with 0.2 % of its packets lost, each increment set against the table's turn
         # over two intervals: the offset 0.55 ms off, 3.7 of its σ)
         moving &= use
-    delta, sigma, _ = _refine(residual, t_imu, dt_imu, t_tab, moving, delta)
-    sel = moving & (t_imu - dt_imu - delta >= t_tab[0]) & (t_imu - delta <= t_tab[-1])
-    turned = step[sel] - residual(delta, sel)
+    t_ref = float(np.mean(t_imu[moving])) if moving.any() else float(t_imu[0])  # IMU time, the line's centre
+
+    def on_table(t, line):
+        # the IMU's times *t* on the table's clock for the line (δ at t_ref, rate)
+        d, r = line
+        return t - d - r * (t - t_ref)
+
+    def residual(line, sel):
+        ta, tb = on_table(t_imu[sel] - dt_imu[sel], line), on_table(t_imu[sel], line)
+        return step[sel] - _turn_angle(_plate(interp(ta), axis_vectors), _plate(interp(tb), axis_vectors))
+
+    line, cov = _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, np.array([delta]), t_ref)
+    rated = _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, float(line[0]), t_ref)
+    if rated is not None:
+        # the line through the windows' offsets, refined on every moving sample; its σ at least
+        # what the windows' scatter about it says (the interpolation's error follows the moves)
+        both, both_cov = _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, rated[0], t_ref)
+        line, cov = both, np.maximum(both_cov, rated[1]) * np.eye(2) + both_cov * (1 - np.eye(2))
+    rate = float(line[1]) if len(line) > 1 else 0.0
+    half = t_imu[0] + 0.5 * (t_imu[-1] - t_imu[0])
+    halves = [moving & (t_imu <= half), moving & (t_imu > half)]
+    if all(h.sum() >= 10 for h in halves):
+        # each half's own offset with the line's rate: what the line leaves (said at each half's middle)
+        e1, e2 = (_refine(residual, on_table, t_imu, dt_imu, t_tab, h, line[:1], t_ref, rate=rate)[0][0]
+                  for h in halves)
+        gap = abs(e1 - e2)
+        d1, d2 = (e + rate * (float(np.mean(t_imu[h])) - t_ref) for e, h in zip((e1, e2), halves))
+    else:
+        d1 = d2 = float(line[0])
+        gap = 0.0
+    d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
+    sel = moving & np.isfinite(interp(on_table(t_imu - dt_imu, (d0, rate)))[:, 0]) \
+        & np.isfinite(interp(on_table(t_imu, (d0, rate)))[:, 0])
+    turned = step[sel] - residual((d0, rate), sel)
     ok = np.isfinite(turned)
     corr = float(np.corrcoef(step[sel][ok], turned[ok])[0, 1]) if ok.sum() > 2 else float("nan")
-    half = t_imu[0] + 0.5 * (t_imu[-1] - t_imu[0])
-    d1 = _refine(residual, t_imu, dt_imu, t_tab, moving & (t_imu <= half), delta)[0]
-    d2 = _refine(residual, t_imu, dt_imu, t_tab, moving & (t_imu > half), delta)[0]
     # what the halves disagree by is model error the white-residual σ does not hold
-    sigma = max(sigma, abs(d1 - d2) / 2)
-    return ClockOffset(delta, sigma, d1, d2, corr)
+    sigma = max(math.sqrt(cov[0, 0]), gap / 2)
+    # on the table's clock: table time = t - δ - r (t - t_ref) for IMU time t, so the IMU's clock
+    # gains r / (1 - r) per table second, and at the table's first sample t0 it reads
+    # (t0 + δ - r t_ref) / (1 - r)
+    t0 = float(t_tab[0])
+    at_t0 = (d0 - rate * (t_ref - t0)) / (1 - rate)
+    return ClockOffset(at_t0, sigma, d1, d2, corr, rate / (1 - rate),
+                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0)
+
+
+RATE_WINDOWS = 8  # the record's moving samples in this many windows, for the rate and its σ
+
+
+def _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, delta: float, t_ref: float):
+    """((δ at t_ref, rate), their variances) of the line through the offsets of the moving samples
+    in RATE_WINDOWS equal stretches of the record, weighted by their σ, twice (the second with the
+    first's rate inside each stretch); the variances widened by the stretches' scatter about the
+    line where it exceeds their σ; None where the rate is not RATE_SIGNIFICANT of its σ from none,
+    or fewer than four stretches have moves. The scatter holds what a white residual's σ does not:
+    the table's interpolation errs with each move's profile (on a 200 Hz table, a rate of 0.002
+    ppm between the halves of a log whose clocks share a crystal, nine times that σ); a stretch
+    turning at a constant rate shows no offset at all (its σ says so)."""
+    edges = np.linspace(t_imu[0], t_imu[-1], RATE_WINDOWS + 1)
+    windows = [moving & (t_imu >= a) & (t_imu < b) for a, b in zip(edges[:-1], edges[1:])]
+    windows = [w for w in windows if w.sum() >= 10]
+    if len(windows) < 4:
+        return None
+    centre = np.array([float(np.mean(t_imu[w])) for w in windows]) - t_ref
+    rate = 0.0
+    for _ in range(2):
+        offsets, var = np.full(len(windows), np.nan), np.full(len(windows), np.nan)
+        for k, (w, c) in enumerate(zip(windows, centre)):
+            try:
+                # δ at t_ref under the rate; the stretch's offset at its centre
+                got, cov = _refine(residual, on_table, t_imu, dt_imu, t_tab, w, np.array([delta]), t_ref, rate=rate)
+            except MappingError:
+                continue
+            offsets[k], var[k] = got[0] + rate * c, cov[0, 0]
+        ok = np.isfinite(offsets) & np.isfinite(var) & (var > 0)
+        if ok.sum() < 4:
+            return None
+        x, y, wt = centre[ok], offsets[ok], 1.0 / var[ok]
+        A = np.column_stack([np.ones_like(x), x]) * np.sqrt(wt)[:, None]
+        sol, *_ = np.linalg.lstsq(A, y * np.sqrt(wt), rcond=None)
+        delta, rate = float(sol[0]), float(sol[1])
+    chi2 = float(np.sum(wt * (y - delta - rate * x) ** 2))
+    cov = np.linalg.inv(A.T @ A) * max(1.0, chi2 / (len(x) - 2))
+    if abs(rate) <= RATE_SIGNIFICANT * math.sqrt(cov[1, 1]):
+        return None
+    return np.array([delta, rate]), np.diag(cov)
 
 
 def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
@@ -292,33 +382,46 @@ def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
     return float(lags[ok][np.argmax(xc[ok])] * grid_dt)
 
 
-def _refine(residual, t_imu, dt_imu, t_tab, moving, delta, iterations: int = 15):
-    """Gauss–Newton on δ over the moving IMU samples whose shifted interval lies in the table's
-    record: the residual |gyro increment| − the table's turn over that interval."""
-    sigma = float("nan")
+def _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, line, t_ref, rate: float | None = None,
+            iterations: int = 15):
+    """Gauss–Newton on the line (δ at *t_ref*[, rate]) over the moving IMU samples whose interval
+    on the table's clock lies in the table's record: the residual |gyro increment| − the table's
+    turn over that interval. (line, its covariance from the white residual); a line of one
+    number holds the rate at *rate* (0 if None)."""
+    line = np.asarray(line, float).copy()
+    fixed = 0.0 if rate is None else rate
+    cov = np.full((len(line), len(line)), np.nan)
     eps = 1e-5
 
-    def inside(d):
-        return moving & (t_imu - dt_imu - d >= t_tab[0]) & (t_imu - d <= t_tab[-1])
+    def full(x):
+        return (x[0], x[1]) if len(x) > 1 else (x[0], fixed)
+
+    def inside(x):
+        return moving & (on_table(t_imu - dt_imu, full(x)) >= t_tab[0]) & (on_table(t_imu, full(x)) <= t_tab[-1])
 
     for _ in range(iterations):
-        sel = inside(delta)
+        sel = inside(line)
         if sel.sum() < 10:
             raise MappingError("clock offset: fewer than 10 moving IMU samples overlap the table record at the "
                                "estimated offset; give table.clock_offset_s")
-        r = residual(delta, sel)
-        dr = (residual(delta + eps, sel) - residual(delta - eps, sel)) / (2 * eps)
-        ok = np.isfinite(r) & np.isfinite(dr)
-        r, dr = r[ok], dr[ok]
-        info = float(dr @ dr)
-        if info <= 0:
+        r = residual(full(line), sel)
+        # the residual depends on the line through each sample's shift δ + rate (t - t_ref)
+        nudge = np.zeros(len(line))
+        nudge[0] = eps
+        ds = (residual(full(line + nudge), sel) - residual(full(line - nudge), sel)) / (2 * eps)
+        cols = [ds] + ([ds * (t_imu[sel] - t_ref)] if len(line) > 1 else [])
+        J = np.column_stack(cols)
+        ok = np.isfinite(r) & np.all(np.isfinite(J), axis=1)
+        r, J = r[ok], J[ok]
+        info = J.T @ J
+        if not np.all(np.isfinite(info)) or np.linalg.det(info) <= 0:
             break
-        step = -float(dr @ r) / info
-        delta += step
-        sigma = math.sqrt(float(r @ r) / max(len(r) - 1, 1) / info)
-        if abs(step) < 1e-3 * sigma:
+        stepv = -np.linalg.solve(info, J.T @ r)
+        line += stepv
+        cov = np.linalg.inv(info) * float(r @ r) / max(len(r) - len(line), 1)
+        if np.all(np.abs(stepv) < 1e-3 * np.sqrt(np.diag(cov))):
             break
-    return delta, sigma, None
+    return line, cov
 
 
 def angles_at(t: np.ndarray, t_tab: np.ndarray, angles: np.ndarray) -> np.ndarray:
