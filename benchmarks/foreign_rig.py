@@ -23,7 +23,11 @@ against the truth in σ; the accelerometer floors identified around the correcte
 the injected one; the final χ²/dof against its 99 % band and the final verdict; every
 parameter of the corrected model against the truth in σ (RMS and the largest).
 
-    python benchmarks/foreign_rig.py [--seeds 3] [--dir DIR]
+With ``--drift-ppm P`` the IMU's crystal warms: its clock's rate soaks by P ppm against the
+host's (the import follows the bow of its stamps); with ``--table-ppm Q`` the table controller's
+clock runs Q ppm fast against the host's (the import estimates the rate with the offset).
+
+    python benchmarks/foreign_rig.py [--seeds 3] [--dir DIR] [--drift-ppm 20] [--table-ppm 30]
 """
 from __future__ import annotations
 
@@ -127,13 +131,15 @@ def _toml(d: dict, prefix: str = "") -> str:
     return out + "".join(_toml(v, f"{prefix}.{k}" if prefix else k) for k, v in tables.items())
 
 
-def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0) -> None:
+def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0, table_ppm: float = 0.0) -> float:
     """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*.
     ``drift_ppm``: the IMU's clock rate soaks by that much (towards it with a time constant of a
     quarter of the log, a crystal warming) against the host's and the table's, which keep time.
     Emulated: the host's time is the simulation's warped by it (the IMU's samples then stand
     where its drifting clock puts them), and each interval's increment of gravity is longer by
-    it (the gyros' turn is the table's, whatever the clock)."""
+    it (the gyros' turn is the table's, whatever the clock). ``table_ppm``: the table controller's
+    clock runs that much fast against the host's. Returns the true clock offset (IMU time - table
+    time at the table's first sample)."""
     log = read_log(sim)
     tau = log.time - log.time[0]
     rate = 1 + drift_ppm * 1e-6 * (1 - np.exp(-tau / (tau[-1] / 4)))  # the host's seconds per simulated one
@@ -148,12 +154,14 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     kept[[0, -1]] = True
     np.savetxt(out / "imu.csv", np.column_stack(cols)[kept], fmt=["%d"] * 7 + ["%.4f"], delimiter=",", comments="",
                header="stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F")
-    rows = np.column_stack([host - CLOCK] + [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")])
+    table_time = (host - CLOCK) * (1 + table_ppm * 1e-6)
+    rows = np.column_stack([table_time] + [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")])
     with open(out / "table.csv", "w") as f:
         f.write("# turntable controller export\n# firmware 3.1\nt;A0;A1;A2\n")
         for r in rows:
             f.write(";".join(("%.6f" % x if i == 0 else "%.12g" % x).replace(".", ",") for i, x in enumerate(r)) + "\n")
     (out / "map.toml").write_text(MAPPING)
+    return float(host[0] - table_time[0])
 
 
 def calbench(*args: str, cwd: Path) -> str:
@@ -166,18 +174,20 @@ def calbench(*args: str, cwd: Path) -> str:
     return r.stdout + r.stderr
 
 
-def one_seed(seed: int, d: Path, drift_ppm: float = 0.0) -> dict:
+def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed))
     calbench("simulate", "scenario.toml", "--out", "sim", cwd=d)
     rig = d / "rig"
     rig.mkdir(exist_ok=True)
-    write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm)
+    true_offset = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm)
     truth = json.loads((d / "sim.truth.json").read_text())
     said = calbench("import", "rig/map.toml", "--out", "imp", cwd=d)
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
     offset, offset_sigma = float(m.group(1)) * 1e-3, float(m.group(2)) * 1e-3
     drift = re.search(r"bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm", said)
+    rate = re.search(r"the IMU's clock ([+-][\d.e+-]+) ± ([\d.e-]+) ppm against the table's:", said)
+    true_rate = (1 / (1 + table_ppm * 1e-6) - 1) * 1e6
     calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
     # the user's loop: the noise identified around the model, the diagnosis under it, the verdict
     # added, until nothing is missing (at most MOST_ADDED effects)
@@ -202,7 +212,9 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0) -> dict:
     z = {p: r["error"] / r["sigma"] for p, r in errors.items()}
     noise = json.loads((d / f"noise{k}.json").read_text())["channels"]
     _, _, unit, scale = TERMS["acc"]["bias_instability"]  # the floor's display unit and its SI size
-    return {"seed": seed, "offset_z": (offset - CLOCK) / offset_sigma, "offset_sigma_us": offset_sigma * 1e6,
+    return {"seed": seed, "offset_z": (offset - true_offset) / offset_sigma, "offset_sigma_us": offset_sigma * 1e6,
+            "rate_said": rate and f"the clocks' rate {float(rate.group(1)):+.4f} ± {float(rate.group(2)):.2g} ppm "
+                                  f"({(float(rate.group(1)) - true_rate) / float(rate.group(2)):+.2f} σ from the truth); ",
             "drift_said": drift and f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; ",
             "verdicts": verdicts, "last_verdict": diag["verdict"], "k2": errors.get(HIDDEN[1]),
             "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0) / scale for a in "xyz"],
@@ -219,6 +231,8 @@ def main() -> int:
     ap.add_argument("--dir", type=Path, help="where each seed's files go (default: a temporary directory)")
     ap.add_argument("--drift-ppm", type=float, default=0.0,
                     help="the IMU's clock rate soaking by this much against the host's (default 0)")
+    ap.add_argument("--table-ppm", type=float, default=0.0,
+                    help="the table controller's clock running this much fast against the host's (default 0)")
     a = ap.parse_args()
     tmp = None
     if a.dir is None:
@@ -227,18 +241,19 @@ def main() -> int:
     print(f"foreign rig: {a.seeds} seed(s) from {a.first_seed}; pulse counts {COUNTS['gyro']:g} rad, "
           f"{COUNTS['acc']:g} m/s; stamps ±{JITTER * 1e3:g} ms; {LOST:.1%} of the packets lost; table clock {CLOCK * 1e3:g} ms behind; "
           f"hidden {HIDDEN[1]} under navigation-grade coloured noise, 26-position schedule"
-          + (f"; the IMU's clock rate soaking by {a.drift_ppm:g} ppm against the host's" if a.drift_ppm else ""))
+          + (f"; the IMU's clock rate soaking by {a.drift_ppm:g} ppm against the host's" if a.drift_ppm else "")
+          + (f"; the table's clock {a.table_ppm:g} ppm fast against the host's" if a.table_ppm else ""))
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
-        r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm)
+        r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm, a.table_ppm)
         rows.append(r)
         lo, hi = band99(r["dof"])
         fl = ", ".join(f"{f:.2f}" for f in r["floors"])
         k2 = r["k2"]
         k2 = (f"{k2['value']:+.2f} ± {k2['sigma']:.2f} {k2['unit']} ({k2['error'] / k2['sigma']:+.2f} σ from the "
               "truth)" if k2 else "not in the model")
-        line = (f"seed {r['seed']}: {r['drift_said'] or ''}clock offset error {r['offset_z']:+.2f} σ (σ {r['offset_sigma_us']:.1f} us); "
+        line = (f"seed {r['seed']}: {r['drift_said'] or ''}{r['rate_said'] or ''}clock offset error {r['offset_z']:+.2f} σ (σ {r['offset_sigma_us']:.1f} us); "
                 f"verdicts {' then '.join(r['verdicts']) or 'none'}, then {r['last_verdict'] or 'none'}; "
                 f"{HIDDEN[1]} {k2}; acc floors {fl} {r['floor_unit']} (injected {r['floor_truth']:.3g}); final "
                 f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "

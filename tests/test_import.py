@@ -219,17 +219,20 @@ column = "t"
 {SITE}''')
 
 
-def test_a_table_clock_running_at_another_rate_is_estimated(kilohertz_run, tmp_path, capsys):
+@pytest.mark.parametrize("epoch", [0.0, 1.7e9])
+def test_a_table_clock_running_at_another_rate_is_estimated(kilohertz_run, tmp_path, capsys, epoch):
     """The table's controller on a crystal of its own, 300 ppm fast against the IMU's (exaggerated so
     that it shows on two minutes: two crystals are tens of ppm apart, 43 ms over 36 minutes at 20
-    ppm, and one offset left a 26-position log at χ²/dof 10,000), its clock's origin 30 s off.
-    The offset and the rate from the rates' match: each within 4 of its σ of the truth; the log
-    calibrates within 1 + 4√(2/dof)."""
+    ppm, and one offset left a 26-position log at χ²/dof 10,000), its clock's origin 30 s off; the
+    IMU's host stamps also in Unix epoch seconds (the search for the offset spanned both records
+    on one grid: 5 TB for a controller counting from its power-on). The offset and the rate from
+    the rates' match: each within 4 of its σ of the truth; the log calibrates within
+    1 + 4√(2/dof)."""
     fast, log, _ = kilohertz_run
     rng = np.random.default_rng(9)
     gain = 300e-6
     t_tab = (fast.time - CLOCK) * (1 + gain) + 30.0  # the controller's clock, started 30 s before
-    t_ms = (log.time + rng.uniform(-2e-4, 2e-4, log.n)) * 1e3
+    t_ms = (epoch + log.time + rng.uniform(-2e-4, 2e-4, log.n)) * 1e3
     inc, vel = np.degrees(log.gyro), log.acc * 1e3
     _write_delimited(tmp_path / "imu.csv", ["t_ms", "dx", "dy", "dz", "vx", "vy", "vz"],
                      [t_ms, inc[:, 0], inc[:, 1], inc[:, 2], vel[:, 0], vel[:, 1], vel[:, 2]])
@@ -241,7 +244,7 @@ def test_a_table_clock_running_at_another_rate_is_estimated(kilohertz_run, tmp_p
                      r"clock ([+-][\d.e+-]+) ± ([\d.e-]+) ppm against the table's", out)
     assert said, out
     offset, s_offset, rate, s_rate = (float(v) for v in said.groups())
-    truth_offset = fast.time[0] - t_tab[0]  # IMU time - table time at the table's first sample
+    truth_offset = epoch + fast.time[0] - t_tab[0]  # IMU time - table time at the table's first sample
     truth_rate = 1 / (1 + gain) - 1         # the IMU's seconds per table second, less one
     print(f"offset {offset:+.6f} ± {s_offset:.2g} ms (truth {truth_offset * 1e3:+.6f}); "
           f"rate {rate:+.6g} ± {s_rate:.2g} ppm (truth {truth_rate * 1e6:+.6g})")

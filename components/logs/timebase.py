@@ -362,24 +362,29 @@ def _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, delta: 
 
 
 def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
-    """The shift maximising the cross-correlation of the two rate magnitudes on a common grid."""
-    span = (min(t_mid[0], t_tab[0]), max(t_mid[-1], t_tab[-1]))
-    if max_offset is None:
-        max_offset = 0.5 * (span[1] - span[0])
+    """The shift maximising the cross-correlation of the two rate magnitudes, each on a grid of its
+    own record: any shift at which the records overlap at all, whatever their clocks count from
+    (a host's epoch seconds against a controller's seconds since power-on: one common grid over
+    both was terabytes), within ±*max_offset* if given."""
     grid_dt = min(dt, float(np.median(np.diff(t_tab))))
-    grid = np.arange(span[0] - max_offset, span[1] + max_offset, grid_dt)
-    a = np.interp(grid, t_mid, w_imu, left=0.0, right=0.0)
-    b = np.interp(grid, t_tab, w_tab, left=0.0, right=0.0)
+    ga = t_mid[0] + np.arange(0.0, t_mid[-1] - t_mid[0], grid_dt)
+    gb = t_tab[0] + np.arange(0.0, t_tab[-1] - t_tab[0], grid_dt)
+    a = np.interp(ga, t_mid, w_imu)
+    b = np.interp(gb, t_tab, w_tab)
     if not (np.any(b > 1e-3) and np.any(a > 1e-3)):
         raise MappingError("clock offset: the table never moves (or the IMU never turns) in the records: no "
                            "motion to match; give table.clock_offset_s")
-    n = len(grid)
-    size = 1 << int(np.ceil(np.log2(2 * n)))
+    size = 1 << int(np.ceil(np.log2(len(a) + len(b))))
     xc = np.fft.irfft(np.fft.rfft(a - a.mean(), size) * np.conj(np.fft.rfft(b - b.mean(), size)), size)
-    lags = np.concatenate([np.arange(0, n), np.arange(-n + 1, 0)])
-    xc = np.concatenate([xc[:n], xc[size - n + 1:]])
-    ok = np.abs(lags * grid_dt) <= max_offset
-    return float(lags[ok][np.argmax(xc[ok])] * grid_dt)
+    # lag k: the IMU's grid point i + k beside the table's i, a shift of ga[0] - gb[0] + k grid_dt
+    lags = np.concatenate([np.arange(0, len(a)), np.arange(-len(b) + 1, 0)])
+    xc = np.concatenate([xc[:len(a)], xc[size - len(b) + 1:]])
+    shift = (ga[0] - gb[0]) + lags * grid_dt
+    ok = np.abs(shift) <= max_offset if max_offset is not None else np.ones(len(lags), bool)
+    if not ok.any():
+        raise MappingError(f"clock offset: no shift within ±{max_offset:g} s lets the records overlap; give "
+                           "table.clock_offset_s")
+    return float(shift[ok][np.argmax(xc[ok])])
 
 
 def _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, line, t_ref, rate: float | None = None,
