@@ -255,8 +255,9 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
 
     Two crystals run tens of ppm apart: 20 ppm over 36 minutes is 43 ms, which one offset set
     against the table's motion leaves as misfit (χ²/dof 10,000 on a 26-position log). The rate
-    comes from the two halves' offsets, refined with the offset on every moving sample, and is
-    kept where it stands RATE_SIGNIFICANT of its σ from none."""
+    comes from a line through the offsets of stretches of the record (:func:`_rate_from_windows`),
+    refined with the offset on every moving sample, and is kept where it stands
+    RATE_SIGNIFICANT of its σ from none."""
     from scipy.interpolate import PchipInterpolator
 
     w_imu = np.linalg.norm(gyro_inc, axis=1) / dt_imu
@@ -319,7 +320,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
                        math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0)
 
 
-RATE_WINDOWS = 8  # the record's moving samples in this many windows, for the rate and its σ
+RATE_WINDOWS = 8  # the record in this many equal stretches, for the rate between the clocks and its σ
 
 
 def _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, delta: float, t_ref: float):
