@@ -48,6 +48,10 @@ class ClockDrift:
         return seg, x - seg
 
     @property
+    def segments(self) -> int:
+        return len(self.coefficients) - 2
+
+    @property
     def rate_span_ppm(self) -> float:
         """How far the clock's rate moves over the log: the range of the correction's slope,
         which is linear between the knots."""

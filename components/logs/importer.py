@@ -64,8 +64,7 @@ def import_log(m: Mapping) -> Imported:
                      f"({(reg.rate_hz / m.sample_rate_hz - 1) * 1e6:+.3g} ppm from the nominal {m.sample_rate_hz:g}), "
                      f"stamps' RMS jitter {reg.jitter_rms_s * 1e6:.3g} us")
         if reg.drift is not None:
-            span = float(t[-1] - t[0])
-            shape = ("changing steadily over the log" if reg.drift.spacing_s >= 0.99 * span else
+            shape = ("changing steadily over the log" if reg.drift.segments == 1 else
                      f"piecewise linear between knots {reg.drift.spacing_s:.0f} s apart")
             notes.append(f"the sensor's clock drifts against the host's: its stamps bow up to {reg.drift.bow_s * 1e3:.3g} ms "
                          f"away from one regular clock, its rate moving over {reg.drift.rate_span_ppm:.3g} ppm; the samples "

@@ -284,26 +284,27 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         ta, tb = on_table(t_imu[sel] - dt_imu[sel], line), on_table(t_imu[sel], line)
         return step[sel] - _turn_angle(_plate(interp(ta), axis_vectors), _plate(interp(tb), axis_vectors))
 
-    line, cov = _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, np.array([delta]), t_ref)
-    rated = _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, float(line[0]), t_ref)
+    def refine(sel, line, rate=None):
+        return _refine(residual, on_table, t_imu, dt_imu, t_tab, sel, line, t_ref, rate)
+
+    line, cov = refine(moving, np.array([delta]))
+    rated = _rate_from_windows(refine, t_imu, moving, float(line[0]), t_ref)
     if rated is not None:
         # the line through the windows' offsets, refined on every moving sample; its σ at least
         # what the windows' scatter about it says (the interpolation's error follows the moves)
-        both, both_cov = _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, rated[0], t_ref)
-        line, cov = both, np.maximum(both_cov, rated[1]) * np.eye(2) + both_cov * (1 - np.eye(2))
-    rate = float(line[1]) if len(line) > 1 else 0.0
+        line, cov = refine(moving, rated[0])
+        cov[np.diag_indices(2)] = np.maximum(np.diag(cov), rated[1])
+    d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
     half = t_imu[0] + 0.5 * (t_imu[-1] - t_imu[0])
     halves = [moving & (t_imu <= half), moving & (t_imu > half)]
     if all(h.sum() >= 10 for h in halves):
         # each half's own offset with the line's rate: what the line leaves (said at each half's middle)
-        e1, e2 = (_refine(residual, on_table, t_imu, dt_imu, t_tab, h, line[:1], t_ref, rate=rate)[0][0]
-                  for h in halves)
+        e1, e2 = (refine(h, line[:1], rate=rate)[0][0] for h in halves)
         gap = abs(e1 - e2)
         d1, d2 = (e + rate * (float(np.mean(t_imu[h])) - t_ref) for e, h in zip((e1, e2), halves))
     else:
-        d1 = d2 = float(line[0])
+        d1 = d2 = d0
         gap = 0.0
-    d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
     sel = moving & np.isfinite(interp(on_table(t_imu - dt_imu, (d0, rate)))[:, 0]) \
         & np.isfinite(interp(on_table(t_imu, (d0, rate)))[:, 0])
     turned = step[sel] - residual((d0, rate), sel)
@@ -323,7 +324,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
 RATE_WINDOWS = 8  # the record in this many equal stretches, for the rate between the clocks and its σ
 
 
-def _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, delta: float, t_ref: float):
+def _rate_from_windows(refine, t_imu, moving, delta: float, t_ref: float):
     """((δ at t_ref, rate), their variances) of the line through the offsets of the moving samples
     in RATE_WINDOWS equal stretches of the record, weighted by their σ, twice (the second with the
     first's rate inside each stretch); the variances widened by the stretches' scatter about the
@@ -331,7 +332,8 @@ def _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, delta: 
     or fewer than four stretches have moves. The scatter holds what a white residual's σ does not:
     the table's interpolation errs with each move's profile (on a 200 Hz table, a rate of 0.002
     ppm between the halves of a log whose clocks share a crystal, nine times that σ); a stretch
-    turning at a constant rate shows no offset at all (its σ says so)."""
+    turning at a constant rate shows no offset at all (its σ says so). *refine* (samples, line[,
+    rate]): :func:`_refine` on this record."""
     edges = np.linspace(t_imu[0], t_imu[-1], RATE_WINDOWS + 1)
     windows = [moving & (t_imu >= a) & (t_imu < b) for a, b in zip(edges[:-1], edges[1:])]
     windows = [w for w in windows if w.sum() >= 10]
@@ -344,7 +346,7 @@ def _rate_from_windows(residual, on_table, t_imu, dt_imu, t_tab, moving, delta: 
         for k, (w, c) in enumerate(zip(windows, centre)):
             try:
                 # δ at t_ref under the rate; the stretch's offset at its centre
-                got, cov = _refine(residual, on_table, t_imu, dt_imu, t_tab, w, np.array([delta]), t_ref, rate=rate)
+                got, cov = refine(w, np.array([delta]), rate=rate)
             except MappingError:
                 continue
             offsets[k], var[k] = got[0] + rate * c, cov[0, 0]
