@@ -214,11 +214,15 @@ def test_two_workers_verdicts_and_reports(two_workers):
 
 def test_kill_resume_one_worker_identical(campaign_file, two_workers, tmp_path):
     """1 worker, SIGTERM after a few records, --resume: byte-identical to the 2-worker run, and
-    no case that had finished before the kill ran again."""
+    no case that had finished before the kill ran again. The case running at the kill leaves no
+    temporary files (found: its directory, with its two unpacked FMUs, left at every kill)."""
     out = tmp_path / "one"
+    temp = tmp_path / "temp"
+    temp.mkdir()
     cmd = [sys.executable, "-m", "components.cli", "campaign", str(campaign_file), "--out", str(out),
            "--workers", "1", "--pages", "0"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            env={**os.environ, "TMPDIR": str(temp)})
     cases = out / "cases"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
@@ -232,6 +236,7 @@ def test_kill_resume_one_worker_identical(campaign_file, two_workers, tmp_path):
     before = {p.stem for p in cases.glob("*.json")}
     assert 4 <= len(before) < N_CASES
     assert not list(cases.glob("*.tmp")) and not list(cases.glob(".*"))
+    assert [p.name for p in temp.iterdir() if p.name.startswith("calbench")] == []
 
     # without --resume the folder is refused
     assert cli_main(["campaign", str(campaign_file), "--out", str(out), "--workers", "1"]) == 2
