@@ -343,8 +343,11 @@ def test_case_child_dies_with_its_worker(campaign_file, tmp_path):
     task = task_for(camp, next(c for c in camp.cases if c.id.startswith("lsq-hang")))
     (tmp_path / "task.json").write_text(json.dumps(task))
     server = _Server()
+    # the case's temporary files where run_isolated puts them, in a directory of the case's own
+    # (the test left its killed child's two unpacked FMUs in the machine's temporary directory)
+    (tmp_path / "tmp").mkdir()
     req = {"task": str(tmp_path / "task.json"), "result": str(tmp_path / "r.json"),
-           "stderr": str(tmp_path / "err.txt"), "timeout": 600}
+           "stderr": str(tmp_path / "err.txt"), "tmpdir": str(tmp_path / "tmp"), "timeout": 600}
     server.p.stdin.write((json.dumps(req) + "\n").encode())
     server.p.stdin.flush()
     children = Path(f"/proc/{server.p.pid}/task/{server.p.pid}/children")
