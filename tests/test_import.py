@@ -295,7 +295,7 @@ def test_lost_packets_of_an_increment_output_do_not_shift_the_clock_offset(kiloh
     assert fit.chi2 / fit.dof < 1 + 4 * math.sqrt(2 / fit.dof), (fit.chi2 / fit.dof, fit.dof)
 
 
-@pytest.mark.parametrize("drifts", ["sensor", "host"])
+@pytest.mark.parametrize("drifts", ["sensor", "host", "host, table on its controller's clock"])
 def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp_path, capsys, drifts):
     """One clock drifts against the other (its rate moving by 100 ppm over the two-minute log:
     exaggerated so that it shows here; a crystal in a thermal chamber moves tens of ppm over half
@@ -305,7 +305,10 @@ def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp
     calibration fits as the exact log does: χ²/dof within 1 + 4√(2/dof).
     - the sensor's clock drifts (the host keeps time, the default): the log follows the host;
     - the host's clock drifts (``keeps_time = "sensor"``): the log's time is the sensor's regular
-      grid, the table's angles taken at the host's stamps.
+      grid, the table's angles taken at the host's stamps (``table.time.clock = "host"``);
+    - the host's clock drifts, and the table's angles come from a controller that stamps them on
+      its own clock, 5 ms behind the sensor's (``table.time.clock = "controller"``, the offset
+      estimated): matched at the host's stamps, the angles stood up to the bow (1 ms) off.
     Emulated from the simulated log: host time = its time warped by the rate change; where the
     sensor's clock is the one that drifts, each interval's increment of gravity is longer by it
     (the gyros' turn is the table's, whatever the clock)."""
@@ -317,16 +320,20 @@ def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp
     def host(t):
         return t + 0.5 * beta * (t - fast.time[0]) ** 2
 
+    controller = drifts.startswith("host, table")
     stretch = 1 + beta * (log.time - fast.time[0]) if drifts == "sensor" else np.ones(log.n)
     t_s = host(log.time) + rng.uniform(-2e-4, 2e-4, log.n)
     rate, force = log.gyro / log.dt, log.acc / log.dt * stretch[:, None]
     _write_delimited(tmp_path / "imu.csv", ["t", "wx", "wy", "wz", "fx", "fy", "fz"],
                      [t_s, *rate.T, *force.T])
-    m = _regularised_rig(tmp_path, host(fast.time), fast, "t", "s",
+    m = _regularised_rig(tmp_path, fast.time - 5e-3 if controller else host(fast.time), fast, "t", "s",
                          _sensor_toml("gyro", "rate", "rad/s", ["wx", "wy", "wz"]),
-                         _sensor_toml("acc", "specific_force", "m/s2", ["fx", "fy", "fz"]), "0.0")
-    if drifts == "host":
-        m.write_text(m.read_text().replace('timing = "regularise"', 'timing = "regularise"\nkeeps_time = "sensor"'))
+                         _sensor_toml("acc", "specific_force", "m/s2", ["fx", "fy", "fz"]),
+                         '"estimate"' if controller else "0.0")
+    if drifts != "sensor":
+        m.write_text(m.read_text().replace('timing = "regularise"', 'timing = "regularise"\nkeeps_time = "sensor"')
+                     .replace('[table.time]\ncolumn = "t"',
+                              f'[table.time]\ncolumn = "t"\nclock = "{"controller" if controller else "host"}"'))
     assert main(["import", str(m), "--out", str(tmp_path / "merged")]) == 0
     out = capsys.readouterr().out
     said = re.search(r"clock drifts against the host's: its stamps bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm",
@@ -337,7 +344,7 @@ def test_a_sensor_clock_drifting_against_the_host_is_followed(kilohertz_run, tmp
     assert bow * 1e-3 == pytest.approx(100e-6 * span / 12, rel=0.1), said.group(0)
     assert moving == pytest.approx(100, rel=0.1), said.group(0)
     merged = read_log(tmp_path / "merged")
-    if drifts == "host":
+    if drifts != "sensor":
         # the log's time the sensor's regular clock: its intervals equal to the float's last digits
         assert np.ptp(np.diff(merged.time)) < 1e-12
     fit = _fit(merged)
@@ -483,6 +490,9 @@ ROUND
 
 
 LABELS = '\n[labels]\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n'
+# a table file beside the IMU's (the recording itself: the mapping's load looks at no column)
+TABLE_FILE = ('\n[table]\nfile = "rec.csv"\n[table.time]\ncolumn = "t"\n'
+              '[[table.axes]]\nname = "outer"\naxis = [0, 0, 1]\ncolumn = "gx"\n')
 
 
 @pytest.mark.parametrize("edit, match", [
@@ -497,6 +507,11 @@ LABELS = '\n[labels]\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n'
     (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\nkeeps_time = "sensor"'),
      r"key 'imu.time.keeps_time' = 'sensor': .* only timing = 'regularise' follows \(timing is 'nominal'\)"),
     (lambda s: s.replace('file = "rec.csv"', 'file = "nope.csv"'), r"nope.csv: the input file does not exist"),
+    (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\ntiming = "regularise"\n'
+                         'keeps_time = "sensor"') + TABLE_FILE,
+     r"map.toml: key 'table.time.clock' is needed with imu.time.keeps_time = 'sensor' .* 'host' .* 'controller'"),
+    (lambda s: s + TABLE_FILE.replace('column = "t"', 'column = "t"\nclock = "ntp"'),
+     r"key 'table.time.clock' = 'ntp': expected one of host, controller"),
     (lambda s: s.replace('[site]\nlatitude_deg = 39.9', '[site]\nlatitude_deg = 99'), r"key 'site.latitude_deg' = 99"),
     (lambda s: s + '\n[labels]\ncolumn = "t"\n[[labels.ranges]]\nfrom = 0\nto = 1\nlabel = "a"\n',
      r"give a column or ranges, not both"),

@@ -70,11 +70,14 @@ def import_log(m: Mapping) -> Imported:
                          f"away from one regular clock, its rate moving over {reg.drift.rate_span_ppm:.3g} ppm; the samples "
                          f"follow the stamps on a smooth clock (its rate {shape})")
             if m.keeps_time == "sensor":
-                # the sensor's intervals are its nominal ones, and its samples stand where the
-                # host's stamps put them against the table (stamped by the same host)
+                # the sensor's intervals are its nominal ones; its samples stand where the host's
+                # stamps put them against a table the same host stamps, and where the sensor's own
+                # clock puts them against a table controller's clock (the host's bow is then in
+                # neither)
                 logged = reg.sensor_time
                 notes.append("keeps_time = 'sensor': the log's time is the sensor's regular clock; the table's angles "
-                             "are taken at the host's stamps of its samples")
+                             + ("are matched against it (table.time.clock = 'controller')" if m.table_clock == "controller"
+                                else "are taken at the host's stamps of its samples"))
         reach = 3 * math.sqrt(2) * reg.jitter_rms_s  # how far jitter stretches one interval, at most about
         if max_int - 1 / reg.rate_hz < reach:
             # a jittered interval then passes for a gap, and the runs between such gaps, chosen by
@@ -112,7 +115,8 @@ def import_log(m: Mapping) -> Imported:
     seg = _labels(m, cols, t)
     _check_label_keys(m, seg)
     clock: dict = {}
-    gimbal, command, names, vectors, keep = _table(m, cols, t, gyro, gkind, notes, clock, ~after_gap)
+    matched = logged if logged is not None and m.table_clock == "controller" else t
+    gimbal, command, names, vectors, keep = _table(m, cols, matched, gyro, gkind, notes, clock, ~after_gap)
     if logged is not None:
         t = logged
     if keep is not None:

@@ -26,6 +26,9 @@ GYRO_KINDS = {"rate": RATE_UNITS, "increment": ANGLE_UNITS, "counts": ANGLE_UNIT
 ACC_KINDS = {"specific_force": FORCE_UNITS, "increment": VELOCITY_UNITS, "counts": VELOCITY_UNITS}
 TIMINGS = ("nominal", "measured", "regularise")
 CLOCKS = ("host", "sensor")  # imu.time.keeps_time: which clock keeps time where the two drift apart
+# table.time.clock: what stamps a table file, the host that stamps the IMU's samples or the table
+# controller's own clock (it tells where the angles are matched when the host's clock drifts)
+TABLE_CLOCKS = ("host", "controller")
 
 
 @dataclass
@@ -99,6 +102,7 @@ class Mapping:
     round_to_count: bool = False
     description: str = ""
     keeps_time: str = "host"    # a drift followed by regularise: the host's clock keeps time, or the sensor's
+    table_clock: str | None = None  # what stamps the table file (TABLE_CLOCKS); None: not said
 
 
 def _get(d: dict, key: str, where: str, expected: str, required: bool = True, default=None):
@@ -258,6 +262,12 @@ def load_mapping(path: str | Path) -> Mapping:
         m.temperature_unit = _unit(td.get("unit", "degC"), "imu.temperature.unit", where, TEMPERATURE_UNITS)
     _labels(d, m, where)
     _table(d, m, where, base)
+    if keeps == "sensor" and m.table is not None and m.table_clock is None:
+        # the two answers differ by the host's bow (milliseconds); neither is a safe default
+        raise MappingError(f"{where}: key 'table.time.clock' is needed with imu.time.keeps_time = 'sensor' (the host's "
+                           "clock drifting): say what stamps the table file, 'host' (the host that stamps the IMU's "
+                           "samples: the angles are taken at its stamps) or 'controller' (the table controller's own "
+                           "clock: the angles are matched against the sensor's clock)")
     site = d.get("site", {})
     if not isinstance(site, dict):
         raise MappingError(f"{where}: key 'site': expected a table")
@@ -327,6 +337,8 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
         m.table_time = _channel(_get(tt, "column", f"{where} [table.time]", "the time column"), "table.time.column",
                                 where)
         m.table_time_si = TIME_UNITS[_unit(tt.get("unit", "s"), "table.time.unit", where, TIME_UNITS)]
+        if "clock" in tt:
+            m.table_clock = _unit(tt["clock"], "table.time.clock", where, TABLE_CLOCKS)
         off = tab.get("clock_offset_s", "estimate")
         if off != "estimate":
             off = _number(off, "table.clock_offset_s", where, "'estimate' or the offset [s] (table time + offset "
