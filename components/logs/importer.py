@@ -69,15 +69,18 @@ def import_log(m: Mapping) -> Imported:
             notes.append(f"the sensor's clock drifts against the host's: its stamps bow up to {reg.drift.bow_s * 1e3:.3g} ms "
                          f"away from one regular clock, its rate moving over {reg.drift.rate_span_ppm:.3g} ppm; the samples "
                          f"follow the stamps on a smooth clock (its rate {shape})")
-            if m.keeps_time == "sensor":
-                # the sensor's intervals are its nominal ones; its samples stand where the host's
-                # stamps put them against a table the same host stamps, and where the sensor's own
-                # clock puts them against a table controller's clock (the host's bow is then in
-                # neither)
-                logged = reg.sensor_time
-                notes.append("keeps_time = 'sensor': the log's time is the sensor's regular clock; the table's angles "
-                             + ("are matched against it (table.time.clock = 'controller')" if m.table_clock == "controller"
-                                else "are taken at the host's stamps of its samples"))
+        if m.keeps_time == "sensor":
+            # the sensor's clock keeps time: its samples are whole nominal intervals apart (the
+            # grid's interval on the host's stamps is the host's rate error, 50 ppm of every
+            # accelerometer scale factor on a host 50 ppm fast). They stand where the host's
+            # stamps put them against a table the same host stamps, and where the sensor's own
+            # clock puts them against a table controller's clock (the host's bow is then in neither)
+            grid = reg.sensor_time if reg.drift is not None else reg.time
+            logged = grid[0] + (grid - grid[0]) * (nominal * reg.rate_hz)
+            notes.append(f"keeps_time = 'sensor': the log's time is the sensor's clock, {nominal * 1e3:g} ms a sample "
+                         f"(the host's stamps {(1 / (nominal * reg.rate_hz) - 1) * 1e6:+.3g} ppm on it); the table's "
+                         "angles " + ("are matched against it (table.time.clock = 'controller')"
+                                      if m.table_clock == "controller" else "are taken at the host's stamps of its samples"))
         reach = 3 * math.sqrt(2) * reg.jitter_rms_s  # how far jitter stretches one interval, at most about
         if max_int - 1 / reg.rate_hz < reach:
             # a jittered interval then passes for a gap, and the runs between such gaps, chosen by
