@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import MappingError
+from components.logs.clock_drift import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
 from components.logs.sources import Columns
@@ -57,6 +58,7 @@ def import_log(m: Mapping) -> Imported:
     max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
     timing, fs = "nominal", m.sample_rate_hz
     logged = None  # the log's time where it is not the host's (a drift, the sensor keeping time)
+    bow = None  # with a drift: the host's stamps less the sensor's grid at each sample
     if m.timing == "regularise":
         reg = regularise(t, nominal, max_int)
         t = reg.time
@@ -64,6 +66,7 @@ def import_log(m: Mapping) -> Imported:
                      f"({(reg.rate_hz / m.sample_rate_hz - 1) * 1e6:+.3g} ppm from the nominal {m.sample_rate_hz:g}), "
                      f"stamps' RMS jitter {reg.jitter_rms_s * 1e6:.3g} us")
         if reg.drift is not None:
+            bow = reg.time - reg.sensor_time
             shape = ("changing steadily over the log" if reg.drift.segments == 1 else
                      f"piecewise linear between knots {reg.drift.spacing_s:.0f} s apart")
             notes.append(f"the sensor's clock drifts against the host's: its stamps bow up to {reg.drift.bow_s * 1e3:.3g} ms "
@@ -120,6 +123,10 @@ def import_log(m: Mapping) -> Imported:
     clock: dict = {}
     matched = logged if logged is not None and m.table_clock == "controller" else t
     gimbal, command, names, vectors, keep = _table(m, cols, matched, gyro, gkind, notes, clock, ~after_gap)
+    if bow is not None and clock.get("estimate") is not None and clock["estimate"].stretches is not None:
+        wrong = _wrong_clock(clock["estimate"], matched, bow, reg.drift.bow_s, matched is logged)
+        if wrong:
+            notes.append(wrong)
     if logged is not None:
         t = logged
     if keep is not None:
@@ -226,6 +233,27 @@ def _counted(m: Mapping, angle: np.ndarray, notes: list[str]) -> np.ndarray:
     if note not in notes:
         notes.append(note)
     return np.round(angle / q) * q
+
+
+def _wrong_clock(co, matched: np.ndarray, bow: np.ndarray, bow_s: float, against_sensor: bool) -> str | None:
+    """A warning where a table on a clock of its own keeps the other clock's time than the mapping
+    says (clock_drift.bow_followed), else None."""
+    got = bow_followed(co.stretches, matched, bow)
+    if got is None:
+        return None
+    a, sa = got
+    other = -1.0 if against_sensor else 1.0  # where its offsets stand if the other clock drifts
+    if abs(a) < WRONG_CLOCK_SIGMAS * sa or abs(a - other) >= abs(a):
+        return None
+    said = (f"its offsets from the log's time follow {a:+.2f} ± {sa:.2g} of the host stamps' bow "
+            f"(up to {bow_s * 1e3:.3g} ms; {other:+.0f} where it keeps the other clock's time, 0 where it keeps the log's)")
+    if against_sensor:
+        return ("warning: the table's clock keeps the host's time, not the sensor's: " + said + ": the sensor's clock "
+                "is the one that drifts (imu.time.keeps_time = 'host'), or the host stamps the table file "
+                "(table.time.clock = 'host')")
+    return ("warning: the table's clock keeps the sensor's time, not the host's: " + said + ", as where the host's "
+            "clock drifts against a sensor and a table controller that keep time: give imu.time.keeps_time = 'sensor' "
+            "and table.time.clock = 'controller'")
 
 
 def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole: np.ndarray):

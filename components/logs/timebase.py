@@ -200,6 +200,9 @@ class ClockOffset:
     correlation: float       # of the two rate magnitudes at the offset
     rate: float = 0.0        # the IMU's clock gains rate · (table time since its first sample)
     rate_sigma: float = 0.0
+    # the offsets of the record's equal stretches (at their centres on the IMU's clock, their
+    # variances), what a curve in the offset shows against (None: too few stretches move)
+    stretches: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 def table_to_imu(tt: np.ndarray, offset: float, rate: float = 0.0) -> np.ndarray:
@@ -288,7 +291,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         return _refine(residual, on_table, t_imu, dt_imu, t_tab, sel, line, t_ref, rate)
 
     line, cov = refine(moving, np.array([delta]))
-    rated = _rate_from_windows(refine, t_imu, moving, float(line[0]), t_ref)
+    rated, stretches = _rate_from_windows(refine, t_imu, moving, float(line[0]), t_ref)
     if rated is not None:
         # the line through the windows' offsets, refined on every moving sample; its σ at least
         # what the windows' scatter about it says (the interpolation's error follows the moves)
@@ -318,7 +321,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     t0 = float(t_tab[0])
     at_t0 = (d0 - rate * (t_ref - t0)) / (1 - rate)
     return ClockOffset(at_t0, sigma, d1, d2, corr, rate / (1 - rate),
-                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0)
+                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0, stretches)
 
 
 RATE_WINDOWS = 8  # the record in this many equal stretches, for the rate between the clocks and its σ
@@ -329,7 +332,8 @@ def _rate_from_windows(refine, t_imu, moving, delta: float, t_ref: float):
     in RATE_WINDOWS equal stretches of the record, weighted by their σ, twice (the second with the
     first's rate inside each stretch); the variances widened by the stretches' scatter about the
     line where it exceeds their σ; None where the rate is not RATE_SIGNIFICANT of its σ from none,
-    or fewer than four stretches have moves. The scatter holds what a white residual's σ does not:
+    or fewer than four stretches have moves. Second: the stretches' offsets (ClockOffset.stretches),
+    or None. The scatter holds what a white residual's σ does not:
     the table's interpolation errs with each move's profile (on a 200 Hz table, a rate of 0.002
     ppm between the halves of a log whose clocks share a crystal, nine times that σ); a stretch
     turning at a constant rate shows no offset at all (its σ says so). *refine* (samples, line[,
@@ -338,7 +342,7 @@ def _rate_from_windows(refine, t_imu, moving, delta: float, t_ref: float):
     windows = [moving & (t_imu >= a) & (t_imu < b) for a, b in zip(edges[:-1], edges[1:])]
     windows = [w for w in windows if w.sum() >= 10]
     if len(windows) < 4:
-        return None
+        return None, None
     centre = np.array([float(np.mean(t_imu[w])) for w in windows]) - t_ref
     rate = 0.0
     for _ in range(2):
@@ -352,16 +356,17 @@ def _rate_from_windows(refine, t_imu, moving, delta: float, t_ref: float):
             offsets[k], var[k] = got[0] + rate * c, cov[0, 0]
         ok = np.isfinite(offsets) & np.isfinite(var) & (var > 0)
         if ok.sum() < 4:
-            return None
+            return None, None
         x, y, wt = centre[ok], offsets[ok], 1.0 / var[ok]
         A = np.column_stack([np.ones_like(x), x]) * np.sqrt(wt)[:, None]
         sol, *_ = np.linalg.lstsq(A, y * np.sqrt(wt), rcond=None)
         delta, rate = float(sol[0]), float(sol[1])
     chi2 = float(np.sum(wt * (y - delta - rate * x) ** 2))
     cov = np.linalg.inv(A.T @ A) * max(1.0, chi2 / (len(x) - 2))
+    stretches = (x + t_ref, y, var[ok])
     if abs(rate) <= RATE_SIGNIFICANT * math.sqrt(cov[1, 1]):
-        return None
-    return np.array([delta, rate]), np.diag(cov)
+        return None, stretches
+    return (np.array([delta, rate]), np.diag(cov)), stretches
 
 
 def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
