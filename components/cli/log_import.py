@@ -55,7 +55,12 @@ def refine_clock_offset(m, imp):
             w_rate, w_lsq = (1 / s_rate**2 if s_rate > 0 else 0.0), 1 / s_lsq**2
             offset = (coarse * w_rate + lsq * w_lsq) / (w_rate + w_lsq)
             sigma = (w_rate + w_lsq) ** -0.5
-            m.clock_offset, m.clock_rate = offset, imp.clock_offset.rate
+            if imp.clock_offset.curve is not None:
+                # the least squares shift the whole record alike: where the offset is said (the
+                # table's first sample, often before the first move) the curve's extrapolation is
+                # as uncertain as the rates' match says, whatever the shift's σ
+                sigma = max(sigma, s_rate)
+            m.clock_offset, m.clock_rate, m.clock_curve = offset, imp.clock_offset.rate, imp.clock_offset.curve
             again = import_log(m)
             imp = type(imp)(again.log, [n for n in imp.notes if not n.startswith("clock offset")]
                             + [n for n in again.notes if not n.startswith(("clock offset", "gyro:", "time stamps",
@@ -65,11 +70,13 @@ def refine_clock_offset(m, imp):
         imp.notes.append(f"clock offset not refined by the least squares ({e}); the rate-matched value stands")
         return imp
     finally:
-        m.clock_offset, m.clock_rate = "estimate", 0.0
+        m.clock_offset, m.clock_rate, m.clock_curve = "estimate", 0.0, None
     rate, s_r = imp.clock_offset.rate, imp.clock_offset.rate_sigma
     imp.notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ± {sigma * 1e3:.2g} ms"
                      + (f" at the table's first sample, the IMU's clock {rate * 1e6:+.6g} ± {s_r * 1e6:.2g} ppm against "
-                        "the table's" if rate else "") + ": matched on the rates "
+                        "the table's" if rate else "")
+                     + (f", {imp.clock_offset.curve.said()}" if imp.clock_offset.curve is not None else "")
+                     + ": matched on the rates "
                      f"{coarse * 1e3:+.4f} ± {s_rate * 1e3:.2g} ms, by the least squares' imu.time_offset on the "
                      f"merged log {lsq * 1e3:+.4f} ± {s_lsq * 1e3:.2g} ms (it includes any delay inside the IMU), "
                      "combined")

@@ -290,17 +290,18 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
             inc = gyro
         co = estimate_clock_offset(t, dt, inc, tt, ang, np.array(vectors), use=whole)
         clock["estimate"] = co
-        offset, rate = co.offset_s, co.rate
+        offset, rate, curve = co.offset_s, co.rate, co.curve
         drift = (f"; the IMU's clock {co.rate * 1e6:+.4g} ± {co.rate_sigma * 1e6:.2g} ppm against the table's: "
                  f"{abs(co.rate) * (tt[-1] - tt[0]) * 1e3:.3g} ms over the record" if co.rate else "")
+        drift += f"; {co.curve.said()}" if co.curve is not None else ""
         notes.append(f"clock offset table -> IMU estimated {co.offset_s * 1e3:+.4f} ± {co.sigma_s * 1e3:.2g} ms at the "
                      f"table's first sample{drift} (each half on its own: {co.first_half_s * 1e3:+.4f}, "
                      f"{co.second_half_s * 1e3:+.4f} ms at its middle; rate magnitudes correlate {co.correlation:.4f})")
     else:
-        offset, rate = float(m.clock_offset or 0.0), m.clock_rate
+        offset, rate, curve = float(m.clock_offset or 0.0), m.clock_rate, m.clock_curve
         notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ms (given)"
                      + (f", the IMU's clock {rate * 1e6:+.4g} ppm against the table's (given)" if rate else ""))
-    ti = table_to_imu(tt, offset, rate)
+    ti = table_to_imu(tt, offset, rate, curve)
     keep = (t >= ti[0]) & (t <= ti[-1])
     if not keep.any():
         raise MappingError(f"{tc.where}: the table record ({ti[0]:.6g}-{ti[-1]:.6g} s on the IMU clock) does not "

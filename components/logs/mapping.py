@@ -96,6 +96,7 @@ class Mapping:
     axes: list[Axis] = field(default_factory=list)
     clock_offset: float | str | None = None  # s (table + offset = IMU time), "estimate", or None (same clock)
     clock_rate: float = 0.0     # the IMU's clock gains this (s/s) on the table's (table.clock_rate_ppm)
+    clock_curve: object = None  # the offset beyond its line, as an estimate found it (clock_curve.ClockCurve)
     encoder_resolution: object = None
     # round the logged angles to whole counts of encoder_resolution (readings with noise finer
     # than the count: an interpolating encoder, a filtered angle)

@@ -25,12 +25,14 @@ another clock at another rate.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from components.errors import MappingError
+from components.logs.clock_curve import ClockCurve, curved
 from components.logs.clock_drift import ClockDrift, fit_drift
 
 
@@ -200,15 +202,19 @@ class ClockOffset:
     correlation: float       # of the two rate magnitudes at the offset
     rate: float = 0.0        # the IMU's clock gains rate · (table time since its first sample)
     rate_sigma: float = 0.0
-    # the offsets of the record's equal stretches (at their centres on the IMU's clock, their
-    # variances), what a curve in the offset shows against (None: too few stretches move)
+    # the offsets of the record's equal stretches about the line alone (at their centres on the
+    # IMU's clock, their variances), what a curve in the offset shows in (None: too few move)
     stretches: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    curve: ClockCurve | None = None  # the offset beyond its line, where the clocks' rate changes
 
 
-def table_to_imu(tt: np.ndarray, offset: float, rate: float = 0.0) -> np.ndarray:
-    """The table's times *tt* on the IMU's clock: an offset at its first sample, and a clock gaining
-    *rate* seconds per second of the table's (two crystals: tens of ppm apart)."""
-    return tt + offset + rate * (tt - tt[0])
+def table_to_imu(tt: np.ndarray, offset: float, rate: float = 0.0, curve: ClockCurve | None = None) -> np.ndarray:
+    """The table's times *tt* on the IMU's clock: an offset at its first sample, a clock gaining
+    *rate* seconds per second of the table's (two crystals: tens of ppm apart), and where that
+    rate changes the *curve* beyond the line (on the IMU's clock: taken at the line's times, ppm
+    of a millisecond off)."""
+    ti = tt + offset + rate * (tt - tt[0])
+    return ti if curve is None else ti + curve(ti)
 
 
 def rate_magnitude_from_angles(t: np.ndarray, angles: np.ndarray, axis_vectors: np.ndarray) -> np.ndarray:
@@ -278,17 +284,26 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         moving &= use
     t_ref = float(np.mean(t_imu[moving])) if moving.any() else float(t_imu[0])  # IMU time, the line's centre
 
+    scale = max(float(t_imu[-1] - t_imu[0]) / 2, 1.0)  # the curve's time axis: x = (t - t_ref) / scale
+    held = ()  # the curve's coefficients, held where a stretch's or a half's offset is fitted
+
     def on_table(t, line):
-        # the IMU's times *t* on the table's clock for the line (δ at t_ref, rate)
-        d, r = line
-        return t - d - r * (t - t_ref)
+        # the IMU's times *t* on the table's clock for the line (δ at t_ref, rate) and the curve
+        # beyond it (coefficients of the Legendre polynomials P_2(x), P_3(x), ...)
+        d, r = line[0], line[1]
+        out = t - d - r * (t - t_ref)
+        if len(line) > 2:
+            x = (t - t_ref) / scale
+            out = out - np.polynomial.legendre.legval(x, np.concatenate([[0.0, 0.0], line[2:]]))
+        return out
 
     def residual(line, sel):
         ta, tb = on_table(t_imu[sel] - dt_imu[sel], line), on_table(t_imu[sel], line)
         return step[sel] - _turn_angle(_plate(interp(ta), axis_vectors), _plate(interp(tb), axis_vectors))
 
-    def refine(sel, line, rate=None):
-        return _refine(residual, on_table, t_imu, dt_imu, t_tab, sel, line, t_ref, rate)
+    def refine(sel, line, rate=None, with_rss=False):
+        return _refine(residual, on_table, t_imu, dt_imu, t_tab, sel, line, t_ref, rate, held=held, scale=scale,
+                       with_rss=with_rss)
 
     line, cov = refine(moving, np.array([delta]))
     rated, stretches = _rate_from_windows(refine, t_imu, moving, float(line[0]), t_ref)
@@ -297,7 +312,24 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         # what the windows' scatter about it says (the interpolation's error follows the moves)
         line, cov = refine(moving, rated[0])
         cov[np.diag_indices(2)] = np.maximum(np.diag(cov), rated[1])
+    # the clocks' rate changing over the record (a crystal warming): the offset a polynomial in
+    # time, its terms beyond the line fitted with it on every moving sample while significant
+    start = line if len(line) > 1 else np.array([line[0], 0.0])
+    bent, bent_cov, curve = curved(lambda sel, x: refine(sel, x, with_rss=True), moving, start, t_ref, scale,
+                                   math.sqrt(cov[0, 0]))
+    if curve is not None:
+        line, cov, held = bent[:2], bent_cov[:2, :2], tuple(curve.coefficients)
+        # the offset said at the table's first sample, often at rest before the first move: the
+        # curve's σ there from every coefficient's (it extrapolates where no move shows it)
+        x0 = (float(t_tab[0]) + float(line[0]) - t_ref) / scale
+        g = np.concatenate([[1.0, float(t_tab[0]) + float(line[0]) - t_ref],
+                            [np.polynomial.legendre.legval(x0, np.eye(len(bent))[k]) for k in range(2, len(bent))]])
+        edge_sigma = math.sqrt(float(g @ bent_cov @ g))
+        if rated is None:
+            # the rate the curve's line holds; its σ from every moving sample's residual
+            rated = (line, np.diag(cov))
     d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
+    full_line = (d0, rate, *held)
     half = t_imu[0] + 0.5 * (t_imu[-1] - t_imu[0])
     halves = [moving & (t_imu <= half), moving & (t_imu > half)]
     if all(h.sum() >= 10 for h in halves):
@@ -308,20 +340,24 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     else:
         d1 = d2 = d0
         gap = 0.0
-    sel = moving & np.isfinite(interp(on_table(t_imu - dt_imu, (d0, rate)))[:, 0]) \
-        & np.isfinite(interp(on_table(t_imu, (d0, rate)))[:, 0])
-    turned = step[sel] - residual((d0, rate), sel)
+    sel = moving & np.isfinite(interp(on_table(t_imu - dt_imu, full_line))[:, 0]) \
+        & np.isfinite(interp(on_table(t_imu, full_line))[:, 0])
+    turned = step[sel] - residual(full_line, sel)
     ok = np.isfinite(turned)
     corr = float(np.corrcoef(step[sel][ok], turned[ok])[0, 1]) if ok.sum() > 2 else float("nan")
     # what the halves disagree by is model error the white-residual σ does not hold
-    sigma = max(math.sqrt(cov[0, 0]), gap / 2)
+    sigma = max(math.sqrt(cov[0, 0]), gap / 2, edge_sigma if curve is not None else 0.0)
     # on the table's clock: table time = t - δ - r (t - t_ref) for IMU time t, so the IMU's clock
     # gains r / (1 - r) per table second, and at the table's first sample t0 it reads
     # (t0 + δ - r t_ref) / (1 - r)
     t0 = float(t_tab[0])
     at_t0 = (d0 - rate * (t_ref - t0)) / (1 - rate)
+    if curve is not None:
+        # the offset said where the table's record starts, the curve's value there in it
+        at_t0 += float(curve(t0 + at_t0))
+        curve = dataclasses.replace(curve, zero_at=t0 + at_t0)
     return ClockOffset(at_t0, sigma, d1, d2, corr, rate / (1 - rate),
-                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0, stretches)
+                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0, stretches, curve)
 
 
 RATE_WINDOWS = 8  # the record in this many equal stretches, for the rate between the clocks and its σ
@@ -396,18 +432,21 @@ def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
 
 
 def _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, line, t_ref, rate: float | None = None,
-            iterations: int = 15):
-    """Gauss–Newton on the line (δ at *t_ref*[, rate]) over the moving IMU samples whose interval
-    on the table's clock lies in the table's record: the residual |gyro increment| − the table's
-    turn over that interval. (line, its covariance from the white residual); a line of one
-    number holds the rate at *rate* (0 if None)."""
+            iterations: int = 15, held: tuple = (), scale: float = 1.0, with_rss: bool = False):
+    """Gauss–Newton on the line (δ at *t_ref*[, rate[, the curve's coefficients of P_2(x), P_3(x), ...
+    with x = (t − t_ref) / *scale*]]) over the moving IMU samples whose interval on the table's clock
+    lies in the table's record: the residual |gyro increment| − the table's turn over that
+    interval. (line, its covariance from the white residual[, the residual's sum of squares, the
+    samples in it]); a line of one number holds the rate at *rate* (0 if None) and the curve at
+    *held*."""
     line = np.asarray(line, float).copy()
     fixed = 0.0 if rate is None else rate
     cov = np.full((len(line), len(line)), np.nan)
+    rss, used = float("nan"), 0
     eps = 1e-5
 
     def full(x):
-        return (x[0], x[1]) if len(x) > 1 else (x[0], fixed)
+        return tuple(x) if len(x) > 1 else (x[0], fixed, *held)
 
     def inside(x):
         return moving & (on_table(t_imu - dt_imu, full(x)) >= t_tab[0]) & (on_table(t_imu, full(x)) <= t_tab[-1])
@@ -423,6 +462,9 @@ def _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, line, t_ref, rate:
         nudge[0] = eps
         ds = (residual(full(line + nudge), sel) - residual(full(line - nudge), sel)) / (2 * eps)
         cols = [ds] + ([ds * (t_imu[sel] - t_ref)] if len(line) > 1 else [])
+        if len(line) > 2:
+            x = (t_imu[sel] - t_ref) / scale
+            cols += [ds * np.polynomial.legendre.legval(x, np.eye(len(line))[k]) for k in range(2, len(line))]
         J = np.column_stack(cols)
         ok = np.isfinite(r) & np.all(np.isfinite(J), axis=1)
         r, J = r[ok], J[ok]
@@ -431,10 +473,11 @@ def _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, line, t_ref, rate:
             break
         stepv = -np.linalg.solve(info, J.T @ r)
         line += stepv
-        cov = np.linalg.inv(info) * float(r @ r) / max(len(r) - len(line), 1)
+        rss, used = float(r @ r), len(r)  # at the line before this step (its last one: nearly the same)
+        cov = np.linalg.inv(info) * rss / max(len(r) - len(line), 1)
         if np.all(np.abs(stepv) < 1e-3 * np.sqrt(np.diag(cov))):
             break
-    return line, cov
+    return (line, cov, rss, used) if with_rss else (line, cov)
 
 
 def angles_at(t: np.ndarray, t_tab: np.ndarray, angles: np.ndarray) -> np.ndarray:
