@@ -29,7 +29,8 @@ clock runs Q ppm fast against the host's (the import estimates the rate with the
 ``--host-drift-ppm P`` it is the host's clock that soaks, against an IMU and a table controller
 that keep time (the mapping says ``keeps_time = "sensor"`` and ``table.time.clock =
 "controller"``; the offset is then from where the import places the sensor's first sample on
-the host's bowed stamps, and not scored). With
+the host's bowed stamps, and not scored). With ``--table-soak-ppm S`` the table controller's crystal warms too: its clock's rate
+soaks by S ppm (as the IMU's above), and the import follows its offset's curve. With
 ``--grade tactical`` every noise term is 100 times the navigation grade's, and the hidden K2 too
 (8000 µg/g²), so that it stays at the same multiple of its threshold.
 
@@ -142,7 +143,7 @@ def _toml(d: dict, prefix: str = "") -> str:
 
 
 def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0, table_ppm: float = 0.0,
-              host_drift_ppm: float = 0.0) -> float:
+              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0) -> float:
     """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*.
     ``drift_ppm``: the IMU's clock rate soaks by that much (towards it with a time constant of a
     quarter of the log, a crystal warming) against the host's and the table's, which keep time.
@@ -152,7 +153,9 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     clock runs that much fast against the host's. ``host_drift_ppm``: the host's clock rate soaks
     by that much (as the IMU's above) against the IMU's and the table controller's, which keep
     time; the mapping then says so (keeps_time = "sensor", table.time.clock = "controller"), and
-    the increments are as simulated. Returns the true clock offset (IMU time - table time at the
+    the increments are as simulated. ``table_soak_ppm``: the table controller's clock rate soaks by
+    that much on top (its crystal warming after power-on, as the IMU's above). Returns the true
+    clock offset (IMU time - table time at the
     table's first sample; with the host drifting, the host's, which the import does not use)."""
     log = read_log(sim)
     tau = log.time - log.time[0]
@@ -170,6 +173,9 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     np.savetxt(out / "imu.csv", np.column_stack(cols)[kept], fmt=["%d"] * 7 + ["%.4f"], delimiter=",", comments="",
                header="stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F")
     table_time = ((log.time if host_drift_ppm else host) - CLOCK) * (1 + table_ppm * 1e-6)
+    if table_soak_ppm:
+        soak = table_soak_ppm * 1e-6 * (1 - np.exp(-tau / (tau[-1] / 4)))
+        table_time = table_time + np.concatenate([[0.0], np.cumsum(np.diff(tau) * 0.5 * (soak[1:] + soak[:-1]))])
     rows = np.column_stack([table_time] + [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")])
     with open(out / "table.csv", "w") as f:
         f.write("# turntable controller export\n# firmware 3.1\nt;A0;A1;A2\n")
@@ -194,20 +200,22 @@ def calbench(*args: str, cwd: Path) -> str:
 
 
 def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0, grade: str = "navigation",
-             host_drift_ppm: float = 0.0) -> dict:
+             host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed, grade))
     calbench("simulate", "scenario.toml", "--out", "sim", cwd=d)
     rig = d / "rig"
     rig.mkdir(exist_ok=True)
-    true_offset = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm, host_drift_ppm)
+    true_offset = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm, host_drift_ppm,
+                            table_soak_ppm)
     truth = json.loads((d / "sim.truth.json").read_text())
     said = calbench("import", "rig/map.toml", "--out", "imp", cwd=d)
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
     offset, offset_sigma = float(m.group(1)) * 1e-3, float(m.group(2)) * 1e-3
     drift = re.search(r"bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm", said)
     rate = re.search(r"the IMU's clock ([+-][\d.e+-]+) ± ([\d.e-]+) ppm against the table's:", said)
-    true_rate = (1 / (1 + table_ppm * 1e-6) - 1) * 1e6
+    # with a soak, at the record's middle (where the import says the rate of a curved offset)
+    true_rate = (1 / (1 + table_ppm * 1e-6 + table_soak_ppm * 1e-6 * (1 - math.exp(-2))) - 1) * 1e6
     calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
     # the user's loop: the noise identified around the model, the diagnosis under it, the verdict
     # added, until nothing is missing (at most MOST_ADDED effects)
@@ -262,6 +270,8 @@ def main() -> int:
     ap.add_argument("--host-drift-ppm", type=float, default=0.0,
                     help="the host's clock rate soaking by this much against the IMU's and the table controller's "
                          "(the mapping says keeps_time = 'sensor'; not with --drift-ppm)")
+    ap.add_argument("--table-soak-ppm", type=float, default=0.0,
+                    help="the table controller's clock rate soaking by this much over the log (its crystal warming)")
     a = ap.parse_args()
     if a.drift_ppm and a.host_drift_ppm:
         ap.error("--drift-ppm and --host-drift-ppm: one clock drifts against the host's, the IMU's or the host's own")
@@ -276,12 +286,13 @@ def main() -> int:
           + (f"; the host's clock rate soaking by {a.host_drift_ppm:g} ppm against the IMU's and the table "
              "controller's" if a.host_drift_ppm else "")
           + (f"; the table's clock {a.table_ppm:g} ppm fast against the "
-             + ("IMU's" if a.host_drift_ppm else "host's") if a.table_ppm else ""))
+             + ("IMU's" if a.host_drift_ppm else "host's") if a.table_ppm else "")
+          + (f"; the table's clock rate soaking by {a.table_soak_ppm:g} ppm" if a.table_soak_ppm else ""))
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
         r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm, a.table_ppm, a.grade,
-                     a.host_drift_ppm)
+                     a.host_drift_ppm, a.table_soak_ppm)
         rows.append(r)
         lo, hi = band99(r["dof"])
         fl = ", ".join(f"{f:.2f}" for f in r["floors"])
