@@ -325,9 +325,6 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         g = np.concatenate([[1.0, float(t_tab[0]) + float(line[0]) - t_ref],
                             [np.polynomial.legendre.legval(x0, np.eye(len(bent))[k]) for k in range(2, len(bent))]])
         edge_sigma = math.sqrt(float(g @ bent_cov @ g))
-        if rated is None:
-            # the rate the curve's line holds; its σ from every moving sample's residual
-            rated = (line, np.diag(cov))
     d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
     full_line = (d0, rate, *held)
     half = t_imu[0] + 0.5 * (t_imu[-1] - t_imu[0])
