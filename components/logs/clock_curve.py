@@ -6,7 +6,7 @@ soaking over 36 minutes bows it 0.26 ms, and the table's angles set against the 
 during each move's acceleration misfit by far more than a navigation-grade gyro's noise
 (χ²/dof 1.10 on a 26-position log, out of its band). The offset is then a polynomial in time: the
 line, and terms of degree 2 and up fitted with it by the same Gauss–Newton on every moving
-sample (timebase._refine), each degree kept while the term it adds is significant against the
+sample (table_clock._refine), each degree kept while the term it adds is significant against the
 residual of every moving sample (an F-test) and the curve it makes bows by more than the
 offset's σ (a curve below that changes no angle the data could tell).
 """
@@ -70,7 +70,7 @@ def curved(refine, moving: np.ndarray, line: np.ndarray, t_ref: float, scale: fl
     """(line with the curve's coefficients appended, covariance, ClockCurve or None): degrees 2..
     MOST_DEGREE added in turn to *line* (δ, rate) while each is significant and bows by more than
     *offset_sigma*. *refine* (samples, coefficients) -> (coefficients, covariance, residual sum of
-    squares, samples used): timebase._refine with the polynomial on x = (t − t_ref) / scale."""
+    squares, samples used): table_clock._refine with the polynomial on x = (t − t_ref) / scale."""
     from scipy.special import fdtrc
 
     best, cov, rss, n = refine(moving, line)

@@ -14,20 +14,15 @@ from components.logs.clock_drift import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
 from components.logs.sources import Columns
-from components.logs.timebase import (
-    angles_at,
-    estimate_clock_offset,
-    gaps,
-    regularise,
-    table_to_imu,
-)
+from components.logs.table_clock import angles_at, estimate_clock_offset, table_to_imu
+from components.logs.timebase import gaps, regularise
 
 
 @dataclass
 class Imported:
     log: MeasurementLog
     notes: list[str] = field(default_factory=list)
-    clock_offset: object = None   # timebase.ClockOffset when estimated
+    clock_offset: object = None   # table_clock.ClockOffset when estimated
 
 
 def _sensor_values(cols: Columns, sensor, name: str, kind_rates: tuple) -> tuple[np.ndarray, str]:

@@ -1,0 +1,330 @@
+"""A table recorded on another clock: the offset and the rate between the clocks, the curve of a
+rate that changes, and the table's angles at the IMU's times.
+
+- **Two clocks.** The table's time plus an offset is the IMU's. The offset is estimated by
+  matching how far the plate turns with how far the gyros say it turned (the same motion,
+  whatever the axes' mapping; the gyros' errors scale it by parts per thousand at most): a coarse
+  shift from the cross-correlation of the two rate magnitudes (each IMU sample's rate at its
+  interval's middle), refined by Gauss–Newton on, per IMU sample while the table turns, the
+  magnitude of its gyro increment minus the plate's turn between the table's angles
+  interpolated (PCHIP) at the ends of that sample's interval shifted by δ — the IMU's samples
+  are integrals and are used as they are, the table's point samples are what is interpolated.
+  σ from that fit's residual and curvature, and at least half the difference of the offsets
+  fitted on the first and the second half (model error: both halves are reported). Two
+  crystals also run at rates ppm apart: the rate between the clocks comes from a line through
+  the offsets of stretches of the record, kept where it is significant against their scatter;
+  a rate that changes (a crystal warming) bends the offset into a curve (components.logs.clock_curve).
+- **Merging.** The table angles at the IMU's sample times by monotone cubic interpolation
+  (PCHIP): between two equal readings (a rest) the angle stays exactly that reading, so rests
+  keep their encoder values; during moves the interpolant follows the motion.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from components.errors import MappingError
+from components.logs.clock_curve import ClockCurve, curved
+
+
+@dataclass
+class ClockOffset:
+    offset_s: float          # table time + offset = IMU time, at the table record's first sample
+    sigma_s: float
+    first_half_s: float      # the offset on each half of the overlap, at that half's middle, with
+    second_half_s: float     # the rate below: what they differ by is what the line misses
+    correlation: float       # of the two rate magnitudes at the offset
+    rate: float = 0.0        # the IMU's clock gains rate · (table time since its first sample)
+    rate_sigma: float = 0.0
+    # the offsets of the record's equal stretches about the line alone (at their centres on the
+    # IMU's clock, their variances), what a curve in the offset shows in (None: too few move)
+    stretches: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    curve: ClockCurve | None = None  # the offset beyond its line, where the clocks' rate changes
+
+
+def table_to_imu(tt: np.ndarray, offset: float, rate: float = 0.0, curve: ClockCurve | None = None) -> np.ndarray:
+    """The table's times *tt* on the IMU's clock: an offset at its first sample, a clock gaining
+    *rate* seconds per second of the table's (two crystals: tens of ppm apart), and where that
+    rate changes the *curve* beyond the line (on the IMU's clock: taken at the line's times, ppm
+    of a millisecond off)."""
+    ti = tt + offset + rate * (tt - tt[0])
+    return ti if curve is None else ti + curve(ti)
+
+
+def rate_magnitude_from_angles(t: np.ndarray, angles: np.ndarray, axis_vectors: np.ndarray) -> np.ndarray:
+    """|plate rate| [rad/s] at *t* from the gimbal angles (N, n_axes): ω = Σ_k R_1..R_{k-1} a_k θ̇_k
+    in the plate frame has the norm of that sum in the base frame."""
+    from components.model.geometry import rodrigues
+
+    th = np.asarray(angles, float)
+    rates = np.gradient(th, t, axis=0)
+    w = np.zeros((len(t), 3))
+    R = np.broadcast_to(np.eye(3), (len(t), 3, 3)).copy()
+    for k, a in enumerate(np.asarray(axis_vectors, float)):
+        w += np.einsum("nij,j->ni", R, a) * rates[:, k:k + 1]
+        R = R @ rodrigues(a, th[:, k])
+    return np.linalg.norm(w, axis=1)
+
+
+def _plate(angles: np.ndarray, axis_vectors: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) plate attitudes in the base frame from gimbal angles (N, n_axes)."""
+    from components.model.geometry import rodrigues
+
+    R = np.broadcast_to(np.eye(3), (len(angles), 3, 3)).copy()
+    for k, a in enumerate(np.asarray(axis_vectors, float)):
+        R = R @ rodrigues(a, angles[:, k])
+    return R
+
+
+def _turn_angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Angle [rad] of the rotation from attitudes Ra to Rb (small: from the skew part)."""
+    rel = np.einsum("nji,njk->nik", Ra, Rb)
+    v = 0.5 * np.stack([rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], 1)
+    return np.arcsin(np.clip(np.linalg.norm(v, axis=1), 0.0, 1.0))
+
+
+# a rate between the clocks is kept where it stands this many of its σ from none
+RATE_SIGNIFICANT = 5.0
+
+
+def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.ndarray, t_tab: np.ndarray,
+                          angles: np.ndarray, axis_vectors: np.ndarray,
+                          max_offset: float | None = None, use: np.ndarray | None = None) -> ClockOffset:
+    """The offset δ (table time + δ = IMU time) and the rate between the clocks, from the IMU's gyro
+    increments (N, 3) over the intervals (t − dt, t] and the table's angles (M, n_axes) at
+    *t_tab*. *use* (N,) bool: the samples whose increment is known to cover (t − dt, t] (not the
+    sample after a gap: a lost packet's counts are lost with it, or summed into the next, and the
+    log leaves that sample out).
+
+    Two crystals run tens of ppm apart: 20 ppm over 36 minutes is 43 ms, which one offset set
+    against the table's motion leaves as misfit (χ²/dof 10,000 on a 26-position log). The rate
+    comes from a line through the offsets of stretches of the record (:func:`_rate_from_windows`),
+    refined with the offset on every moving sample, and is kept where it stands
+    RATE_SIGNIFICANT of its σ from none."""
+    from scipy.interpolate import PchipInterpolator
+
+    w_imu = np.linalg.norm(gyro_inc, axis=1) / dt_imu
+    t_mid = t_imu - dt_imu / 2
+    w_tab = rate_magnitude_from_angles(t_tab, angles, axis_vectors)
+    delta = _coarse(t_mid, w_imu, t_tab, w_tab, float(np.median(dt_imu)), max_offset)
+    # the IMU's samples are integrals and stay as they are; the table's angles are point samples,
+    # interpolated at the ends of each IMU interval taken to the table's clock
+    interp = PchipInterpolator(t_tab, angles, axis=0, extrapolate=False)
+    step = np.linalg.norm(gyro_inc, axis=1)
+    moving = step > 0.02 * float(np.median(dt_imu))     # turning faster than ~1 deg/s
+    if use is not None:
+        # (a count log with 0.2 % of its packets lost, each increment set against the table's turn
+        # over two intervals: the offset 0.55 ms off, 3.7 of its σ)
+        moving &= use
+    t_ref = float(np.mean(t_imu[moving])) if moving.any() else float(t_imu[0])  # IMU time, the line's centre
+
+    scale = max(float(t_imu[-1] - t_imu[0]) / 2, 1.0)  # the curve's time axis: x = (t - t_ref) / scale
+    held = ()  # the curve's coefficients, held where a stretch's or a half's offset is fitted
+
+    def on_table(t, line):
+        # the IMU's times *t* on the table's clock for the line (δ at t_ref, rate) and the curve
+        # beyond it (coefficients of the Legendre polynomials P_2(x), P_3(x), ...)
+        d, r = line[0], line[1]
+        out = t - d - r * (t - t_ref)
+        if len(line) > 2:
+            x = (t - t_ref) / scale
+            out = out - np.polynomial.legendre.legval(x, np.concatenate([[0.0, 0.0], line[2:]]))
+        return out
+
+    def residual(line, sel):
+        ta, tb = on_table(t_imu[sel] - dt_imu[sel], line), on_table(t_imu[sel], line)
+        return step[sel] - _turn_angle(_plate(interp(ta), axis_vectors), _plate(interp(tb), axis_vectors))
+
+    def refine(sel, line, rate=None, with_rss=False):
+        return _refine(residual, on_table, t_imu, dt_imu, t_tab, sel, line, t_ref, rate, held=held, scale=scale,
+                       with_rss=with_rss)
+
+    line, cov = refine(moving, np.array([delta]))
+    rated, stretches = _rate_from_windows(refine, t_imu, moving, float(line[0]), t_ref)
+    if rated is not None:
+        # the line through the windows' offsets, refined on every moving sample; its σ at least
+        # what the windows' scatter about it says (the interpolation's error follows the moves)
+        line, cov = refine(moving, rated[0])
+        cov[np.diag_indices(2)] = np.maximum(np.diag(cov), rated[1])
+    # the clocks' rate changing over the record (a crystal warming): the offset a polynomial in
+    # time, its terms beyond the line fitted with it on every moving sample while significant
+    start = line if len(line) > 1 else np.array([line[0], 0.0])
+    bent, bent_cov, curve = curved(lambda sel, x: refine(sel, x, with_rss=True), moving, start, t_ref, scale,
+                                   math.sqrt(cov[0, 0]))
+    if curve is not None:
+        line, cov, held = bent[:2], bent_cov[:2, :2], tuple(curve.coefficients)
+        # the offset said at the table's first sample, often at rest before the first move: the
+        # curve's σ there from every coefficient's (it extrapolates where no move shows it)
+        x0 = (float(t_tab[0]) + float(line[0]) - t_ref) / scale
+        g = np.concatenate([[1.0, float(t_tab[0]) + float(line[0]) - t_ref],
+                            [np.polynomial.legendre.legval(x0, np.eye(len(bent))[k]) for k in range(2, len(bent))]])
+        edge_sigma = math.sqrt(float(g @ bent_cov @ g))
+    d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
+    full_line = (d0, rate, *held)
+    half = t_imu[0] + 0.5 * (t_imu[-1] - t_imu[0])
+    halves = [moving & (t_imu <= half), moving & (t_imu > half)]
+    if all(h.sum() >= 10 for h in halves):
+        # each half's own offset with the line's rate: what the line leaves (said at each half's middle)
+        e1, e2 = (refine(h, line[:1], rate=rate)[0][0] for h in halves)
+        gap = abs(e1 - e2)
+        d1, d2 = (e + rate * (float(np.mean(t_imu[h])) - t_ref) for e, h in zip((e1, e2), halves))
+    else:
+        d1 = d2 = d0
+        gap = 0.0
+    sel = moving & np.isfinite(interp(on_table(t_imu - dt_imu, full_line))[:, 0]) \
+        & np.isfinite(interp(on_table(t_imu, full_line))[:, 0])
+    turned = step[sel] - residual(full_line, sel)
+    ok = np.isfinite(turned)
+    corr = float(np.corrcoef(step[sel][ok], turned[ok])[0, 1]) if ok.sum() > 2 else float("nan")
+    # what the halves disagree by is model error the white-residual σ does not hold
+    sigma = max(math.sqrt(cov[0, 0]), gap / 2, edge_sigma if curve is not None else 0.0)
+    # on the table's clock: table time = t - δ - r (t - t_ref) for IMU time t, so the IMU's clock
+    # gains r / (1 - r) per table second, and at the table's first sample t0 it reads
+    # (t0 + δ - r t_ref) / (1 - r)
+    t0 = float(t_tab[0])
+    at_t0 = (d0 - rate * (t_ref - t0)) / (1 - rate)
+    if curve is not None:
+        # the offset said where the table's record starts, the curve's value there in it
+        at_t0 += float(curve(t0 + at_t0))
+        curve = dataclasses.replace(curve, zero_at=t0 + at_t0)
+    return ClockOffset(at_t0, sigma, d1, d2, corr, rate / (1 - rate),
+                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0, stretches, curve)
+
+
+RATE_WINDOWS = 8  # the record in this many equal stretches, for the rate between the clocks and its σ
+
+
+def _rate_from_windows(refine, t_imu, moving, delta: float, t_ref: float):
+    """((δ at t_ref, rate), their variances) of the line through the offsets of the moving samples
+    in RATE_WINDOWS equal stretches of the record, weighted by their σ, twice (the second with the
+    first's rate inside each stretch); the variances widened by the stretches' scatter about the
+    line where it exceeds their σ; None where the rate is not RATE_SIGNIFICANT of its σ from none,
+    or fewer than four stretches have moves. Second: the stretches' offsets (ClockOffset.stretches),
+    or None. The scatter holds what a white residual's σ does not:
+    the table's interpolation errs with each move's profile (on a 200 Hz table, a rate of 0.002
+    ppm between the halves of a log whose clocks share a crystal, nine times that σ); a stretch
+    turning at a constant rate shows no offset at all (its σ says so). *refine* (samples, line[,
+    rate]): :func:`_refine` on this record."""
+    edges = np.linspace(t_imu[0], t_imu[-1], RATE_WINDOWS + 1)
+    windows = [moving & (t_imu >= a) & (t_imu < b) for a, b in zip(edges[:-1], edges[1:])]
+    windows = [w for w in windows if w.sum() >= 10]
+    if len(windows) < 4:
+        return None, None
+    centre = np.array([float(np.mean(t_imu[w])) for w in windows]) - t_ref
+    rate = 0.0
+    for _ in range(2):
+        offsets, var = np.full(len(windows), np.nan), np.full(len(windows), np.nan)
+        for k, (w, c) in enumerate(zip(windows, centre)):
+            try:
+                # δ at t_ref under the rate; the stretch's offset at its centre
+                got, cov = refine(w, np.array([delta]), rate=rate)
+            except MappingError:
+                continue
+            offsets[k], var[k] = got[0] + rate * c, cov[0, 0]
+        ok = np.isfinite(offsets) & np.isfinite(var) & (var > 0)
+        if ok.sum() < 4:
+            return None, None
+        x, y, wt = centre[ok], offsets[ok], 1.0 / var[ok]
+        A = np.column_stack([np.ones_like(x), x]) * np.sqrt(wt)[:, None]
+        sol, *_ = np.linalg.lstsq(A, y * np.sqrt(wt), rcond=None)
+        delta, rate = float(sol[0]), float(sol[1])
+    chi2 = float(np.sum(wt * (y - delta - rate * x) ** 2))
+    cov = np.linalg.inv(A.T @ A) * max(1.0, chi2 / (len(x) - 2))
+    stretches = (x + t_ref, y, var[ok])
+    if abs(rate) <= RATE_SIGNIFICANT * math.sqrt(cov[1, 1]):
+        return None, stretches
+    return (np.array([delta, rate]), np.diag(cov)), stretches
+
+
+def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
+    """The shift maximising the cross-correlation of the two rate magnitudes, each on a grid of its
+    own record: any shift at which the records overlap at all, whatever their clocks count from
+    (a host's epoch seconds against a controller's seconds since power-on: one common grid over
+    both was terabytes), within ±*max_offset* if given."""
+    grid_dt = min(dt, float(np.median(np.diff(t_tab))))
+    ga = t_mid[0] + np.arange(0.0, t_mid[-1] - t_mid[0], grid_dt)
+    gb = t_tab[0] + np.arange(0.0, t_tab[-1] - t_tab[0], grid_dt)
+    a = np.interp(ga, t_mid, w_imu)
+    b = np.interp(gb, t_tab, w_tab)
+    if not (np.any(b > 1e-3) and np.any(a > 1e-3)):
+        raise MappingError("clock offset: the table never moves (or the IMU never turns) in the records: no "
+                           "motion to match; give table.clock_offset_s")
+    size = 1 << int(np.ceil(np.log2(len(a) + len(b))))
+    xc = np.fft.irfft(np.fft.rfft(a - a.mean(), size) * np.conj(np.fft.rfft(b - b.mean(), size)), size)
+    # lag k: the IMU's grid point i + k beside the table's i, a shift of ga[0] - gb[0] + k grid_dt
+    lags = np.concatenate([np.arange(0, len(a)), np.arange(-len(b) + 1, 0)])
+    xc = np.concatenate([xc[:len(a)], xc[size - len(b) + 1:]])
+    shift = (ga[0] - gb[0]) + lags * grid_dt
+    ok = np.abs(shift) <= max_offset if max_offset is not None else np.ones(len(lags), bool)
+    if not ok.any():
+        raise MappingError(f"clock offset: no shift within ±{max_offset:g} s lets the records overlap; give "
+                           "table.clock_offset_s")
+    return float(shift[ok][np.argmax(xc[ok])])
+
+
+def _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, line, t_ref, rate: float | None = None,
+            iterations: int = 15, held: tuple = (), scale: float = 1.0, with_rss: bool = False):
+    """Gauss–Newton on the line (δ at *t_ref*[, rate[, the curve's coefficients of P_2(x), P_3(x), ...
+    with x = (t − t_ref) / *scale*]]) over the moving IMU samples whose interval on the table's clock
+    lies in the table's record: the residual |gyro increment| − the table's turn over that
+    interval. (line, its covariance from the white residual[, the residual's sum of squares, the
+    samples in it]); a line of one number holds the rate at *rate* (0 if None) and the curve at
+    *held*."""
+    line = np.asarray(line, float).copy()
+    fixed = 0.0 if rate is None else rate
+    cov = np.full((len(line), len(line)), np.nan)
+    rss, used = float("nan"), 0
+    eps = 1e-5
+
+    def full(x):
+        return tuple(x) if len(x) > 1 else (x[0], fixed, *held)
+
+    def inside(x):
+        return moving & (on_table(t_imu - dt_imu, full(x)) >= t_tab[0]) & (on_table(t_imu, full(x)) <= t_tab[-1])
+
+    for _ in range(iterations):
+        sel = inside(line)
+        if sel.sum() < 10:
+            raise MappingError("clock offset: fewer than 10 moving IMU samples overlap the table record at the "
+                               "estimated offset; give table.clock_offset_s")
+        r = residual(full(line), sel)
+        # the residual depends on the line through each sample's shift δ + rate (t - t_ref)
+        nudge = np.zeros(len(line))
+        nudge[0] = eps
+        ds = (residual(full(line + nudge), sel) - residual(full(line - nudge), sel)) / (2 * eps)
+        cols = [ds] + ([ds * (t_imu[sel] - t_ref)] if len(line) > 1 else [])
+        if len(line) > 2:
+            x = (t_imu[sel] - t_ref) / scale
+            cols += [ds * np.polynomial.legendre.legval(x, np.eye(len(line))[k]) for k in range(2, len(line))]
+        J = np.column_stack(cols)
+        ok = np.isfinite(r) & np.all(np.isfinite(J), axis=1)
+        r, J = r[ok], J[ok]
+        info = J.T @ J
+        if not np.all(np.isfinite(info)) or np.linalg.det(info) <= 0:
+            break
+        stepv = -np.linalg.solve(info, J.T @ r)
+        line += stepv
+        rss, used = float(r @ r), len(r)  # at the line before this step (its last one: nearly the same)
+        cov = np.linalg.inv(info) * rss / max(len(r) - len(line), 1)
+        if np.all(np.abs(stepv) < 1e-3 * np.sqrt(np.diag(cov))):
+            break
+    return (line, cov, rss, used) if with_rss else (line, cov)
+
+
+def angles_at(t: np.ndarray, t_tab: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """The table angles (M, n_axes) at the times *t* (inside the table's record), by PCHIP: a
+    rest's reading is held exactly."""
+    from scipy.interpolate import PchipInterpolator
+
+    out = np.empty((len(t), angles.shape[1]))
+    for k in range(angles.shape[1]):
+        out[:, k] = PchipInterpolator(t_tab, angles[:, k], extrapolate=False)(t)
+    # hold exact readings where both neighbouring table samples are equal (no rounding at rest)
+    idx = np.clip(np.searchsorted(t_tab, t), 1, len(t_tab) - 1)
+    for k in range(angles.shape[1]):
+        same = angles[idx - 1, k] == angles[idx, k]
+        out[same, k] = angles[idx[same], k]
+    return out
