@@ -153,7 +153,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     # time, its terms beyond the line fitted with it on every moving sample while significant
     start = line if len(line) > 1 else np.array([line[0], 0.0])
     bent, bent_cov, curve = curved(lambda sel, x: refine(sel, x, with_rss=True), moving, start, t_ref, scale,
-                                   math.sqrt(cov[0, 0]))
+                                   math.sqrt(cov[0, 0]), stretches)
     if curve is not None:
         line, cov, held = bent[:2], bent_cov[:2, :2], tuple(curve.coefficients)
         # the offset said at the table's first sample, often at rest before the first move: the
