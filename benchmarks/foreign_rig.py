@@ -213,7 +213,9 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
     offset, offset_sigma = float(m.group(1)) * 1e-3, float(m.group(2)) * 1e-3
     drift = re.search(r"bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm", said)
-    rate = re.search(r"the IMU's clock ([+-][\d.e+-]+) ± ([\d.e-]+) ppm against the table's:", said)
+    rate = re.search(r"the IMU's clock ([+-][\d.e+-]+) ± ([\d.e-]+) ppm against the table's[:,]", said)
+    curve = re.search(r"the clocks' rate moving over ([\d.e+-]+) ppm across the record, the offset bowing up to "
+                      r"([\d.e+-]+) ms off its line \(followed: degree (\d+)", said)
     # with a soak, at the record's middle (where the import says the rate of a curved offset)
     true_rate = (1 / (1 + table_ppm * 1e-6 + table_soak_ppm * 1e-6 * (1 - math.exp(-2))) - 1) * 1e6
     calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
@@ -247,7 +249,9 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
             "offset_sigma_us": offset_sigma * 1e6,
             "rate_said": rate and f"the clocks' rate {float(rate.group(1)):+.4f} ± {float(rate.group(2)):.2g} ppm "
                                   f"({(float(rate.group(1)) - true_rate) / float(rate.group(2)):+.2f} σ from the truth); ",
-            "drift_said": drift and f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; ",
+            "drift_said": (f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; " if drift else "")
+                          + (f"the table clock's curve (degree {curve.group(3)}): its rate moving {curve.group(1)} ppm, "
+                             f"its offset bowing {curve.group(2)} ms; " if curve else ""),
             "verdicts": verdicts, "last_verdict": diag["verdict"], "k2": errors.get(HIDDEN[1]),
             "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0) / scale for a in "xyz"],
             "floor_unit": unit, "floor_truth": truth["noise"]["acc.noise.bi"] / scale, "chi2": diag["base_chi2_per_dof"],
