@@ -215,7 +215,8 @@ def test_two_workers_verdicts_and_reports(two_workers):
 def test_kill_resume_one_worker_identical(campaign_file, two_workers, tmp_path):
     """1 worker, SIGTERM after a few records, --resume: byte-identical to the 2-worker run, and
     no case that had finished before the kill ran again. The case running at the kill leaves no
-    temporary files (found: its directory, with its two unpacked FMUs, left at every kill)."""
+    temporary files (found: its directory, with its two unpacked FMUs, left by a SIGTERM on a
+    loaded machine, where the worker dies before the case can clean up)."""
     out = tmp_path / "one"
     temp = tmp_path / "temp"
     temp.mkdir()

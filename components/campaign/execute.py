@@ -6,7 +6,9 @@ closed, and the manifest tells the session was interrupted."""
 from __future__ import annotations
 
 import logging
+import shutil
 import signal
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -86,6 +88,10 @@ def run_campaign(camp: Campaign, out: str | Path, *, workers: int | None = None,
         old_handler = signal.signal(signal.SIGTERM, _raise_terminated)
     client = cluster = None
     progress = None
+    # every case's temporary directory inside one of the campaign's, removed below once the
+    # cluster is closed: a worker stopped with the campaign dies before its case can clean up
+    # (found: the running case's directory, its FMUs unpacked, left at a SIGTERM under load)
+    scratch = tempfile.mkdtemp(prefix="calbench-campaign-")
     try:
         if todo:
             client, cluster, slots = connect(workers, scheduler)
@@ -96,6 +102,7 @@ def run_campaign(camp: Campaign, out: str | Path, *, workers: int | None = None,
             t_submit = {}
             for c in todo:
                 task = task_for(camp, c, marker_dir=str(store.runs_dir.resolve()))
+                task["scratch_dir"] = scratch
                 f = client.submit(run_isolated, task, timeout, key=f"calbench-case-{c.id}-{time.time_ns()}",
                                   pure=False)
                 futures[f] = task
@@ -123,6 +130,7 @@ def run_campaign(camp: Campaign, out: str | Path, *, workers: int | None = None,
                     obj.close()
                 except Exception:  # noqa: BLE001
                     pass
+        shutil.rmtree(scratch, ignore_errors=True)
         if old_handler is not None:
             signal.signal(signal.SIGTERM, old_handler)
         session["ran"] = sorted(session["ran"])

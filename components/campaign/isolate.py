@@ -109,7 +109,11 @@ def run_isolated(task: dict, timeout_s: float | None = None) -> dict:
     from components.campaign.case import record
 
     timeout = float(timeout_s if timeout_s is not None else task.get("timeout_s") or 300.0)
-    with tempfile.TemporaryDirectory(prefix="calbench-case-") as tmp:
+    # inside the campaign's own temporary directory where this machine has it (a worker of a
+    # remote cluster uses its own machine's)
+    within = task.get("scratch_dir")
+    with tempfile.TemporaryDirectory(prefix="calbench-case-", dir=within if within and os.path.isdir(within) else None) \
+            as tmp:
         tin, tout, terr = Path(tmp) / "task.json", Path(tmp) / "result.json", Path(tmp) / "stderr.txt"
         tin.write_text(json.dumps(task))
         # the case's own temporary files (its unpacked FMUs) live in the case's directory: a case
