@@ -73,7 +73,7 @@ def import_log(m: Mapping) -> Imported:
             # accelerometer scale factor on a host 50 ppm fast). They stand where the host's
             # stamps put them against a table the same host stamps, and where the sensor's own
             # clock puts them against a table controller's clock (the host's bow is then in neither)
-            grid = reg.sensor_time if reg.drift is not None else reg.time
+            grid = reg.sensor_time
             logged = grid[0] + (grid - grid[0]) * (nominal * reg.rate_hz)
             notes.append(f"keeps_time = 'sensor': the log's time is the sensor's clock, {nominal * 1e3:g} ms a sample "
                          f"(the host's stamps {(1 / (nominal * reg.rate_hz) - 1) * 1e6:+.3g} ppm on it); the table's "

@@ -24,7 +24,11 @@ class Regularised:
     jitter_rms_s: float      # RMS of the stamps about the fitted grid
     runs: int
     drift: ClockDrift | None = None  # the smooth correction of a clock drifting against the host's
-    sensor_time: np.ndarray | None = None  # with a drift: the regular grid, the sensor's own clock
+    sensor_time: np.ndarray | None = None  # the regular grid, the sensor's own clock (without a drift: time)
+
+    def __post_init__(self):
+        if self.sensor_time is None:
+            self.sensor_time = self.time
 
 
 def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
