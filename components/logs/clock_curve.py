@@ -1,4 +1,5 @@
-"""A table controller's clock whose rate changes over the record.
+"""A table controller's clock against the line its offset is fitted as: a rate that changes over
+the record (a curve), and a bow that shows which clock drifts.
 
 An uncompensated crystal warming after power-on moves by ppm over the first hour. Against the
 IMU's clock, the table's offset then bows away from any line (an offset and a rate): 1 ppm
@@ -13,6 +14,7 @@ only where the offsets of the record's stretches follow it beyond their scatter.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +23,15 @@ from components.errors import MappingError
 
 MOST_DEGREE = 10  # a soak (an exponential approach over a quarter of the record) to ~1e-4 of its bow
 CURVE_P = 1e-3    # the term added must be this unlikely from the residual alone
+# the table's offsets must follow the other clock this many of their σ away from the one the
+# mapping says, and nearer it than the mapping's, before the import says the mapping is wrong
+WRONG_CLOCK_SIGMAS = 5.0
+
+
+def legendre_tail(x, terms: int) -> np.ndarray:
+    """(len(x), terms): the Legendre polynomials P_2(x) .. P_{terms+1}(x), the curve's basis beyond
+    the line (the offset's value at x: these times its coefficients)."""
+    return np.polynomial.legendre.legvander(np.atleast_1d(np.asarray(x, float)), terms + 1)[:, 2:]
 
 
 @dataclass
@@ -40,7 +51,7 @@ class ClockCurve:
 
     def _raw(self, t: np.ndarray) -> np.ndarray:
         x = (t - self.t_ref) / self.scale
-        return np.polynomial.legendre.legval(x, np.concatenate([[0.0, 0.0], self.coefficients]))
+        return (legendre_tail(x, len(self.coefficients)) @ self.coefficients).reshape(np.shape(x))
 
     @property
     def _grid(self) -> np.ndarray:
@@ -67,18 +78,18 @@ class ClockCurve:
                 "above is at the record's middle)")
 
 
-def curved(refine, moving: np.ndarray, line: np.ndarray, t_ref: float, scale: float, offset_sigma: float,
-           stretches):
+def curved(refine, moving: np.ndarray, line: np.ndarray, rss: float, t_ref: float, scale: float,
+           offset_sigma: float, stretches):
     """(line with the curve's coefficients appended, covariance, ClockCurve or None): degrees 2..
-    MOST_DEGREE added in turn to *line* (δ, rate) while each is significant and bows by more than
-    *offset_sigma*, and the curve kept only where it explains the *stretches*' offsets about their
-    line (ClockOffset.stretches) beyond their scatter (:func:`_seen_in_stretches`). *refine*
-    (samples, coefficients) -> (coefficients, covariance, residual sum of squares, samples used):
+    MOST_DEGREE added in turn to *line* (δ, rate, fitted on every moving sample with the residual
+    sum of squares *rss*) while each is significant and bows by more than *offset_sigma*, and the
+    curve kept only where it explains the *stretches*' offsets about their line
+    (ClockOffset.stretches) beyond their scatter (:func:`_seen_in_stretches`). *refine* (samples,
+    coefficients) -> (coefficients, covariance, residual sum of squares, samples used):
     table_clock._refine with the polynomial on x = (t − t_ref) / scale."""
     from scipy.special import fdtrc
 
-    best, cov, rss, n = refine(moving, line)
-    curve = None
+    best, cov, curve = line, None, None
     for degree in range(2, MOST_DEGREE + 1):
         try:
             got, got_cov, got_rss, got_n = refine(moving, np.concatenate([best, [0.0]]))
@@ -99,23 +110,58 @@ def curved(refine, moving: np.ndarray, line: np.ndarray, t_ref: float, scale: fl
 
 def _seen_in_stretches(curve: ClockCurve, stretches) -> bool:
     """Whether the stretches' offsets follow *curve* beyond their scatter: an F-test of its amplitude
-    fitted with a line to them (weighted by their σ), against what it leaves. Every moving sample's
+    fitted with a line to them (:func:`_line_and`), against what it leaves. Every moving sample's
     residual is not white: a 200 Hz table's interpolation errs with each move's profile, and on a
     rig whose clocks share a crystal the samples alone found a 3.8 µs curve (a 0.02 ppm rate
     change) that the stretches do not show. None (too few stretches move): not seen."""
     from scipy.special import fdtrc
 
-    if stretches is None:
+    if stretches is None or len(stretches[0]) < 5:
         return False
+    fit = _line_and(stretches, curve(np.asarray(stretches[0], float)))
+    if fit is None:
+        return False
+    _, _, chi2_line, chi2, dof = fit
+    if chi2 <= 0:
+        return chi2_line > 0
+    return bool(fdtrc(1, dof, (chi2_line - chi2) / (chi2 / dof)) < CURVE_P)
+
+
+def bow_followed(stretches, at: np.ndarray, bow: np.ndarray) -> tuple[float, float] | None:
+    """How much of the stamps' bow a table clock's offsets follow: *a* of offset = δ + r t + a·bow(t)
+    fitted to the offsets of the record's stretches (:func:`_line_and`), its σ widened by their
+    scatter about the fit; None with fewer than four stretches. *bow* (s) at the log's times *at*:
+    the host's stamps less the sensor's grid.
+
+    The stamps cannot tell which clock drifts; a table on a third clock can. Matched against the
+    host's stamps, a table controller's clock that keeps the sensor's time shows the host's bow in
+    its offsets (a = 1), one that keeps the host's shows none (a = 0); matched against the
+    sensor's clock, a = 0 and −1."""
+    if len(stretches[0]) < 4:
+        return None
+    fit = _line_and(stretches, np.interp(np.asarray(stretches[0], float), at, bow))
+    if fit is None:
+        return None
+    a, var_a, _, chi2, dof = fit
+    return a, math.sqrt(var_a * max(1.0, chi2 / max(dof, 1)))
+
+
+def _line_and(stretches, shape: np.ndarray):
+    """The stretches' offsets (times, offsets, variances) fitted, weighted by their σ, with a line
+    and *shape* (its values at their times): (the shape's amplitude, its variance from their σ, χ²
+    of the line alone, χ² with the shape, the degrees of freedom left), or None where the shape is
+    a line over them (the offset and the rate take it)."""
     t, off, var = (np.asarray(v, float) for v in stretches)
-    if len(t) < 5:
-        return False
     w = 1.0 / np.sqrt(var)
-    x = (t - t.mean()) / max(float(np.ptp(t)), 1.0)
-    line = np.column_stack([np.ones_like(x), x]) * w[:, None]
-    both = np.column_stack([line, curve(t) * w])
-    chi2 = [float(np.sum((A @ np.linalg.lstsq(A, off * w, rcond=None)[0] - off * w) ** 2)) for A in (line, both)]
-    dof = len(t) - 3
-    if chi2[1] <= 0:
-        return chi2[0] > 0
-    return bool(fdtrc(1, dof, (chi2[0] - chi2[1]) / (chi2[1] / dof)) < CURVE_P)
+    A = np.column_stack([np.ones_like(t), t - t.mean(), shape]) * w[:, None]
+    scale = np.linalg.norm(A, axis=0)
+    if np.any(scale == 0):
+        return None
+    A = A / scale
+    if np.linalg.cond(A) > 1e6:
+        return None
+    y = off * w
+    chi2 = [float(np.sum((B @ np.linalg.lstsq(B, y, rcond=None)[0] - y) ** 2)) for B in (A[:, :2], A)]
+    sol = np.linalg.lstsq(A, y, rcond=None)[0]
+    var_a = float(np.linalg.inv(A.T @ A)[2, 2])
+    return float(sol[2] / scale[2]), var_a / scale[2] ** 2, chi2[0], chi2[1], len(t) - 3

@@ -142,35 +142,3 @@ class _FineSums:
         coefficients = solveh_banded(bands, rhs)
         return coefficients, total - float(np.dot(coefficients, rhs))
 
-
-# the table's offsets must follow the other clock this many of their σ away from the one the
-# mapping says, and nearer it than the mapping's, before the import says the mapping is wrong
-WRONG_CLOCK_SIGMAS = 5.0
-
-
-def bow_followed(stretches, at: np.ndarray, bow: np.ndarray) -> tuple[float, float] | None:
-    """How much of the stamps' bow a table clock's offsets follow: *a* of offset = δ + r t + a·bow(t)
-    fitted to the offsets of the record's stretches (ClockOffset.stretches: their times, offsets
-    and variances), weighted, its σ widened by their scatter about the fit; None with fewer than
-    four stretches. *bow* (s) at the log's times *at*: the host's stamps less the sensor's grid.
-
-    The stamps cannot tell which clock drifts; a table on a third clock can. Matched against the
-    host's stamps, a table controller's clock that keeps the sensor's time shows the host's bow in
-    its offsets (a = 1), one that keeps the host's shows none (a = 0); matched against the
-    sensor's clock, a = 0 and −1."""
-    t, off, var = (np.asarray(v, float) for v in stretches)
-    if len(t) < 4:
-        return None
-    b = np.interp(t, at, bow)
-    w = 1.0 / np.sqrt(var)
-    A = np.column_stack([np.ones_like(t), t - t.mean(), b]) * w[:, None]
-    scale = np.linalg.norm(A, axis=0)
-    if np.any(scale == 0):
-        return None
-    A = A / scale
-    if np.linalg.cond(A) > 1e6:
-        return None  # a bow that is a line over the stretches: the offset and the rate take it
-    sol, *_ = np.linalg.lstsq(A, off * w, rcond=None)
-    chi2 = float(np.sum((A @ sol - off * w) ** 2))
-    cov = np.linalg.inv(A.T @ A) * max(1.0, chi2 / max(len(t) - 3, 1))
-    return float(sol[2] / scale[2]), math.sqrt(float(cov[2, 2])) / scale[2]

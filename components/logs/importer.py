@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import MappingError
-from components.logs.clock_drift import WRONG_CLOCK_SIGMAS, bow_followed
+from components.logs.clock_curve import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
 from components.logs.sources import Columns
@@ -232,7 +232,7 @@ def _counted(m: Mapping, angle: np.ndarray, notes: list[str]) -> np.ndarray:
 
 def _wrong_clock(co, matched: np.ndarray, bow: np.ndarray, bow_s: float, against_sensor: bool) -> str | None:
     """A warning where a table on a clock of its own keeps the other clock's time than the mapping
-    says (clock_drift.bow_followed), else None."""
+    says (clock_curve.bow_followed), else None."""
     got = bow_followed(co.stretches, matched, bow)
     if got is None:
         return None

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from components.errors import MappingError
-from components.logs.clock_curve import ClockCurve, curved
+from components.logs.clock_curve import ClockCurve, curved, legendre_tail
 
 
 @dataclass
@@ -130,8 +130,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         d, r = line[0], line[1]
         out = t - d - r * (t - t_ref)
         if len(line) > 2:
-            x = (t - t_ref) / scale
-            out = out - np.polynomial.legendre.legval(x, np.concatenate([[0.0, 0.0], line[2:]]))
+            out = out - (legendre_tail((t - t_ref) / scale, len(line) - 2) @ np.asarray(line[2:])).reshape(np.shape(t))
         return out
 
     def residual(line, sel):
@@ -147,20 +146,22 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     if rated is not None:
         # the line through the windows' offsets, refined on every moving sample; its σ at least
         # what the windows' scatter about it says (the interpolation's error follows the moves)
-        line, cov = refine(moving, rated[0])
+        line, cov, rss, _ = refine(moving, rated[0], with_rss=True)
         cov[np.diag_indices(2)] = np.maximum(np.diag(cov), rated[1])
+        start = line
+    else:
+        # the baseline the curve's terms are tested against: the line with its rate free
+        start, _, rss, _ = refine(moving, np.array([line[0], 0.0]), with_rss=True)
     # the clocks' rate changing over the record (a crystal warming): the offset a polynomial in
     # time, its terms beyond the line fitted with it on every moving sample while significant
-    start = line if len(line) > 1 else np.array([line[0], 0.0])
-    bent, bent_cov, curve = curved(lambda sel, x: refine(sel, x, with_rss=True), moving, start, t_ref, scale,
+    bent, bent_cov, curve = curved(lambda sel, x: refine(sel, x, with_rss=True), moving, start, rss, t_ref, scale,
                                    math.sqrt(cov[0, 0]), stretches)
     if curve is not None:
         line, cov, held = bent[:2], bent_cov[:2, :2], tuple(curve.coefficients)
         # the offset said at the table's first sample, often at rest before the first move: the
         # curve's σ there from every coefficient's (it extrapolates where no move shows it)
-        x0 = (float(t_tab[0]) + float(line[0]) - t_ref) / scale
-        g = np.concatenate([[1.0, float(t_tab[0]) + float(line[0]) - t_ref],
-                            [np.polynomial.legendre.legval(x0, np.eye(len(bent))[k]) for k in range(2, len(bent))]])
+        since = float(t_tab[0]) + float(line[0]) - t_ref
+        g = np.concatenate([[1.0, since], legendre_tail(since / scale, len(held))[0]])
         edge_sigma = math.sqrt(float(g @ bent_cov @ g))
     d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
     full_line = (d0, rate, *held)
@@ -297,8 +298,7 @@ def _refine(residual, on_table, t_imu, dt_imu, t_tab, moving, line, t_ref, rate:
         ds = (residual(full(line + nudge), sel) - residual(full(line - nudge), sel)) / (2 * eps)
         cols = [ds] + ([ds * (t_imu[sel] - t_ref)] if len(line) > 1 else [])
         if len(line) > 2:
-            x = (t_imu[sel] - t_ref) / scale
-            cols += [ds * np.polynomial.legendre.legval(x, np.eye(len(line))[k]) for k in range(2, len(line))]
+            cols += list((ds[:, None] * legendre_tail((t_imu[sel] - t_ref) / scale, len(line) - 2)).T)
         J = np.column_stack(cols)
         ok = np.isfinite(r) & np.all(np.isfinite(J), axis=1)
         r, J = r[ok], J[ok]
