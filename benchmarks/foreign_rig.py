@@ -249,7 +249,7 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
             "offset_sigma_us": offset_sigma * 1e6,
             "rate_said": rate and f"the clocks' rate {float(rate.group(1)):+.4f} ± {float(rate.group(2)):.2g} ppm "
                                   f"({(float(rate.group(1)) - true_rate) / float(rate.group(2)):+.2f} σ from the truth); ",
-            "drift_said": (f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; " if drift else "")
+            "clocks_said": (f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; " if drift else "")
                           + (f"the table clock's curve (degree {curve.group(3)}): its rate moving {curve.group(1)} ppm, "
                              f"its offset bowing {curve.group(2)} ms; " if curve else ""),
             "verdicts": verdicts, "last_verdict": diag["verdict"], "k2": errors.get(HIDDEN[1]),
@@ -305,7 +305,7 @@ def main() -> int:
               "truth)" if k2 else "not in the model")
         offset = (f"clock offset error {r['offset_z']:+.2f} σ" if r["offset_z"] is not None else
                   "clock offset against the sensor's grid (not scored)")
-        line = (f"seed {r['seed']}: {r['drift_said'] or ''}{r['rate_said'] or ''}{offset} (σ {r['offset_sigma_us']:.1f} us); "
+        line = (f"seed {r['seed']}: {r['clocks_said'] or ''}{r['rate_said'] or ''}{offset} (σ {r['offset_sigma_us']:.1f} us); "
                 f"verdicts {' then '.join(r['verdicts']) or 'none'}, then {r['last_verdict'] or 'none'}; "
                 f"{HIDDEN[1]} {k2}; acc floors {fl} {r['floor_unit']} (injected {r['floor_truth']:.3g}); final "
                 f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "
