@@ -292,3 +292,16 @@ def test_a_gap_inside_a_rest_starts_the_phase_anew():
     assert 0.8 <= chi2 <= top, chi2
     assert 1 / band <= rms <= band, rms
     assert fit(False)[1] > 1.2 * band, "carried across the gap, the phase should be held sure and wrong"
+
+
+def test_the_turning_filter_in_pieces_is_the_same_filter():
+    """A pulse output's remainder turns through the rests (the filter's second entry): run a
+    piece of blocks at a time, its state carried over, it gives the bits of one call."""
+    from components.estimation.whitening import ChannelWhitener
+
+    bn = rest_noise(40, 3.02, 0.06)
+    assert bn.spin is not None
+    Y = np.random.default_rng(3).standard_normal((40, 2))
+    whitener = ChannelWhitener(bn, 2)
+    got = np.vstack([whitener(Y[a:b])[0] for a, b in ((0, 13), (13, 14), (14, 40))])
+    assert np.array_equal(got, whiten_channel(Y, bn)[0])

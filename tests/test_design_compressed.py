@@ -16,7 +16,7 @@ def _design(n: int = 3000, seed: int = 4) -> tuple[CandidateDesign, np.ndarray, 
     H = rng.normal(size=(n, 7)) * np.array([1e-9, 1.0, 1e6, 1.0, 3.0, 1.0, 1.0])
     H[:, 6] = 2.0 * H[:, 5]          # a twin: the rank the rows give is 6
     y = H[:, :3] @ np.array([2e9, -1.0, 3e-6]) + rng.normal(size=n)
-    d = CandidateDesign(y, H, [f"p{k}" for k in range(7)], None, None, 1.0, float(n), 1.0, np.ones(6), {})
+    d = CandidateDesign([f"p{k}" for k in range(7)], (y, H, np.ones(n), {}), None, 1.0, float(n), 1.0, np.ones(6))
     return d, y, H
 
 

@@ -106,21 +106,42 @@ def test_a_real_gyro_drift_beside_coloured_noise_is_still_named():
     assert "gyro.drift" in dg.found, (dg.verdict, dg.found)
 
 
-def test_the_whitening_set_aside_on_disk_changes_nothing(null_logs, monkeypatch):
-    """A noise term tried keeps the whitening before it to go back to; on disk (as a long log's
-    is) the diagnosis is the same, number for number."""
+def test_the_rows_on_disk_change_nothing(null_logs, monkeypatch):
+    """A long log's candidate rows are spilled to disk and whitened from there a piece at a
+    time: the diagnosis is the same as with the rows in memory whitened whole, its statistics to
+    1e-9 relative."""
     from components.diagnosis import candidate_design
+    from components.logs.spill import is_spilled
 
     data = null_logs[0]
     model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
     kept = diagnose(data, model)
-    set_aside = []
-    real = candidate_design._set_aside
-    monkeypatch.setattr(candidate_design, "ASIDE_BYTES", 0)
-    monkeypatch.setattr(candidate_design, "_set_aside", lambda H: set_aside.append(1) or real(H))
-    on_disk = diagnose(data, model)
-    assert set_aside, "no whitening was set aside: the test does not reach rewhiten"
-    assert (on_disk.verdict, on_disk.found, on_disk.steps) == (kept.verdict, kept.found, kept.steps)
+    spilled = []
+    real = candidate_design.chunked_design
+
+    def on_disk(*a, **k):
+        out = real(*a, **dict(k, spill=True))
+        spilled.append(is_spilled(out[1]))
+        return out
+
+    monkeypatch.setattr(candidate_design, "chunked_design", on_disk)
+    monkeypatch.setattr(candidate_design, "QR_ROWS", 97)  # many pieces, each channel's state carried over
+    got = diagnose(data, model)
+    assert spilled == [True]
+    assert kept.verdict_kind == "noise"  # so the rows were whitened under a coloured model too
+    assert (got.verdict, got.found) == (kept.verdict, kept.found)
+    assert [c.effect for c in got.ranking] == [c.effect for c in kept.ranking]
+    for a, b in zip(got.steps, kept.steps):
+        assert a.keys() == b.keys()
+        for key in a:
+            if isinstance(a[key], float):
+                np.testing.assert_allclose(a[key], b[key], rtol=1e-9, err_msg=key)
+    for a, b in zip(got.ranking, kept.ranking):
+        np.testing.assert_allclose([a.statistic, a.p_value], [b.statistic, b.p_value], rtol=1e-9)
+        np.testing.assert_allclose(a.signature["x"], b.signature["x"], rtol=1e-9, atol=1e-12 * np.abs(b.signature["x"]).max())
+    for a, b in zip(got.noise_candidates, kept.noise_candidates):
+        assert a["term"] == b["term"]
+        np.testing.assert_allclose(a["loglik_gain"], b["loglik_gain"], rtol=1e-9, atol=1e-9)
 
 
 def test_injected_noise_model_gives_no_verdict_and_an_honest_chi2(null_logs):

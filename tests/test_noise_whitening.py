@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.linalg import cholesky, solve_triangular
 
-from components.estimation.whitening import whiten_channel
+from components.estimation.whitening import ChannelWhitener, whiten_channel
 from components.model.noise import ChannelNoise, block_noise, flicker_upper
 
 
@@ -120,3 +120,27 @@ def test_a_variance_that_is_not_positive_is_named_by_its_block():
     r[3] = -1.0
     with pytest.raises(EstimationError, match=r"failed at block 4 of 10: its predicted variance is -1"):
         whiten_channel(np.ones((10, 2)), dc_replace(bn, r=r))
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_filter_in_pieces_equals_cholesky_whitening(name):
+    """The filter run a piece of blocks at a time, its state carried from piece to piece (how a
+    long log's rows are whitened without holding them whole): still L⁻¹ y, and the same bits as
+    one call."""
+    ch = CASES[name]
+    rng = np.random.default_rng(6)
+    d = rng.choice([1.0, 1.0, 1.0, 3.7, 0.6], size=120)
+    edges = np.concatenate([[0.0], np.cumsum(d)])
+    white_var = ch.white**2 * d + rng.uniform(0, 1e-7, len(d))
+    span, t_lo = float(edges[-1]), 1.0
+    L = cholesky(dense_covariance(ch, edges, white_var, span, t_lo), lower=True)
+    Y = rng.standard_normal((len(d), 3))
+    expected = solve_triangular(L, Y, lower=True)
+    bn = block_noise(ch, d, white_var, span, t_lo)
+    whitener = ChannelWhitener(bn, 3)
+    cuts = [0, 1, 2, 17, 60, 61, 119, 120]  # pieces of one block, of many, and the last alone
+    got = np.vstack([whitener(Y[a:b])[0] for a, b in zip(cuts[:-1], cuts[1:])])
+    np.testing.assert_allclose(got, expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
+    assert np.array_equal(got, whiten_channel(Y, bn)[0])
+    with pytest.raises(ValueError, match="120 blocks"):
+        whitener(Y[:1])  # past the channel's last block

@@ -242,6 +242,22 @@ def test_rows_gathered_from_a_spilled_column_a_piece_at_a_time_are_its_rows(monk
     assert spill.gathered(on_disk, np.zeros(0, int)).shape == (0,) + shape[1:]
 
 
+def test_rows_and_columns_gathered_from_a_wide_spilled_array(monkeypatch):
+    """spill.gathered(a, index, columns) is a[index][:, columns]; rows as wide as a design's
+    (hundreds of columns) are read fewer at a time, so a piece stays the same bytes."""
+    monkeypatch.setattr(spill, "PIECE", 64)
+    rng = np.random.default_rng(3)
+    values = rng.standard_normal((3000, 300))
+    on_disk = spill.spilled_array(values.shape)
+    on_disk[:] = values
+    assert spill.piece_rows(on_disk) == 64 * 48 // (300 * 8) == 1
+    assert spill.piece_rows(spill.spilled_array((10, 6))) == 64
+    index = np.concatenate([rng.integers(0, 3000, 500), [0, 2999, 1, 1]])
+    for columns in ([7, 3, 299], []):
+        for a in (values, on_disk):
+            assert np.array_equal(spill.gathered(a, index, columns), values[index][:, columns])
+
+
 @pytest.mark.parametrize("shape", [(5000,), (5000, 3), (0, 3)])
 def test_rows_written_through_a_spilled_arrays_file_are_read_through_its_mapping(shape):
     """spill.write_rows(a, start, v) is a[start:start + len(v)] = v, for a spilled array (written

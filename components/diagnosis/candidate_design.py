@@ -1,7 +1,14 @@
 """The whitened block design every candidate of a diagnosis is refitted on: the rows of the
 model's and every candidate's parameters (components.estimation.chunks), whitened with the noise
 model, and their compressed form — R of the QR of [H | y] — on which each refit is a solve of a
-few dozen rows whatever the log's length."""
+few dozen rows whatever the log's length.
+
+Only the raw rows are kept (on a long log in a spilled array: components.logs.spill); the
+whitened ones are made a piece at a time, each channel's filter carrying its state from piece to
+piece (components.estimation.whitening.whitened_pieces), and go straight into R
+(components.estimation.stacked_qr), so no whitened copy of the rows — nor, on a spilled log, the
+raw rows themselves — is ever in memory whole. What the diagnosis needs per row (a residual, a
+signature's column) is whitened the same way, a column or a few at a time."""
 from __future__ import annotations
 
 import math
@@ -13,8 +20,9 @@ from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_des
 from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
-from components.estimation.whitening import whiten
-from components.logs.spill import is_spilled, pieces, spilled_array
+from components.estimation.stacked_qr import StackedQR
+from components.estimation.whitening import whitened_pieces
+from components.logs.spill import is_spilled, release
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.plausibility import grade_factor
@@ -22,21 +30,21 @@ from components.model.result import CalibrationResult
 
 
 class CandidateDesign:
-    """Whitened block design of all parameters of the model and of every candidate (and, on a
-    log without table angles, of the rests' attitudes, always in the base)."""
+    """Block design of all parameters of the model and of every candidate (and, on a log without
+    table angles, of the rests' attitudes, always in the base): the raw rows ``raw`` = (y, H,
+    weights, row information), whitened under ``noise`` on demand."""
 
-    def __init__(self, y, H, params: list[str], raw, noise: NoiseModel | None, dt: float, span: float,
-                 t_lo: float, white_sigma: np.ndarray, rows: dict, nuisance: list[str] | None = None):
+    def __init__(self, params: list[str], raw: tuple, noise: NoiseModel | None, dt: float, span: float,
+                 t_lo: float, white_sigma: np.ndarray, nuisance: list[str] | None = None):
         self.params = params
         self.index = {p: k for k, p in enumerate(params)}
-        self.y, self.H, self.raw, self.noise = y, H, raw, noise
+        self.raw, self.noise = raw, noise
         self.dt, self.span, self.t_lo = dt, span, t_lo
         self.white_sigma = white_sigma
         # how many times noisier than navigation grade (per sensor; plausibility.grade_factor)
         self.grade = grade_factor({"gyro": float(np.median(white_sigma[:3])) / math.sqrt(dt),
                                    "acc": float(np.median(white_sigma[3:])) / math.sqrt(dt)})
-        self.rows = rows
-        self.n = len(y)
+        self.n = len(raw[0])
         self.nuisance = list(nuisance or [])
         self._bases: dict = {}  # base parameters -> orthonormal basis of their columns
         self._compressed: np.ndarray | None = None
@@ -63,12 +71,14 @@ class CandidateDesign:
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
         sg, sa = noise_floor(sg, GYRO_SCALE * dt), noise_floor(sa, ACC_SCALE * dt)
         rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
-        y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0)
+        # a log long enough to have its samples spilled has its rows spilled too (every candidate's
+        # columns: ~0.4 GB on an 8-hour log)
+        y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0,
+                                       spill=is_spilled(data.gyro))
         span = float(data.time[-1] - data.time[0] + dt)
-        yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
         # table columns are derivatives at the model's geometry: the model's table values are
         # already in the motion, so their unknowns here are corrections (start at 0)
-        return cls(yw, Hw, params, (y, H, w, rows), noise, dt, span, chunk_s, np.concatenate([sg, sa]), rows)
+        return cls(params, (y, H, w, rows), noise, dt, span, chunk_s, np.concatenate([sg, sa]))
 
     @classmethod
     def on_positions_log(cls, data: LogData, model: CalibrationResult, params: list[str], chunk_s: float,
@@ -90,37 +100,48 @@ class CandidateDesign:
         info = dict(r.info)
         dt = pd.dt_med
         span = float(data.time[-1] - data.time[0] + dt)
-        return cls(r.y, np.hstack([r.H, r.A]), params + names, None, noise, dt, span, chunk_s,
-                   np.concatenate([pd.sg, pd.sa]), info, nuisance=names)
+        # (rows already weighted: unit weights, and no noise model to whiten them with again)
+        return cls(params + names, (r.y, np.hstack([r.H, r.A]), np.ones(len(r.y)), info), None, dt, span, chunk_s,
+                   np.concatenate([pd.sg, pd.sa]), nuisance=names)
 
     def rewhiten(self, noise: NoiseModel | None) -> None:
         """Whiten the same rows with another noise model (a noise term added); back to the
         whitening before it without whitening again (a noise term tried and dropped)."""
-        # the whitening kept to go back to waits on disk when it is large (a long log's rows with
-        # every candidate: ~0.3 GB on an 8-hour log, beside the raw rows and the new whitening)
-        self.H = _set_aside(self.H)  # (let go of the copy in memory before the new one is made)
-        state = (self.y, self.H, self.noise, self._compressed)
-        if self._before is not None and self._before[2] is noise:
-            self.y, self.H, self.noise, self._compressed = self._before
+        state = (self.noise, self._compressed)
+        if self._before is not None and self._before[0] is noise:
+            self.noise, self._compressed = self._before
         else:
-            y, H, w, rows = self.raw
-            self.y, self.H, _ = whiten(y, H, rows, 1.0 / w**2, noise, self.dt, self.span, self.t_lo)
             self.noise, self._compressed = noise, None
         self._before = state
         self._bases = {}
 
+    def _whitened(self, y: np.ndarray, columns: list[int]):
+        """(slice of rows, whitened [H[:, columns] | y] of them), a piece at a time."""
+        _, H, w, rows = self.raw
+        return whitened_pieces(y, H, rows, 1.0 / w**2, self.noise, self.dt, self.span, self.t_lo,
+                               piece=QR_ROWS, columns=columns)
+
     @property
     def compressed(self) -> np.ndarray:
-        """R of the QR of [H | y], (min(n, p+1), p+1): H = Q R[:, :p] and y = Q R[:, p] + what lies
-        outside every column's span, whose length is R[p, p]. Any least squares on a subset of
-        the columns has on these few rows the same solution, χ² and singular values as on the
-        n whitened rows (Q is orthonormal), so every candidate's refit, projection and rank is a
-        solve of p+1 rows, not of the log's block rows (on an 8-hour log 180 000, each refit
-        ~0.1 s: most of a diagnose's ranking). Householder QR is backward stable column by
-        column, so columns of any scale keep their accuracy."""
+        """R of the QR of the whitened [H | y], (min(n, p+1), p+1): H = Q R[:, :p] and y = Q R[:, p]
+        + what lies outside every column's span, whose length is R[p, p]. Any least squares on a
+        subset of the columns has on these few rows the same solution, χ² and singular values as
+        on the n whitened rows (Q is orthonormal), so every candidate's refit, projection and rank
+        is a solve of p+1 rows, not of the log's block rows (on an 8-hour log 180 000, each refit
+        ~0.1 s: most of a diagnose's ranking)."""
         if self._compressed is None:
-            self._compressed = _qr_r(self.H, self.y)
+            r = StackedQR(len(self.params) + 1)
+            for _, M in self._whitened(self.raw[0], list(range(len(self.params)))):
+                r.add(M)
+            self._compressed = r.r
         return self._compressed
+
+    def whitened_columns(self, names: list[str]) -> np.ndarray:
+        """The whitened rows' columns of *names*, (n, len(names))."""
+        out = np.empty((self.n, len(names)))
+        for at, M in self._whitened(np.zeros(self.n), [self.index[p] for p in names]):
+            out[at] = M[:, :-1]
+        return out
 
     def _columns(self, names: list[str]) -> np.ndarray:
         """The compressed rows of the columns of *names*."""
@@ -145,11 +166,21 @@ class CandidateDesign:
         return float(r @ r), sol / scale, cov, int(rank)
 
     def residual(self, subset: list[str]) -> np.ndarray:
-        if not subset:
-            return self.y.copy()
-        idx = [self.index[p] for p in subset]
-        sol = np.linalg.lstsq(self.compressed[:, idx], self._rows_y, rcond=1e-10)[0]
-        return self.y - self.H[:, idx] @ sol
+        """The whitened rows' residual of the fit on *subset* (the filter is linear: the whitened
+        raw residual)."""
+        y, H, _, _ = self.raw
+        r = np.array(y, dtype=float)
+        if subset:
+            idx = [self.index[p] for p in subset]
+            sol = np.linalg.lstsq(self.compressed[:, idx], self._rows_y, rcond=1e-10)[0]
+            for a in range(0, self.n, QR_ROWS):
+                at = slice(a, min(a + QR_ROWS, self.n))
+                r[at] -= H[at][:, idx] @ sol
+                release(H)
+        out = np.empty(self.n)
+        for at, M in self._whitened(r, []):
+            out[at] = M[:, 0]
+        return out
 
     def projected_column(self, base: list[str], p: str) -> np.ndarray:
         """Column of *p* with the span of *base* projected out, in the compressed rows (its
@@ -185,37 +216,5 @@ class CandidateDesign:
         return U[:, s > 1e-8 * s[0]]
 
 
-# a whitened design kept aside (rewhiten) goes to disk above this size [bytes]
-ASIDE_BYTES = 64 << 20
-
-
-def _set_aside(H: np.ndarray) -> np.ndarray:
-    """*H*, or above :data:`ASIDE_BYTES` a copy of it in a spilled array with its pages given back
-    (components.logs.spill; the same values)."""
-    if H.nbytes <= ASIDE_BYTES or is_spilled(H):
-        return H
-    out = spilled_array(H.shape)
-    for s in pieces(len(H), out):
-        out[s] = H[s]
-    return out
-
-
-# rows factored at a time by _qr_r (with the R so far on top: ~20 MB at 150 columns)
+# rows whitened and factored at a time (with the R so far on top: ~20 MB at 150 columns)
 QR_ROWS = 1 << 14
-
-
-def _qr_r(H: np.ndarray, y: np.ndarray, rows: int | None = None) -> np.ndarray:
-    """R of the QR of [H | y] (Householder, LAPACK geqrf), *rows* rows at a time: the R of the
-    rows so far stacked on the next rows and factored again (R of [A; B] is the R of
-    [R_A; B], Q being orthonormal), so [H | y] is never copied whole (on an 8-hour log with every
-    candidate 170 MB, the peak of a diagnose). numpy's QR (the same geqrf) works on a copy of
-    one piece, ≤ 20 MB (scipy.linalg.lapack worked in place)."""
-    n, p = H.shape
-    R = np.zeros((0, p + 1))
-    for a in range(0, n, rows or QR_ROWS):
-        b = min(a + (rows or QR_ROWS), n)
-        M = np.empty((len(R) + b - a, p + 1))
-        M[:len(R)] = R
-        M[len(R):, :p], M[len(R):, p] = H[a:b], y[a:b]
-        R = np.linalg.qr(M, mode="r")
-    return R

@@ -186,6 +186,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
         stochastic = noise_candidates(design, base, noise_now, noise_terms, alpha) if noise_terms else []
         if first_ranking is None:
             first_ranking, chi2_first, first_noise = ranking, chi2_base / dof_base, stochastic
+            _draw_signatures(design, base, ranking)
         winner = next((c for c in ranking if c.passes), None)
         best_noise = next((n for n in stochastic if n["significant"]), None)
         effect_gain = (0.5 * max(chi2_base - design.fit(base + available[winner.effect])[0], 0.0)
@@ -240,6 +241,19 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
                     kinds[0] if kinds else None, noise_now, unseeable, forward, untested)
     annotate(out)
     return out
+
+
+def _draw_signatures(design: CandidateDesign, base: list[str], ranking: list[Candidate]) -> None:
+    """Each candidate's signature: the base model's whitened residual ("y") against its strongest
+    parameter's whitened column times its fitted value ("x"), every column in one pass over the
+    rows (the rows are whitened a piece at a time: a pass per ranking would read a long log's
+    rows from disk at every step of the selection)."""
+    if not ranking:
+        return
+    resid = design.residual(base)
+    columns = design.whitened_columns([c.signature["parameter"] for c in ranking])
+    for k, c in enumerate(ranking):
+        c.signature.update(x=columns[:, k] * c.signature["value"], y=resid)
 
 
 def _with_best_terms(stochastic: list, current: NoiseModel | None) -> NoiseModel:
@@ -310,7 +324,6 @@ POSITIONS_TWINS = ("the rests' attitudes are estimated on a log without table an
 def _rank(design: CandidateDesign, base: list[str], available: dict, alpha: float):
     chi2_b, _, _, rank_b = design.fit(base)
     dof_b = max(design.n - rank_b, 1)
-    resid_b = design.residual(base)
     out: list[Candidate] = []
     for effect, ps in available.items():
         if not ps:
@@ -358,10 +371,10 @@ def _rank(design: CandidateDesign, base: list[str], available: dict, alpha: floa
             for j in range(len(base)):
                 if abs(corr[i, j]) > 0.95:
                     cand.correlated.append((p, names[j], float(corr[i, j])))
-        # signature: base residual against the strongest new parameter's regressor
+        # signature: the strongest new parameter, its regressor drawn against the base's residual
+        # for the first ranking only (_draw_signatures)
         best = max(ps, key=lambda p: abs(values[p][0]) / (values[p][1] or np.inf))
-        col = design.H[:, design.index[best]] * values[best][0]
-        cand.signature = {"parameter": best, "x": col, "y": resid_b}
+        cand.signature = {"parameter": best, "value": values[best][0]}
         out.append(cand)
     # Holm correction over the candidates, ranking by evidence
     out.sort(key=lambda c: (c._logp, -c.statistic))  # type: ignore[attr-defined]

@@ -13,6 +13,7 @@ from components import progress
 from components.estimation.distributions import chi2_isf
 from components.estimation.noise_likelihood import fit_one_term
 from components.estimation.whitening import advance_of, block_timing, channel_rows
+from components.logs.spill import gathered
 from components.model.noise import TERM_OF_NAME, NoiseModel
 
 # noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)
@@ -35,6 +36,7 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
     of freedom per axis fitted, conservative on the boundary) and the noise model with it."""
     y, H, w, rows = design.raw
     cols = [design.index[p] for p in base]
+    base_rows: dict = {}  # channel -> (its rows, their base columns), gathered once for every term
     current = noise if noise is not None else NoiseModel.white(design.white_sigma, design.dt, "white noise")
     out = []
     with progress.steps("noise terms", len(terms)) as bar:
@@ -48,8 +50,10 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
                     values.append(getattr(chans[k], field_))
                     continue
                 n_new += 1
-                idx = channel_rows(rows, k)
-                Hc = H[idx][:, cols] if cols else np.zeros((len(idx), 0))
+                if k not in base_rows:
+                    idx = channel_rows(rows, k)
+                    base_rows[k] = idx, gathered(H, idx, cols)
+                idx, Hc = base_rows[k]
                 active = np.any(Hc != 0, axis=0)
                 durations, gaps = block_timing(rows, idx, design.dt)
                 value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,

@@ -33,7 +33,7 @@ from components.estimation.table_columns import (
     geometry_columns_since,
     remember_geometry_columns,
 )
-from components.logs.spill import empty_like_log, is_spilled, release, write_rows
+from components.logs.spill import empty_like_log, is_spilled, release, spilled_array, write_rows
 
 # samples per chunk: ~0.1 GB of work arrays at 3 quadrature nodes and 3 axes, whatever the log (2^16 was
 # faster than 2^18 too, on a 2.5 M-sample log: 7.9 against 8.4 s, the arrays staying in cache)
@@ -148,22 +148,27 @@ def _with_columns(work, chunk):
     return work(chunk), geometry_columns_since(known)
 
 
-def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: str | None = None) -> list:
-    """[work(chunk) for each chunk] in order, with a bar over the chunks on a terminal.
+def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: str | None = None,
+                sink=None) -> list:
+    """[work(chunk) for each chunk] in order, with a bar over the chunks on a terminal; given a
+    *sink*, each result goes to sink(result) as it comes instead (none is kept: the list is empty).
     ``parallel``: ``"fork"``: the chunks may run on :func:`chunk_workers` forked processes (what
     *work* writes into shared mappings the caller sees); ``"anywhere"``: *work* only returns its
     result, so the chunks may also go to the Dask cluster at :func:`chunk_scheduler`. The
     results, and so every estimate, are the same bits in the same order. (Threads gained 1.09x on
     2 cores: the chunk work is mostly short numpy calls that hold the interpreter.)"""
+    out: list = []
+    keep = sink or out.append
     if len(layout.cuts) == 1:
-        return [work(c) for c in layout.chunks(data)]
+        for c in layout.chunks(data):
+            keep(work(c))
+        return out
     address = chunk_scheduler() if parallel == "anywhere" else None
     workers = min(chunk_workers(), len(layout.cuts)) if parallel else 1
-    out = []
     with progress.steps(desc, len(layout.cuts)) as bar:
         if address and len(layout.cuts) >= PARALLEL_CHUNKS:
             for result, columns in _on_cluster(address, work, layout.chunks(data), data):
-                out.append(result)
+                keep(result)
                 remember_geometry_columns(columns)
                 bar.update()
             return out
@@ -177,11 +182,11 @@ def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: s
                 return result
 
             for result, columns in forked_map(in_worker, len(chunks), bar):
-                out.append(result)
+                keep(result)
                 remember_geometry_columns(columns)
             return out
         for chunk in layout.chunks(data):
-            out.append(work(chunk))
+            keep(work(chunk))
             data.release()  # a spilled log's pages of this chunk (components.logs.spill)
             bar.update()
     return out
@@ -251,9 +256,12 @@ def _on_cluster(address: str, work, chunks, data: LogData):
 
 
 def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo, table_params,
-                   t0_temperature, quadrature: int = 3, lin=None):
+                   t0_temperature, quadrature: int = 3, lin=None, spill: bool = False):
     """components.estimation.design.design on the whole log, built a chunk at a time: the same
-    y, H, weights and row information (indices into the whole log)."""
+    y, H, weights and row information (indices into the whole log). Each chunk's rows go into
+    their place as they come (the whole log's order: every gyro row, then every accelerometer
+    row), so only one chunk's rows are held beside the whole; ``spill``: H is a spilled array
+    (components.logs.spill), written through its file, so not even the whole is in memory."""
     if t0_temperature is None and data.temperature is not None:
         t0_temperature = float(data.temperature[0])  # the whole log's, not each chunk's
     def rows_of(chunk: Chunk):
@@ -262,18 +270,37 @@ def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo
         y, H, w, rows = design(d, motion, params, chunk.gyro, chunk.acc, sg, sa, rest, geo, table_params, lin)
         return len(chunk.gyro) * 3, dict(rows, start=rows["start"] + chunk.lead, stop=rows["stop"] + chunk.lead)
 
-    parts = _each_chunk(rows_of, layout, data, "block rows, chunk by chunk", parallel="anywhere")
-    if len(parts) == 1:
-        rows = parts[0][1]
-    else:
-        # the whole log's order: every gyro row, then every accelerometer row
-        def cat(key):
-            return np.concatenate([r[key][:g] for g, r in parts] + [r[key][g:] for g, r in parts])
+    n_gyro = 3 * len(layout.gyro)
+    n = n_gyro + 3 * len(layout.acc)
+    H = spilled_array((n, len(params))) if spill else np.empty((n, len(params)))
+    rows: dict = {}
+    at = [0, n_gyro]  # where the next chunk's gyro and accelerometer rows go
 
-        rows = {k: cat(k) for k in ("sensor", "axis", "start", "stop", "moving", "y", "H", "weight")}
+    def put(part):
+        g, r = part
+        if not rows:
+            # (the sensor's name at its longest: a first chunk of accelerometer rows alone has "<U3")
+            rows.update({k: np.empty(n, dtype="<U4" if k == "sensor" else r[k].dtype) for k in ROW_KEYS})
+        for first, sl in ((at[0], slice(0, g)), (at[1], slice(g, None))):
+            k = len(r["y"][sl])
+            for key in ROW_KEYS:
+                rows[key][first:first + k] = r[key][sl]
+            write_rows(H, first, r["H"][sl])
+        at[0], at[1] = at[0] + g, at[1] + len(r["y"]) - g
+
+    _each_chunk(rows_of, layout, data, "block rows, chunk by chunk", parallel="anywhere", sink=put)
+    if at != [n_gyro, n]:
+        raise AssertionError(f"the chunks gave {at[0]} gyro and {at[1] - n_gyro} accelerometer rows for "
+                             f"{n_gyro} and {n - n_gyro} blocks x 3 axes")
+    release(H)
+    rows["H"] = H
     # a pulse output's count phase through the whole log's rests (a rest may span chunks)
     rows.update(count_advance(data, rows))
     return rows["y"], rows["H"], rows["weight"], rows
+
+
+# the row information every chunk's design gives beside H (components.estimation.design.design)
+ROW_KEYS = ("sensor", "axis", "start", "stop", "moving", "y", "weight")
 
 
 @dataclass

@@ -6,7 +6,10 @@
  *   Pc = P c_k;  S_k = c_k' Pc + r_k;  nu = v_k - c_k' x;  g = (phi_k .* Pc + cross_k) / S_k
  *   out_k = nu / sqrt(S_k);  x = phi_k .* x + g nu';  P = phi_k phi_k' .* P + diag(q_k) - S_k g g'
  * Row-major arrays: phi, q, c, cross (nb x m), values and out (nb x ncol); work holds
- * m*m + m*ncol + 2*m + ncol doubles. Returns 0, or k + 1 when S_k is not positive (also nan; S_all[k]
+ * m*m + m*ncol + 2*m + ncol doubles, the filter's state P then x first: with resume = 0 the filter starts
+ * afresh (P = diag(p0), x = 0), otherwise from the state work holds, which a call leaves there after its
+ * last block, so a channel can be whitened a piece of blocks at a time (the same operations in the
+ * same order as in one call). Returns 0, or k + 1 when S_k is not positive (also nan; S_all[k]
  * then holds it). */
 #include <math.h>
 #include <string.h>
@@ -50,10 +53,11 @@ static void symmetrise(long m, double *P) {
 }
 
 __attribute__((visibility("default"))) long calbench_whiten(
-    long nb, long m, long ncol, const double *phi, const double *q, const double *c, const double *cross,
-    const double *r, const double *p0, const double *values, double *out, double *S_all, double *work) {
+    long nb, long m, long ncol, long resume, const double *phi, const double *q, const double *c,
+    const double *cross, const double *r, const double *p0, const double *values, double *out, double *S_all,
+    double *work) {
     double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *nu = g + m;
-    start_state(m, ncol, p0, P, x);
+    if (!resume) start_state(m, ncol, p0, P, x);
     for (long k = 0; k < nb; k++) {
         const double *ck = c + k * m, *fk = phi + k * m, *qk = q + k * m, *xk = cross + k * m;
         const double S = innovate(m, ncol, P, ck, r[k], x, values + k * ncol, Pc, nu, out + k * ncol);
@@ -76,13 +80,13 @@ __attribute__((visibility("default"))) long calbench_whiten(
  * state i with partner[i] >= 0, spin_k[i] at (i, partner[i]) (a damped rotation of the pair: the
  * harmonics of a pulse output's count remainder, components.model.noise.block_noise).
  *   g = (F Pc + cross_k) / S_k;  x = F x + g nu';  P = F P F' + diag(q_k) - S_k g g'
- * work holds 2*m*m + 2*m*ncol + 2*m + ncol doubles. */
+ * work holds 2*m*m + 2*m*ncol + 2*m + ncol doubles (P then x first, resumed as above). */
 __attribute__((visibility("default"))) long calbench_whiten_turning(
-    long nb, long m, long ncol, const double *phi, const double *spin, const long *partner, const double *q,
-    const double *c, const double *cross, const double *r, const double *p0, const double *values, double *out,
-    double *S_all, double *work) {
+    long nb, long m, long ncol, long resume, const double *phi, const double *spin, const long *partner,
+    const double *q, const double *c, const double *cross, const double *r, const double *p0, const double *values,
+    double *out, double *S_all, double *work) {
     double *P = work, *x = P + m * m, *Pc = x + m * ncol, *g = Pc + m, *nu = g + m, *A = nu + ncol, *xt = A + m * m;
-    start_state(m, ncol, p0, P, x);
+    if (!resume) start_state(m, ncol, p0, P, x);
     for (long k = 0; k < nb; k++) {
         const double *ck = c + k * m, *fk = phi + k * m, *sk = spin + k * m, *qk = q + k * m, *xk = cross + k * m;
         const double S = innovate(m, ncol, P, ck, r[k], x, values + k * ncol, Pc, nu, out + k * ncol);

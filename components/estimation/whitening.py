@@ -18,38 +18,63 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import EstimationError
+from components.logs.spill import release
 from components.model.noise import BlockNoise, NoiseModel, block_noise
 
 
 def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.ndarray]:
     """Whitened rows (B, k) of *values* (B, k) in block order, and the innovation variances (B,)."""
     values = np.asarray(values, float)
-    if bn.states == 0:
-        w = 1.0 / np.sqrt(bn.r)
-        return values * w[:, None], bn.r.copy()
-    nb, m = bn.c.shape
-    ncol = values.shape[1]
-    out = np.empty((nb, ncol))
-    S_all = np.empty(nb)
-    if bn.spin is None:
-        arrays = [np.ascontiguousarray(a, dtype=float) for a in (bn.phi, bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
-        work = np.empty(m * m + m * ncol + 2 * m + ncol)
-        failed = _kernel()(nb, m, ncol, *[_ptr(a) for a in arrays], _ptr(out), _ptr(S_all), _ptr(work))
-    else:
-        partner = np.ascontiguousarray(bn.partner, dtype=np.int64)
-        arrays = [np.ascontiguousarray(a, dtype=float) for a in (bn.phi, bn.spin)]
-        rest = [np.ascontiguousarray(a, dtype=float) for a in (bn.q, bn.c, bn.cross, bn.r, bn.p0, values)]
-        work = np.empty(2 * m * m + 2 * m * ncol + 2 * m + ncol)
-        failed = _turning_kernel()(nb, m, ncol, *[_ptr(a) for a in arrays],
-                                   _ptr(partner),
-                                   *[_ptr(a) for a in rest], _ptr(out), _ptr(S_all), _ptr(work))
-    if failed:
-        k = failed - 1
-        raise EstimationError(
-            f"whitening under the noise model failed at block {k + 1} of {nb}: its predicted variance is "
-            f"{S_all[k]:.3g} (the noise model's state covariance lost its positive definiteness; "
-            "its terms span too many decades for the log's length — give a simpler noise model with --noise)")
-    return out, S_all
+    return ChannelWhitener(bn, values.shape[1])(values)
+
+
+class ChannelWhitener:
+    """The whitening filter of one channel run over its blocks a piece at a time: each call
+    whitens the next blocks' rows (k columns) and leaves the filter's state — its covariance and
+    each column's estimate — for the next call, so the pieces together are the whole channel
+    whitened in one call, bit for bit, and a long log's rows need never be held whole."""
+
+    def __init__(self, bn: BlockNoise, ncol: int):
+        self.bn, self.ncol, self.done = bn, int(ncol), 0
+        m = bn.states
+        self._work = np.empty(2 * m * m + 2 * m * self.ncol + 2 * m + self.ncol)
+
+    def __call__(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened rows and innovation variances of the next len(*values*) blocks."""
+        bn, k0 = self.bn, self.done
+        values = np.ascontiguousarray(values, dtype=float)
+        nb = len(values)
+        if values.ndim != 2 or values.shape[1] != self.ncol or k0 + nb > len(bn.r):
+            raise ValueError(f"rows {k0}..{k0 + nb} of {self.ncol} columns for a channel of {len(bn.r)} blocks "
+                             f"whitened with {self.ncol} columns: got shape {values.shape}")
+        self.done = k0 + nb
+        at = slice(k0, k0 + nb)
+        if bn.states == 0:
+            return values * (1.0 / np.sqrt(bn.r[at]))[:, None], bn.r[at].copy()
+        m = bn.states
+        out = np.empty((nb, self.ncol))
+        S_all = np.empty(nb)
+        resume = int(k0 > 0)
+        if bn.spin is None:
+            arrays = [np.ascontiguousarray(a[at], dtype=float) for a in (bn.phi, bn.q, bn.c, bn.cross, bn.r)]
+            arrays += [np.ascontiguousarray(bn.p0, dtype=float), values]
+            failed = _kernel()(nb, m, self.ncol, resume, *[_ptr(a) for a in arrays], _ptr(out), _ptr(S_all),
+                               _ptr(self._work))
+        else:
+            partner = np.ascontiguousarray(bn.partner, dtype=np.int64)
+            arrays = [np.ascontiguousarray(a[at], dtype=float) for a in (bn.phi, bn.spin)]
+            rest = [np.ascontiguousarray(a[at], dtype=float) for a in (bn.q, bn.c, bn.cross, bn.r)]
+            rest += [np.ascontiguousarray(bn.p0, dtype=float), values]
+            failed = _turning_kernel()(nb, m, self.ncol, resume, *[_ptr(a) for a in arrays], _ptr(partner),
+                                       *[_ptr(a) for a in rest], _ptr(out), _ptr(S_all), _ptr(self._work))
+        if failed:
+            k = failed - 1
+            self.done = k0  # (the state is spoilt: no piece may follow)
+            raise EstimationError(
+                f"whitening under the noise model failed at block {k0 + k + 1} of {len(bn.r)}: its predicted variance "
+                f"is {S_all[k]:.3g} (the noise model's state covariance lost its positive definiteness; "
+                "its terms span too many decades for the log's length — give a simpler noise model with --noise)")
+        return out, S_all
 
 
 # the arrays go in as bare addresses: a typed pointer (data_as) costs 3 µs each, 10 per call,
@@ -72,12 +97,12 @@ def _entry(name: str, argtypes: list):
 
 def _kernel():
     """The filter's recursion in C."""
-    return _entry("calbench_whiten", [ctypes.c_long] * 3 + [_ADDRESS] * 10)
+    return _entry("calbench_whiten", [ctypes.c_long] * 4 + [_ADDRESS] * 10)
 
 
 def _turning_kernel():
     """The filter whose transition also turns pairs of states."""
-    return _entry("calbench_whiten_turning", [ctypes.c_long] * 3 + [_ADDRESS] * 12)
+    return _entry("calbench_whiten_turning", [ctypes.c_long] * 4 + [_ADDRESS] * 12)
 
 
 def _ptr(a: np.ndarray) -> int:
@@ -133,8 +158,59 @@ def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, nois
         idx = channel_rows(rows, ch)
         if len(idx) == 0:
             continue
-        durations, gaps = block_timing(rows, idx, dt)
-        bn = block_noise(noise.channels[ch], durations, white_var[idx], span, t_lo, advance_of(rows, idx), gaps)
+        bn = _channel_noise(rows, idx, white_var, noise.channels[ch], dt, span, t_lo)
         vals, s = whiten_channel(np.column_stack([y[idx], H[idx]]), bn)
         yw[idx], Hw[idx], S[idx] = vals[:, 0], vals[:, 1:], s
     return yw, Hw, S
+
+
+def _channel_noise(rows: dict, idx: np.ndarray, white_var: np.ndarray, channel, dt: float, span: float,
+                   t_lo: float) -> BlockNoise:
+    """The block noise of the rows *idx* (one channel's, in block order) under *channel*'s terms."""
+    durations, gaps = block_timing(rows, idx, dt)
+    return block_noise(channel, durations, white_var[idx], span, t_lo, advance_of(rows, idx), gaps)
+
+
+# rows whitened at a time by whitened_pieces (at 300 columns a piece is 40 MB)
+PIECE_ROWS = 1 << 14
+
+
+def whitened_pieces(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, noise: NoiseModel | None,
+                    dt: float, span: float, t_lo: float = 1.0, piece: int | None = None,
+                    columns: list[int] | None = None):
+    """The design's rows whitened as :func:`whiten` whitens them (the same bits), a piece of
+    *piece* rows at a time in row order: yields (the piece's slice of rows, its whitened
+    [H | y], or [H[:, columns] | y]). Each channel's filter carries its state from one piece to the next
+    (:class:`ChannelWhitener`), so only a piece of the whitened rows is ever in memory, and of
+    a spilled *H* (components.logs.spill) only a piece's pages."""
+    n = len(y)
+    every = columns is None or list(columns) == list(range(H.shape[1]))
+    p = H.shape[1] if every else len(columns)
+    piece = piece or PIECE_ROWS
+    coloured = noise is not None and noise.coloured
+    if coloured:
+        channel = np.full(n, -1, np.int8)
+        whiteners = {}
+        for ch in range(6):
+            idx = channel_rows(rows, ch)
+            if len(idx):
+                channel[idx] = ch
+                whiteners[ch] = ChannelWhitener(_channel_noise(rows, idx, white_var, noise.channels[ch], dt, span,
+                                                               t_lo), p + 1)
+    else:
+        w = 1.0 / np.sqrt(white_var)
+    for a in range(0, n, piece):
+        at = slice(a, min(a + piece, n))
+        M = np.empty((at.stop - a, p + 1))
+        M[:, p] = y[at]
+        if p:  # (a column of y alone reads none of H's pages)
+            M[:, :p] = H[at] if every else H[at][:, columns]
+            release(H)
+        if not coloured:
+            M *= w[at, None]
+        else:
+            of = channel[at]
+            for ch in np.unique(of):
+                mine = of == ch
+                M[mine] = whiteners[int(ch)](M[mine])[0]
+        yield at, M

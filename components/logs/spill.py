@@ -108,6 +108,13 @@ def scaled(x: np.ndarray, factor) -> np.ndarray:
     return out
 
 
+def piece_rows(array: np.ndarray) -> int:
+    """Rows of *array* a pass over it takes at a time: :data:`PIECE`, fewer for rows wider than a
+    sample's six values (a design's hundreds of columns), so a piece stays ~12.6 MB."""
+    row = array.itemsize * int(np.prod(array.shape[1:], dtype=np.int64))
+    return max(1, min(PIECE, PIECE * 48 // max(row, 1)))
+
+
 def pieces(n: int, *arrays):
     """Slices of [0, n) of :data:`PIECE` samples; after each, the pages of the spilled *arrays*
     it touched are given back."""
@@ -116,20 +123,22 @@ def pieces(n: int, *arrays):
         release(*arrays)
 
 
-def gathered(array: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """array[index] (rows at *index*, in its order); for a spilled *array*, a piece of it at a
-    time with each piece's pages given back: indices spread over the whole log (a block's middle
-    each second) otherwise fault every page of it in at once."""
+def gathered(array: np.ndarray, index: np.ndarray, columns=None) -> np.ndarray:
+    """array[index] (rows at *index*, in its order), or array[index][:, columns]; for a spilled
+    *array*, a piece of it at a time with each piece's pages given back: indices spread over the
+    whole log (a block's middle each second) otherwise fault every page of it in at once."""
     index = np.asarray(index)
     if not is_spilled(array) or index.size == 0:
-        return array[index]
+        return array[index] if columns is None else array[np.ix_(index, columns)]
     order = np.argsort(index, kind="stable")
     at = index[order]
-    out = np.empty((len(index),) + array.shape[1:], dtype=array.dtype)
-    bounds = np.searchsorted(at, np.arange(0, len(array) + PIECE, PIECE))
+    shape = array.shape[1:] if columns is None else (len(columns),)
+    out = np.empty((len(index),) + shape, dtype=array.dtype)
+    step = piece_rows(array)
+    bounds = np.searchsorted(at, np.arange(0, len(array) + step, step))
     for a, b in zip(bounds[:-1], bounds[1:]):
         if b > a:
-            out[order[a:b]] = array[at[a:b]]
+            out[order[a:b]] = array[at[a:b]] if columns is None else array[at[a:b]][:, columns]
             release(array)
     return out
 
