@@ -185,6 +185,39 @@ def test_chunks_on_two_processes_give_the_same_bits(data, monkeypatch):
     assert [(c.effect, c.statistic) for c in diags[0].ranking] == [(c.effect, c.statistic) for c in diags[1].ranking]
 
 
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_the_rows_held_at_once_are_a_chunks_not_the_logs(data, monkeypatch, workers):
+    """chunked_design into a spilled array: the memory this process allocates at its peak is a
+    few chunks' rows, not the log's (each chunk's rows go into place as they come; on two
+    processes the results were once all listed before any was put in place, and the stretches
+    of every chunk made up front), while the rows equal those built in memory."""
+    import tracemalloc
+
+    from components.diagnosis.compare import model_geometry
+    from components.estimation.chunks import chunked_design
+    from components.model.effects import parameters_of
+
+    monkeypatch.setenv("CALBENCH_WORKERS", workers)
+    model = result_from_fit(calibrate(data, list(DEFAULT_EFFECTS)), list(DEFAULT_EFFECTS), data)
+    params = parameters_of(list(DEFAULT_EFFECTS) + ["acc.k2", "acc.k3", "acc.temp", "gyro.drift", "acc.drift"])
+    layout = BlockLayout.of(data, 4, 2000)  # short blocks: many rows a sample, as an 8-hour log has many samples
+    geo = model_geometry(data, model)
+    args = (data, layout, params, np.full(3, 1e-6), np.full(3, 1e-5), np.zeros(3), geo, [], None)
+    y, H, w, rows = chunked_design(*args)
+    tracemalloc.start()
+    try:
+        y2, H2, w2, rows2 = chunked_design(*args, spill=True)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert np.array_equal(H, H2) and np.array_equal(y, y2) and np.array_equal(w, w2)
+    assert len(layout.cuts) >= 20 and H.nbytes > 20e6
+    # beside the rows' information (sensor, axis, start, stop, moving, y, weight: 57 bytes a row
+    # against H's 312) a chunk's rows and, on one process, its work arrays; every chunk's rows
+    # listed (then copied into H, as before) are H's size at least
+    assert peak < 0.6 * H.nbytes, (peak, H.nbytes)
+
+
 def test_chunks_on_a_dask_cluster_give_the_same_bits(data, monkeypatch):
     """The chunk work sent to a Dask cluster (CALBENCH_SCHEDULER; two worker processes here):
     the same estimates, σ and ranking as on this process, the table columns included (computed

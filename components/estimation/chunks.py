@@ -58,13 +58,18 @@ class BlockLayout:
         """The chunks in order (Chunk): each chunk's samples as a log of their own
         (LogData.stretch; the whole log when there is one chunk) and the blocks that lie in it,
         indexed into that stretch."""
+        for i in range(len(self.cuts)):
+            yield self.chunk(data, i)
+
+    def chunk(self, data: LogData, i: int) -> "Chunk":
+        """The *i*-th chunk (made where it is needed: a stretch holds copies of the log's light
+        columns, so the whole list of them is the log's light columns once more)."""
         if len(self.cuts) == 1:
-            yield Chunk(data, self.gyro, self.acc, 0, 0)
-            return
-        edges = list(self.cuts) + [len(data.time)]
-        for a, b in zip(edges[:-1], edges[1:]):
-            lead = max(a - 1, 0)
-            yield Chunk(data.stretch(a, b), _within(self.gyro, a, b, lead), _within(self.acc, a, b, lead), lead, a)
+            return Chunk(data, self.gyro, self.acc, 0, 0)
+        a = int(self.cuts[i])
+        b = int(self.cuts[i + 1]) if i + 1 < len(self.cuts) else len(data.time)
+        lead = max(a - 1, 0)
+        return Chunk(data.stretch(a, b), _within(self.gyro, a, b, lead), _within(self.acc, a, b, lead), lead, a)
 
 
 @dataclass
@@ -173,15 +178,13 @@ def _each_chunk(work, layout: BlockLayout, data: LogData, desc: str, parallel: s
                 bar.update()
             return out
         if workers > 1 and len(layout.cuts) >= PARALLEL_CHUNKS:
-            chunks = list(layout.chunks(data))
-
             def in_worker(i: int):
-                chunk, chunks[i] = chunks[i], None  # not kept: a chunk caches its angle profile (300 bytes a sample)
+                chunk = layout.chunk(data, i)  # made in the worker, not kept: it caches its angle profile
                 result = _with_columns(work, chunk)
                 chunk.data.release()
                 return result
 
-            for result, columns in forked_map(in_worker, len(chunks), bar):
+            for result, columns in forked_results(in_worker, len(layout.cuts), bar):
                 keep(result)
                 remember_geometry_columns(columns)
             return out
@@ -197,26 +200,30 @@ def forked_map(work, count: int, bar=None) -> list:
     (each inherits what *work* reads at the fork), results in order: the same bits as one
     process, where each piece depends on nothing another piece changes (a noise identification's
     channels, each from its own seed). ``bar``: a progress bar advanced as each result comes."""
+    return list(forked_results(work, count, bar))
+
+
+def forked_results(work, count: int, bar=None):
+    """:func:`forked_map`'s results one at a time as they come, in order, none kept: a long log's
+    chunks give their rows to the caller, which puts them in place (a list of them all was every
+    candidate's rows of the log once more: 0.35 GB on an 8-hour log)."""
     global _FORKED
     workers = min(chunk_workers(), count)
     if workers <= 1:
-        out = []
         for i in range(count):
-            out.append(work(i))
+            yield work(i)
             if bar is not None:
                 bar.update()
-        return out
+        return
     _FORKED = work
-    out = []
     try:
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as pool:
             for result in pool.map(_piece_in_worker, range(count)):
-                out.append(result)
+                yield result
                 if bar is not None:
                     bar.update()
     finally:
         _FORKED = None
-    return out
 
 
 def _piece_in_worker(i: int):
