@@ -37,8 +37,9 @@ def median(values: np.ndarray, *, overwrite_input: bool = False) -> float:
     n = len(d)
     if n < DIRECT_BELOW:
         return float(np.median(d, overwrite_input=overwrite_input))
-    # a piece at a time: a spilled array's pages go back after each (components.logs.spill)
-    return median_of_pieces(lambda: (d[s] for s in pieces(n, d)), n, d[::stride(n)])
+    # a piece at a time: a spilled array's pages go back after each (components.logs.spill; its
+    # pages are *values*'s mapping: np.asarray makes a plain array of it, whose pages none gives back)
+    return median_of_pieces(lambda: (d[s] for s in pieces(n, values)), n, d[::stride(n)])
 
 
 def median_of_pieces(pieces, n: int, sample: np.ndarray) -> float:
