@@ -662,3 +662,19 @@ def test_a_term_decided_absent_goes_before_one_decided_present_is_judged_flat():
     assert not rep["random_walk"]["present"] and ch.random_walk == 0.0
     assert rep["bias_instability"]["present"] and ch.bias_instability > 0
     assert rep["elimination"]["alone"]["bias_instability"] > 2 * LR_CRITICAL
+
+
+def test_static_runs_are_the_masks_runs():
+    """static_runs against a loop over the mask: every run of True at least min_samples long,
+    at the ends too, none on an empty or all-False mask."""
+    rng = np.random.default_rng(12)
+    for mask in [np.zeros(0, bool), np.zeros(7, bool), np.ones(9, bool)] + [rng.random(n) < 0.8 for n in (1, 50, 997)]:
+        want, a = [], None
+        for i, m in enumerate(list(mask) + [False]):
+            if m and a is None:
+                a = i
+            elif not m and a is not None:
+                if i - a >= 3:
+                    want.append((a, i))
+                a = None
+        assert static_runs(mask, 3) == want
