@@ -421,15 +421,19 @@ def test_the_sample_checks_give_back_a_spilled_time_columns_pages():
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/smaps")
-def test_the_median_of_a_spilled_column_gives_its_pages_back():
+def test_the_median_of_a_spilled_column_gives_its_pages_back(monkeypatch):
     """order_statistics.median of a spilled column (the plate's intervals a comparison takes the
     median of) is np.median's, and leaves at most about a piece of the column resident (it gave
     back the pages of a plain-array view of the column, which has none: the whole column, 240 MB
     on an 8-hour 1 kHz log, stayed in)."""
+    from components.estimation import order_statistics
     from components.estimation.order_statistics import median
-    from components.logs.spill import PIECE, release, spilled_array, write_rows
+    from components.logs.spill import release, spilled_array, write_rows
 
+    # (a piece of its own: a module fixture here sets a smaller one for its tests' duration)
+    monkeypatch.setattr(spill, "PIECE", PIECE := 1 << 14)
     n = 16 * PIECE + 3
+    assert n > order_statistics.DIRECT_BELOW  # the median by pieces, not np.median on the whole
     values = 1e-3 + np.random.default_rng(8).normal(0, 1e-9, n)
     dt = spilled_array((n,))
     write_rows(dt, 0, values)
