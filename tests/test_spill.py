@@ -250,8 +250,11 @@ def test_rows_and_columns_gathered_from_a_wide_spilled_array(monkeypatch):
     values = rng.standard_normal((3000, 300))
     on_disk = spill.spilled_array(values.shape)
     on_disk[:] = values
-    assert spill.piece_rows(on_disk) == 64 * 48 // (300 * 8) == 1
-    assert spill.piece_rows(spill.spilled_array((10, 6))) == 64
+    # a piece of wide rows holds no more bytes than a piece of a sample's six values, and at least a row
+    narrow = spill.spilled_array((10, 6))
+    assert spill.piece_rows(narrow) == spill.PIECE
+    assert 1 <= spill.piece_rows(on_disk) and spill.piece_rows(on_disk) * 300 <= spill.PIECE * 6
+    assert spill.piece_rows(spill.spilled_array((10, 3))) == spill.PIECE  # (narrower: not more than PIECE)
     index = np.concatenate([rng.integers(0, 3000, 500), [0, 2999, 1, 1]])
     for columns in ([7, 3, 299], []):
         for a in (values, on_disk):

@@ -22,7 +22,7 @@ from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.stacked_qr import StackedQR
 from components.estimation.whitening import whitened_pieces
-from components.logs.spill import is_spilled, release
+from components.logs.spill import is_spilled, pieces
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.plausibility import grade_factor
@@ -115,8 +115,8 @@ class CandidateDesign:
         self._before = state
         self._bases = {}
 
-    def _whitened(self, y: np.ndarray, columns: list[int]):
-        """(slice of rows, whitened [H[:, columns] | y] of them), a piece at a time."""
+    def _whitened(self, y: np.ndarray, columns: list[int] | None):
+        """(slice of rows, whitened [H[:, columns] | y] of them; None: every column), a piece at a time."""
         _, H, w, rows = self.raw
         return whitened_pieces(y, H, rows, 1.0 / w**2, self.noise, self.dt, self.span, self.t_lo,
                                piece=QR_ROWS, columns=columns)
@@ -131,7 +131,7 @@ class CandidateDesign:
         ~0.1 s: most of a diagnose's ranking)."""
         if self._compressed is None:
             r = StackedQR(len(self.params) + 1)
-            for _, M in self._whitened(self.raw[0], list(range(len(self.params)))):
+            for _, M in self._whitened(self.raw[0], None):
                 r.add(M)
             self._compressed = r.r
         return self._compressed
@@ -173,10 +173,8 @@ class CandidateDesign:
         if subset:
             idx = [self.index[p] for p in subset]
             sol = np.linalg.lstsq(self.compressed[:, idx], self._rows_y, rcond=1e-10)[0]
-            for a in range(0, self.n, QR_ROWS):
-                at = slice(a, min(a + QR_ROWS, self.n))
+            for at in pieces(self.n, H, step=QR_ROWS):
                 r[at] -= H[at][:, idx] @ sol
-                release(H)
         out = np.empty(self.n)
         for at, M in self._whitened(r, []):
             out[at] = M[:, 0]

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import EstimationError
-from components.logs.spill import release
+from components.logs.spill import pieces
 from components.model.noise import BlockNoise, NoiseModel, block_noise
 
 
@@ -180,13 +180,11 @@ def whitened_pieces(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndar
                     columns: list[int] | None = None):
     """The design's rows whitened as :func:`whiten` whitens them (the same bits), a piece of
     *piece* rows at a time in row order: yields (the piece's slice of rows, its whitened
-    [H | y], or [H[:, columns] | y]). Each channel's filter carries its state from one piece to the next
+    [H | y], or [H[:, columns] | y]; columns None: all). Each channel's filter carries its state from one piece to the next
     (:class:`ChannelWhitener`), so only a piece of the whitened rows is ever in memory, and of
     a spilled *H* (components.logs.spill) only a piece's pages."""
     n = len(y)
-    every = columns is None or list(columns) == list(range(H.shape[1]))
-    p = H.shape[1] if every else len(columns)
-    piece = piece or PIECE_ROWS
+    p = H.shape[1] if columns is None else len(columns)
     coloured = noise is not None and noise.coloured
     if coloured:
         channel = np.full(n, -1, np.int8)
@@ -199,13 +197,12 @@ def whitened_pieces(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndar
                                                                t_lo), p + 1)
     else:
         w = 1.0 / np.sqrt(white_var)
-    for a in range(0, n, piece):
-        at = slice(a, min(a + piece, n))
-        M = np.empty((at.stop - a, p + 1))
+    # (a column of y alone reads none of H's pages, so gives none back)
+    for at in pieces(n, *([H] if p else []), step=piece or PIECE_ROWS):
+        M = np.empty((at.stop - at.start, p + 1))
         M[:, p] = y[at]
-        if p:  # (a column of y alone reads none of H's pages)
-            M[:, :p] = H[at] if every else H[at][:, columns]
-            release(H)
+        if p:
+            M[:, :p] = H[at] if columns is None else H[at][:, columns]
         if not coloured:
             M *= w[at, None]
         else:

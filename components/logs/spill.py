@@ -115,11 +115,12 @@ def piece_rows(array: np.ndarray) -> int:
     return max(1, min(PIECE, PIECE * 48 // max(row, 1)))
 
 
-def pieces(n: int, *arrays):
-    """Slices of [0, n) of :data:`PIECE` samples; after each, the pages of the spilled *arrays*
-    it touched are given back."""
-    for a in range(0, n, PIECE):
-        yield slice(a, min(a + PIECE, n))
+def pieces(n: int, *arrays, step: int | None = None):
+    """Slices of [0, n) of *step* rows (default :data:`PIECE` samples); after each, the pages of
+    the spilled *arrays* it touched are given back."""
+    step = step or PIECE
+    for a in range(0, n, step):
+        yield slice(a, min(a + step, n))
         release(*arrays)
 
 
