@@ -144,6 +144,47 @@ def test_the_rows_on_disk_change_nothing(null_logs, monkeypatch):
         np.testing.assert_allclose(a["loglik_gain"], b["loglik_gain"], rtol=1e-9, atol=1e-9)
 
 
+def test_calibrate_solves_on_r_as_on_the_whitened_rows(null_logs, monkeypatch):
+    """calibrate solves on R of the rows whitened a piece at a time (stacked QR): the same
+    estimate, χ² and covariance as numpy's least squares on the whole whitened rows (the
+    whitening of whole arrays), to 1e-9 relative; and the same again with its rows spilled to
+    disk and whitened in pieces of 97 (each channel's filter state carried over)."""
+    from components.estimation import lsq, whitening
+    from components.logs.spill import is_spilled
+
+    data, noise = null_logs[0], _injected()
+    fit = calibrate(data, BASELINE, noise=noise)
+    y, H, w, rows = fit.rows["y"], fit.rows["H"], fit.rows["weight"], fit.rows
+    span = float(data.time[-1] - data.time[0] + data.sample_interval)
+    yw, Hw, _ = whitening.whiten(y, H, rows, 1.0 / w**2, noise, data.sample_interval, span, 1.0)
+    scale = np.linalg.norm(Hw, axis=0)
+    sol = np.linalg.lstsq(Hw / scale, yw, rcond=lsq.RCOND)[0] / scale
+    info = (Hw / scale).T @ (Hw / scale)
+    cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
+    # (each parameter to 1e-9 of itself or of its σ: a value near 0 carries its σ's digits)
+    sigma = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(fit.value - sol) <= 1e-9 * np.maximum(np.abs(sol), sigma))
+    np.testing.assert_allclose(fit.chi2, float(np.sum((yw - Hw @ sol) ** 2)), rtol=1e-9)
+    assert np.all(np.abs(fit.covariance - cov) <= 1e-9 * np.outer(sigma, sigma))
+    np.testing.assert_allclose(rows["residual"], y - H @ sol, rtol=0, atol=1e-9 * np.abs(y).max())
+
+    spilled = []
+    real = lsq.chunked_design
+
+    def on_disk(*a, **k):
+        out = real(*a, **dict(k, spill=True))
+        spilled.append(is_spilled(out[1]))
+        return out
+
+    monkeypatch.setattr(lsq, "chunked_design", on_disk)
+    monkeypatch.setattr(whitening, "PIECE_ROWS", 97)
+    got = calibrate(data, BASELINE, noise=noise)
+    assert spilled and all(spilled)
+    assert np.all(np.abs(got.value - fit.value) <= 1e-9 * np.maximum(np.abs(fit.value), fit.sigma))
+    np.testing.assert_allclose([got.chi2], [fit.chi2], rtol=1e-9)
+    np.testing.assert_allclose(got.sigma, fit.sigma, rtol=1e-9)
+
+
 def test_injected_noise_model_gives_no_verdict_and_an_honest_chi2(null_logs):
     noise = _injected()
     for data in null_logs:

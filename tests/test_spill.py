@@ -261,6 +261,23 @@ def test_rows_and_columns_gathered_from_a_wide_spilled_array(monkeypatch):
             assert np.array_equal(spill.gathered(a, index, columns), values[index][:, columns])
 
 
+def test_a_spilled_arrays_product_a_piece_at_a_time_is_its_product(monkeypatch):
+    """spill.product(a, x, columns) is a[:, columns] @ x row for row, a few rows at a time, on
+    a spilled array as on a plain one (pieces not dividing the rows, a vector and a matrix x)."""
+    monkeypatch.setattr(spill, "PIECE", 64)
+    rng = np.random.default_rng(4)
+    values = rng.standard_normal((1001, 300))
+    on_disk = spill.spilled_array(values.shape)
+    on_disk[:] = values
+    for columns, x in ((None, rng.standard_normal(300)), ([5, 299, 0], rng.standard_normal(3)),
+                       ([1, 2], rng.standard_normal((2, 4)))):
+        A = values if columns is None else values[:, columns]
+        want, bound = A @ x, 1e-13 * (np.abs(A) @ np.abs(x))  # (a dot product's rounding: BLAS may block it apart)
+        for a in (values, on_disk):
+            got = spill.product(a, x, columns)
+            assert got.shape == want.shape and np.all(np.abs(got - want) <= bound)
+
+
 @pytest.mark.parametrize("shape", [(5000,), (5000, 3), (0, 3)])
 def test_rows_written_through_a_spilled_arrays_file_are_read_through_its_mapping(shape):
     """spill.write_rows(a, start, v) is a[start:start + len(v)] = v, for a spilled array (written

@@ -20,9 +20,9 @@ from components.estimation.chunks import CHUNK_SAMPLES, BlockLayout, chunked_des
 from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
-from components.estimation.stacked_qr import StackedQR
-from components.estimation.whitening import whitened_pieces
-from components.logs.spill import is_spilled, pieces
+from components.estimation.stacked_qr import scaled_lstsq
+from components.estimation.whitening import whitened_pieces, whitened_r
+from components.logs.spill import is_spilled, product
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.plausibility import grade_factor
@@ -130,10 +130,9 @@ class CandidateDesign:
         is a solve of p+1 rows, not of the log's block rows (on an 8-hour log 180 000, each refit
         ~0.1 s: most of a diagnose's ranking)."""
         if self._compressed is None:
-            r = StackedQR(len(self.params) + 1)
-            for _, M in self._whitened(self.raw[0], None):
-                r.add(M)
-            self._compressed = r.r
+            y, H, w, rows = self.raw
+            self._compressed = whitened_r(y, H, rows, 1.0 / w**2, self.noise, self.dt, self.span, self.t_lo,
+                                          piece=QR_ROWS)
         return self._compressed
 
     def whitened_columns(self, names: list[str]) -> np.ndarray:
@@ -156,14 +155,8 @@ class CandidateDesign:
         y = self._rows_y
         if not subset:
             return float(y @ y), np.zeros(0), np.zeros((0, 0)), 0
-        A = self._columns(subset)
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        As = A / scale
-        sol, _, rank, sv = np.linalg.lstsq(As, y, rcond=1e-10)
-        r = y - As @ sol
-        cov = np.linalg.pinv(As.T @ As, rcond=1e-12) / np.outer(scale, scale)
-        return float(r @ r), sol / scale, cov, int(rank)
+        sol, chi2, cov, rank = scaled_lstsq(self._columns(subset), y, 1e-10)
+        return chi2, sol, cov, rank
 
     def residual(self, subset: list[str]) -> np.ndarray:
         """The whitened rows' residual of the fit on *subset* (the filter is linear: the whitened
@@ -173,8 +166,7 @@ class CandidateDesign:
         if subset:
             idx = [self.index[p] for p in subset]
             sol = np.linalg.lstsq(self.compressed[:, idx], self._rows_y, rcond=1e-10)[0]
-            for at in pieces(self.n, H, step=QR_ROWS):
-                r[at] -= H[at][:, idx] @ sol
+            r -= product(H, sol, idx, step=QR_ROWS)
         out = np.empty(self.n)
         for at, M in self._whitened(r, []):
             out[at] = M[:, 0]

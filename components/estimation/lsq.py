@@ -22,7 +22,9 @@ from components.estimation.design import ACC_SCALE, GYRO_SCALE, noise_floor
 from components.estimation.determinability import Determinability, assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import encoder_quantum, rest_sigma, rest_variance
-from components.estimation.whitening import whiten
+from components.estimation.stacked_qr import scaled_lstsq
+from components.estimation.whitening import whitened_r
+from components.logs.spill import is_spilled, product
 from components.model.effects import TIME_OFFSETS, effect_of, parameters_of
 from components.model.excitation import needs
 from components.model.geometry import TableGeometry
@@ -114,16 +116,18 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     layout = BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s), chunk_samples)
     gb = layout.gyro
 
+    # a log long enough to have its samples spilled has its rows spilled too (components.logs.spill)
+    spill = is_spilled(data.gyro)
+
     def rows_at(g: TableGeometry, lin=None):
-        return chunked_design(data, layout, params, sg, sa, q, g, table_params, temperature_ref, quadrature, lin)
+        return chunked_design(data, layout, params, sg, sa, q, g, table_params, temperature_ref, quadrature, lin,
+                              spill=spill)
     white = noise.white_sigma(dt_mean) if noise is not None else np.zeros(6)
     span = float(data.time[-1] - data.time[0] + dt_mean) if len(data.time) else 0.0
 
-    def weighted(y, H, w, rows):
-        if noise is None or not noise.coloured:
-            return y * w, H * w[:, None]
-        yw, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt_mean, span, chunk_s)
-        return yw, Hw
+    def compressed(y, H, w, rows):
+        """R of the whitened [H | y]: every solve, χ² and covariance below is on its few rows."""
+        return whitened_r(y, H, rows, 1.0 / w**2, noise, dt_mean, span, chunk_s)
 
     quant = data.quantization_floor(noise)
     # each channel's white level from the noise model where it has one, else from the data (a
@@ -162,11 +166,10 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     it = 0
     det = None
     for it in range(1, iterations + 1):
-        y, H, w, rows = rows_at(geo, lin)
         # residual relative to the current table values (Gauss–Newton on the geometry)
-        yw, Hw = weighted(y, H, w, rows)
+        R = compressed(*rows_at(geo, lin))
         if det is None:
-            det = assess(Hw, params)
+            det = assess(R[:, :-1], params)
             if det.undetermined:
                 if undetermined == "refuse":
                     raise EstimationError("this log does not determine " + "; ".join(
@@ -176,18 +179,15 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
                 if not params:
                     raise EstimationError("this log determines none of the requested parameters: " + "; ".join(
                         f"{p} needs {needs(p)}" for p in det.undetermined))
-                H, Hw, value = H[:, keep], Hw[:, keep], value[keep]
+                R, value = R[:, keep + [R.shape[1] - 1]], value[keep]
                 table_params = [p for p in table_params if p in params]
                 bilinear = any(p in params for p in TIME_OFFSETS) and any(effect_of(p).name == "acc.lever" for p in params)
-        scale = np.linalg.norm(Hw, axis=0)
-        scale[scale == 0] = 1.0
         # rcond: a direction of the column-normalised design below 1e-7 of the largest is a
         # parameter combination the data cannot see (e.g. a wobble of an inner stage, which is a
         # constant rotation of the plate = IMU misalignment, left only with the forward-
         # difference error of its column); resolving it would amplify noise into a huge step
         # of the geometry and wreck the next linearisation
-        sol, *_ = np.linalg.lstsq(Hw / scale, yw, rcond=RCOND)
-        step = sol / scale
+        step = scaled_lstsq(R[:, :-1], R[:, -1], RCOND)[0]
         sensor_idx = [k for k, p in enumerate(params) if p not in table_params]
         value[sensor_idx] = step[sensor_idx]
         moved = False
@@ -205,20 +205,11 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
             break
     # final linearisation at the solution: sensor values and the last (tiny) table correction
     y, H, w, rows = rows_at(geo, lin)
-    yw, Hw = weighted(y, H, w, rows)
-    scale = np.linalg.norm(Hw, axis=0)
-    scale[scale == 0] = 1.0
-    sol = np.linalg.lstsq(Hw / scale, yw, rcond=RCOND)[0] / scale
+    R = compressed(y, H, w, rows)
+    sol, chi2, cov, _ = scaled_lstsq(R[:, :-1], R[:, -1], RCOND)
     for k, p in enumerate(params):
         value[k] = value[k] + sol[k] if p in table_params else sol[k]
-    resid_vec = y - H @ sol
-    if noise is None or not noise.coloured:
-        chi2 = float(np.sum((resid_vec * w) ** 2))
-    else:
-        chi2 = float(np.sum((yw - Hw @ sol) ** 2))
-    info = (Hw / scale).T @ (Hw / scale)
-    cov = np.linalg.pinv(info, rcond=1e-12) / np.outer(scale, scale)
-    rows["residual"] = resid_vec
+    rows["residual"] = y - product(H, sol)
     # the median interval as the motion has them (the first one from dt0)
     dt_median = data.interval_median(first=float(data.time[0] - data.start_time))
     fit = Fit(params, value, cov, chi2, len(y) - len(params), sg, sa, geo, dt_median,
@@ -239,11 +230,10 @@ def _estimate_rest_sigma(data, gb, params, sg, sa, q, geo, design_rows):
     rest angles (a method-of-moments variance component). Starts from one count uniform (the
     prior q/√12) and stays within [0, 2 q/√12]; the estimator's σ then matches its spread."""
     y, H, w, rows = design_rows
-    Hw = H * w[:, None]
-    scale = np.linalg.norm(Hw, axis=0)
-    scale[scale == 0] = 1.0
-    sol = np.linalg.lstsq(Hw / scale, y * w, rcond=None)[0] / scale
-    r = y - H @ sol
+    # (white noise: the weights alone; no interval or span enters)
+    R = whitened_r(y, H, rows, 1.0 / w**2, None, data.sample_interval, 0.0)
+    sol = scaled_lstsq(R[:, :-1], R[:, -1], None)[0]
+    r = y - product(H, sol)
     n_g = 3 * len(gb)
     mv = np.repeat(gb.moving, 3)
     unit = rest_variance(data, geo, gb, np.ones_like(q)).reshape(-1)[mv]

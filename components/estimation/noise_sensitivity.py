@@ -17,7 +17,8 @@ from dataclasses import replace
 import numpy as np
 
 from components.estimation.noise_likelihood import FLICKER_CORNER_TEST
-from components.estimation.whitening import whiten
+from components.estimation.stacked_qr import scaled_lstsq
+from components.estimation.whitening import whitened_r
 from components.model.noise import NoiseModel, term_name
 
 SLOW_TERMS = ("bias_instability", "random_walk")
@@ -58,11 +59,8 @@ def sigma_under(fit, noise: NoiseModel, span: float, chunk_s: float = 1.0) -> np
     duration [s]."""
     rows = fit.rows
     y, H, w = rows["y"], rows["H"], rows["weight"]
-    _, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, fit.dt, span, chunk_s)
-    scale = np.linalg.norm(Hw, axis=0)
-    scale[scale == 0] = 1.0
-    Hs = Hw / scale
-    cov = np.linalg.pinv(Hs.T @ Hs, rcond=1e-12) / np.outer(scale, scale)
+    R = whitened_r(y, H, rows, 1.0 / w**2, noise, fit.dt, span, chunk_s)
+    cov = scaled_lstsq(R[:, :-1], R[:, -1], None)[2]
     return np.sqrt(np.clip(np.diag(cov), 0, None))
 
 

@@ -24,3 +24,16 @@ class StackedQR:
         M[:len(self.r)] = self.r
         M[len(self.r):] = rows
         self.r = np.linalg.qr(M, mode="r")
+
+
+def scaled_lstsq(A: np.ndarray, y: np.ndarray, rcond: float | None) -> tuple[np.ndarray, float, np.ndarray, int]:
+    """(solution, χ², covariance, rank) of the least squares A x ≈ y, A's columns scaled to unit
+    length for the solve (parameters of every unit: *rcond* then cuts directions the rows cannot
+    see, not small units). On R's rows (:class:`StackedQR`) it is the solve on the rows R came from."""
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    As = A / scale
+    sol, _, rank, _ = np.linalg.lstsq(As, y, rcond=rcond)
+    r = y - As @ sol
+    cov = np.linalg.pinv(As.T @ As, rcond=1e-12) / np.outer(scale, scale)
+    return sol / scale, float(r @ r), cov, int(rank)

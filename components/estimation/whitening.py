@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import EstimationError
+from components.estimation.stacked_qr import StackedQR
 from components.logs.spill import pieces
 from components.model.noise import BlockNoise, NoiseModel, block_noise
 
@@ -169,6 +170,19 @@ def _channel_noise(rows: dict, idx: np.ndarray, white_var: np.ndarray, channel, 
     """The block noise of the rows *idx* (one channel's, in block order) under *channel*'s terms."""
     durations, gaps = block_timing(rows, idx, dt)
     return block_noise(channel, durations, white_var[idx], span, t_lo, advance_of(rows, idx), gaps)
+
+
+def whitened_r(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, noise: NoiseModel | None,
+               dt: float, span: float, t_lo: float = 1.0, piece: int | None = None) -> np.ndarray:
+    """R of the QR of the whitened [H | y] (components.estimation.stacked_qr), the rows whitened
+    a piece at a time (:func:`whitened_pieces`): any least squares on the whitened rows, on any
+    subset of H's columns, has on R's few rows the same solution, χ², covariance and rank (its
+    last column is y's: the part outside every column's span is its last row). The whitened
+    rows are never held whole: on an 8-hour log ~40 MB a copy, and a solve made several."""
+    r = StackedQR(H.shape[1] + 1)
+    for _, M in whitened_pieces(y, H, rows, white_var, noise, dt, span, t_lo, piece):
+        r.add(M)
+    return r.r
 
 
 # rows whitened at a time by whitened_pieces (at 300 columns a piece is 40 MB)

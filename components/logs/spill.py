@@ -124,6 +124,16 @@ def pieces(n: int, *arrays, step: int | None = None):
         release(*arrays)
 
 
+def product(array: np.ndarray, x: np.ndarray, columns=None, step: int | None = None) -> np.ndarray:
+    """array @ x, or array[:, columns] @ x, a piece of rows at a time (a spilled *array*'s pages
+    given back after each): a wide spilled array times a vector without its pages, or a copy
+    of its columns, resident at once."""
+    out = np.empty((len(array),) + np.shape(x)[1:])
+    for at in pieces(len(array), array, step=step or piece_rows(array)):
+        out[at] = (array[at] if columns is None else array[at][:, columns]) @ x
+    return out
+
+
 def gathered(array: np.ndarray, index: np.ndarray, columns=None) -> np.ndarray:
     """array[index] (rows at *index*, in its order), or array[index][:, columns]; for a spilled
     *array*, a piece of it at a time with each piece's pages given back: indices spread over the
