@@ -64,6 +64,9 @@ def test_the_spilled_columns_are_the_same_bits(pair):
         assert spill.is_spilled(getattr(spilled, k)) and not spill.is_spilled(getattr(memory, k)), k
     for k in ("time", "angles", "gyro", "acc", "temperature"):
         assert np.array_equal(_bits(getattr(memory, k)), _bits(getattr(spilled, k))), k
+    # the labels, read a row group at a time when spilled: runs across the groups' seams are one
+    assert list(memory.segment) == list(spilled.segment)
+    assert len(spilled.segment.starts) == len(memory.segment.starts) < len(spilled.segment) / 100
 
 
 def test_the_medians_a_piece_at_a_time_are_numpys(pair, monkeypatch):
