@@ -12,11 +12,12 @@ from components.model.approach import moving_runs
 
 
 def _ratio(data):
-    moving = ~data.static & data.usable
-    ideal, upto = semantics._ideal_gyro_moving(data, moving)
-    measured = semantics._norms(data.gyro[:upto], moving[:upto])
+    ideal, moving = semantics._ideal_gyro_moving(data, data.usable)
+    upto = len(moving)
+    assert np.array_equal(moving, (~data.static & data.usable)[:upto])  # the mask it made a window at a time
+    measured = semantics._norms(data.gyro[:upto], moving)
     expected = np.linalg.norm(ideal, axis=1)
-    assert len(ideal) == np.count_nonzero(moving[:upto])
+    assert len(ideal) == np.count_nonzero(moving)
     turning = expected > 0.1 * np.median(expected)
     return np.median(measured[turning] / expected[turning]), upto
 

@@ -258,6 +258,9 @@ def test_rows_and_columns_gathered_from_a_wide_spilled_array(monkeypatch):
     assert spill.piece_rows(narrow) == spill.PIECE
     assert 1 <= spill.piece_rows(on_disk) and spill.piece_rows(on_disk) * 300 <= spill.PIECE * 6
     assert spill.piece_rows(spill.spilled_array((10, 3))) == spill.PIECE  # (narrower: not more than PIECE)
+    # a view of every 28th sample: a piece of it spans no more of the file than a piece of samples
+    every = spill.spilled_array((10_000, 6))[::28]
+    assert 1 <= spill.piece_rows(every) and spill.piece_rows(every) * 28 <= spill.PIECE
     index = np.concatenate([rng.integers(0, 3000, 500), [0, 2999, 1, 1]])
     for columns in ([7, 3, 299], []):
         for a in (values, on_disk):

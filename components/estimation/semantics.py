@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from components.logs.spill import pieces
+from components.logs.spill import piece_rows, pieces
 
 # a measured ratio within this factor of a mistake's ratio is taken as that mistake; the right
 # declaration gives 1 within a few per cent (a scale factor error, the table's own servo error)
@@ -46,7 +46,7 @@ def check_semantics(data, log) -> list[str]:
     use = data.usable
     g = float(log.gravity) if getattr(log, "gravity", None) else 9.80665
     stride = max(1, len(data.time) // ENOUGH_STATIC)
-    static = (data.static & use)[::stride]
+    static = data.static[::stride] & use[::stride]
     if static.sum() >= 10:
         # per sample (the rests differ in attitude: their mean vector would cancel)
         f = float(np.median(_norms(data.acc[::stride], static), overwrite_input=True)) / dt
@@ -59,11 +59,10 @@ def check_semantics(data, log) -> list[str]:
                            f"({log.acc_output}), {r:.4g} × gravity {g:.5g} m/s²: {what}?")
                 break
     if data.has_table:
-        moving = ~data.static & use
-        if moving.sum() >= 10:
-            ideal, upto = _ideal_gyro_moving(data, moving)
+        ideal, moving = _ideal_gyro_moving(data, use)
+        if len(ideal) >= 10:
             expected = np.linalg.norm(ideal, axis=1)
-            measured = _norms(data.gyro[:upto], moving[:upto])
+            measured = _norms(data.gyro[:len(moving)], moving)
             # per sample and the median: a mis-declaration scales every sample alike, while one
             # corrupt angle cell (a jump of hundreds of radians) must not pass for a unit mistake
             turning = expected > 0.1 * np.median(expected) if expected.size else expected
@@ -145,20 +144,21 @@ def _norms(x: np.ndarray, which: np.ndarray) -> np.ndarray:
     once would be 24 bytes a sample beside the norms)."""
     out = np.empty(int(np.count_nonzero(which)))
     i = 0
-    for s in pieces(len(x), x):
+    for s in pieces(len(x), x, step=piece_rows(x)):
         v = np.linalg.norm(x[s][which[s]], axis=1)
         out[i:i + len(v)] = v
         i += len(v)
     return out
 
 
-def _ideal_gyro_moving(data, moving: np.ndarray) -> tuple[np.ndarray, int]:
-    """The ideal gyro increments of the *moving* samples from the table angles, and the sample
-    they go up to: the angles are interpolated around the moves only (a schedule of rests is
-    mostly at rest: the whole log's profile was a tenth of a diagnose), a window at a time (a
-    long log's interpolated angles are 300 bytes a sample), and only until :data:`ENOUGH_MOVING`
-    moving samples are in (a unit mistake scales every sample alike; on an 8-hour log the whole
-    pass was 15 s of every command)."""
+def _ideal_gyro_moving(data, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ideal gyro increments of the moving samples the mask *use* keeps, from the table
+    angles, and which samples those are (a mask of the log up to the last of them): the angles
+    are interpolated around the moves only (a schedule of rests is mostly at rest: the whole
+    log's profile was a tenth of a diagnose), a window at a time (a long log's interpolated
+    angles are 300 bytes a sample), and only until :data:`ENOUGH_MOVING` moving samples are in
+    (a unit mistake scales every sample alike; on an 8-hour log the whole pass was 15 s of every
+    command). The mask is made a window at a time too: the whole log's was two bytes a sample."""
     from components.model.motion import ideal_increments
 
     n = len(data.time)
@@ -168,11 +168,11 @@ def _ideal_gyro_moving(data, moving: np.ndarray) -> tuple[np.ndarray, int]:
         piece = data.stretch(a, min(b + 1, n))  # the sample after a move: its rest ends the spline
         gyro, _ = ideal_increments(piece.angle_profile(3), data.geometry)
         own = gyro[int(a > 0):][:b - a]  # the stretch leads with sample a - 1
-        parts.append(own[moving[a:b]])
+        parts.append(own[~data.static[a:b] & use[a:b]])
         upto, got = b, got + len(parts[-1])
         if got >= ENOUGH_MOVING:
             break
-    return (np.concatenate(parts) if parts else np.zeros((0, 3))), upto
+    return (np.concatenate(parts) if parts else np.zeros((0, 3))), ~data.static[:upto] & use[:upto]
 
 
 # moves fewer rest samples apart than MOVE_GAP share a window: an encoder dithering at rest makes

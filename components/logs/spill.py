@@ -110,8 +110,11 @@ def scaled(x: np.ndarray, factor) -> np.ndarray:
 
 def piece_rows(array: np.ndarray) -> int:
     """Rows of *array* a pass over it takes at a time: :data:`PIECE`, fewer for rows wider than a
-    sample's six values (a design's hundreds of columns), so a piece stays ~12.6 MB."""
-    row = array.itemsize * int(np.prod(array.shape[1:], dtype=np.int64))
+    sample's six values (a design's hundreds of columns) or rows of a strided view, so a piece
+    spans ~12.6 MB of the array's memory."""
+    # (a row's stride, not its size: a view of every 28th row spans 28 rows of the file a row)
+    row = abs(array.strides[0]) if array.ndim and array.strides[0] else \
+        array.itemsize * int(np.prod(array.shape[1:], dtype=np.int64))
     return max(1, min(PIECE, PIECE * 48 // max(row, 1)))
 
 
