@@ -70,6 +70,10 @@ def test_exit_codes_bad_input_and_could_not_run(logs, capsys, monkeypatch):
                                            str(logs / "example.r.json"), "--candidates", "acc.k9"])
     assert code == 2 and doc["exit_code"] == 2 and "acc.k9" in doc["error"]
     assert "acc.k2" in err and "Traceback" not in err        # the valid names, one line
+    # said before the log is read (a long log takes a minute to read and check)
+    code, doc, _ = _json_stdout(capsys, ["diagnose", str(logs / "nowhere"), "--model",
+                                         str(logs / "example.r.json"), "--candidates", "acc.k9"])
+    assert code == 2 and "acc.k9" in doc["error"]
     assert main(["compare", str(logs / "nowhere"), "--model", str(logs / "example.r.json")]) == 2
     # a run that fails underway (a unit's fault) is "could not run", not bad input
     from components.cli import cosim

@@ -136,9 +136,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from components.errors import UserError
     from components.model.effects import parse_effects
 
-    log, data = log_option.read(args)
-    if args.report and not data.has_table:  # said before the diagnosis, not after printing it all
-        raise UserError("diagnose --report: the page needs a log with table angles")
+    # the model and the candidates are checked before the log is read (an 8-hour log: a minute)
     model = _load_model(args.model)
     cands = None
     if args.candidates:
@@ -148,6 +146,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             cands = parse_effects(",".join(c for c in names if c not in NOISE_CANDIDATES)) + noise_names
         except ValueError as e:
             raise UserError(f"--candidates: {e} (noise terms: {', '.join(NOISE_CANDIDATES)})") from None
+    log, data = log_option.read(args)
+    if args.report and not data.has_table:  # said before the diagnosis, not after printing it all
+        raise UserError("diagnose --report: the page needs a log with table angles")
     noise, said, _ = choose_noise(args.noise, data, model)
     print(f"noise: {said}")
     model, refit = model_option.own(model, args.model, log, data, noise)
