@@ -8,7 +8,6 @@ from __future__ import annotations
 import logging
 import shutil
 import signal
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -17,6 +16,7 @@ from components.campaign.case import dumps, record
 from components.campaign.isolate import run_isolated
 from components.campaign.manifest import new_manifest, now
 from components.campaign.progress import Progress
+from components.campaign.scratch import campaign_scratch, sweep_stale
 from components.campaign.spec import Campaign, task_for
 from components.campaign.store import Store
 from components.errors import CampaignError
@@ -91,7 +91,9 @@ def run_campaign(camp: Campaign, out: str | Path, *, workers: int | None = None,
     # every case's temporary directory inside one of the campaign's, removed below once the
     # cluster is closed: a worker stopped with the campaign dies before its case can clean up
     # (found: the running case's directory, its FMUs unpacked, left at a SIGTERM under load)
-    scratch = tempfile.mkdtemp(prefix="calbench-campaign-")
+    # (and those of campaigns killed outright before, which could not clean up: scratch.py)
+    session["swept_stale_scratch"] = len(sweep_stale())
+    scratch = campaign_scratch()
     try:
         if todo:
             client, cluster, slots = connect(workers, scheduler)
