@@ -106,25 +106,33 @@ def test_a_real_gyro_drift_beside_coloured_noise_is_still_named():
     assert "gyro.drift" in dg.found, (dg.verdict, dg.found)
 
 
-def test_the_rows_on_disk_change_nothing(null_logs, monkeypatch):
-    """A long log's candidate rows are spilled to disk and whitened from there a piece at a
-    time: the diagnosis is the same as with the rows in memory whitened whole, its statistics to
-    1e-9 relative."""
-    from components.diagnosis import candidate_design
+def _rows_on_disk(module, monkeypatch) -> list[bool]:
+    """*module*'s chunked_design made to spill its rows to disk, as a long log's are; the list
+    fills with whether each design's H was spilled."""
     from components.logs.spill import is_spilled
 
-    data = null_logs[0]
-    model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
-    kept = diagnose(data, model)
-    spilled = []
-    real = candidate_design.chunked_design
+    spilled: list[bool] = []
+    real = module.chunked_design
 
     def on_disk(*a, **k):
         out = real(*a, **dict(k, spill=True))
         spilled.append(is_spilled(out[1]))
         return out
 
-    monkeypatch.setattr(candidate_design, "chunked_design", on_disk)
+    monkeypatch.setattr(module, "chunked_design", on_disk)
+    return spilled
+
+
+def test_the_rows_on_disk_change_nothing(null_logs, monkeypatch):
+    """A long log's candidate rows are spilled to disk and whitened from there a piece at a
+    time: the diagnosis is the same as with the rows in memory whitened whole, its statistics to
+    1e-9 relative."""
+    from components.diagnosis import candidate_design
+
+    data = null_logs[0]
+    model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
+    kept = diagnose(data, model)
+    spilled = _rows_on_disk(candidate_design, monkeypatch)
     monkeypatch.setattr(candidate_design, "QR_ROWS", 97)  # many pieces, each channel's state carried over
     got = diagnose(data, model)
     assert spilled == [True]
@@ -150,7 +158,6 @@ def test_calibrate_solves_on_r_as_on_the_whitened_rows(null_logs, monkeypatch):
     whitening of whole arrays), to 1e-9 relative; and the same again with its rows spilled to
     disk and whitened in pieces of 97 (each channel's filter state carried over)."""
     from components.estimation import lsq, whitening
-    from components.logs.spill import is_spilled
 
     data, noise = null_logs[0], _injected()
     fit = calibrate(data, BASELINE, noise=noise)
@@ -168,15 +175,7 @@ def test_calibrate_solves_on_r_as_on_the_whitened_rows(null_logs, monkeypatch):
     assert np.all(np.abs(fit.covariance - cov) <= 1e-9 * np.outer(sigma, sigma))
     np.testing.assert_allclose(rows["residual"], y - H @ sol, rtol=0, atol=1e-9 * np.abs(y).max())
 
-    spilled = []
-    real = lsq.chunked_design
-
-    def on_disk(*a, **k):
-        out = real(*a, **dict(k, spill=True))
-        spilled.append(is_spilled(out[1]))
-        return out
-
-    monkeypatch.setattr(lsq, "chunked_design", on_disk)
+    spilled = _rows_on_disk(lsq, monkeypatch)
     monkeypatch.setattr(whitening, "PIECE_ROWS", 97)
     got = calibrate(data, BASELINE, noise=noise)
     assert spilled and all(spilled)

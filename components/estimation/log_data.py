@@ -185,6 +185,11 @@ class LogData:
         return motion_from_profile(self.angle_profile(quadrature), geometry, self.temperature,
                                    t0_temperature, time_origin=self.time_origin)
 
+    def times_at(self, index: np.ndarray) -> np.ndarray:
+        """time[index]; for a spilled log a piece of it at a time, each piece's pages given back
+        (components.logs.spill.gathered)."""
+        return gathered(self.time, index)
+
     def release(self) -> None:
         """Give back the pages of spilled sensor columns a pass has touched (components.logs.spill;
         nothing for a log in memory)."""

@@ -143,15 +143,22 @@ def _software() -> dict:
             "scipy": scipy.__version__}
 
 
-def schedule_of(time: np.ndarray, segment) -> list:
+def schedule_of(time: np.ndarray, segment, take=None) -> list:
     """[(label, t_start, t_end)] runs of equal segment labels (t_start = start of the first
     sample's interval); *segment*: the log's labels as runs (components.logs.labels.SegmentLabels)
-    or None."""
+    or None. ``take(index)``: time[index], read another way (a spilled log's times a piece at a
+    time: components.estimation.log_data.LogData.times_at)."""
     if segment is None or len(segment) == 0:
         return []
-    dt0 = time[1] - time[0] if len(time) > 1 else 0.0
-    return [[str(label), float(time[a] - (time[a] - time[a - 1] if a else dt0)), float(time[b - 1])]
-            for a, b, label in segment.runs()]
+    runs = list(segment.runs())
+    a = np.array([r[0] for r in runs], np.int64)
+    b = np.array([r[1] for r in runs], np.int64)
+    at = (take or (lambda i: np.asarray(time)[i]))(np.concatenate([[0, min(1, len(time) - 1)], a, np.maximum(a - 1, 0), b - 1]))
+    dt0 = at[1] - at[0] if len(time) > 1 else 0.0
+    k = len(runs)
+    start, before, end = at[2:2 + k], at[2 + k:2 + 2 * k], at[2 + 2 * k:]
+    return [[str(label), float(start[i] - (start[i] - before[i] if a[i] else dt0)), float(end[i])]
+            for i, (_, _, label) in enumerate(runs)]
 
 
 def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResult:
@@ -194,11 +201,9 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
             f = stem.with_suffix(suffix)
             if f.exists():
                 data_d[f"{suffix[1:]}_sha256"] = file_sha256(f)
-    schedule = schedule_of(data.time, data.segment)
-    if hasattr(data, "release"):
-        # a spilled log's times, read at each run's ends: every read of a mapped file brings the
-        # pages around it along (768 runs of the 8-hour log: 220 MB resident), give them back
-        data.release()
+    # (a spilled log's times read a piece at a time: each read of a mapped file brings the pages
+    # around it along, 768 runs of the 8-hour log 220 MB resident)
+    schedule = schedule_of(data.time, data.segment, take=getattr(data, "times_at", None))
     return CalibrationResult(
         effects=list(effects), values=dict(zip(fit.parameters, map(float, fit.value))),
         sigmas=dict(zip(fit.parameters, map(float, fit.sigma))), correlation=fit.correlation(),
