@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.logs.spill import pieces
+from components.logs.spill import gathered, pieces
 
 DIRECT_BELOW = 1 << 17   # shorter arrays: np.median directly (the bracket would not pay)
 SAMPLE = 1 << 14         # values in the strided sample that places the bracket
@@ -39,7 +39,10 @@ def median(values: np.ndarray, *, overwrite_input: bool = False) -> float:
         return float(np.median(d, overwrite_input=overwrite_input))
     # a piece at a time: a spilled array's pages go back after each (components.logs.spill; its
     # pages are *values*'s mapping: np.asarray makes a plain array of it, whose pages none gives back)
-    return median_of_pieces(lambda: (d[s] for s in pieces(n, values)), n, d[::stride(n)])
+    # (and the bracket's sample a piece at a time too: every stride-th value of a spilled column
+    # is on every page of it, 240 MB faulted in on an 8-hour log)
+    sample = gathered(values, np.arange(0, n, stride(n))) if np.ndim(values) == 1 else d[::stride(n)]
+    return median_of_pieces(lambda: (d[s] for s in pieces(n, values)), n, sample)
 
 
 def median_of_pieces(pieces, n: int, sample: np.ndarray) -> float:
