@@ -8,6 +8,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from components.estimation.log_data import LogData
@@ -232,8 +233,6 @@ def test_a_long_logs_residual_plot_stays_a_page_not_a_megabyte_per_thousand_poin
     vector marks (one per point)."""
     from types import SimpleNamespace
 
-    import numpy as np
-
     from components.diagnosis.report_plots import DENSE_POINTS, residual_vs_time
 
     def plot(blocks):
@@ -287,3 +286,37 @@ def test_report_writes_the_page_it_was_given(conformance, tmp_path, given, page)
     written = sorted(p.name for p in tmp_path.iterdir() if p.suffix in (".html", ".json") and p.name != "m.json")
     assert written == [f"{page}.html", f"{page}.json"]
     assert json.loads((tmp_path / f"{page}.json").read_text())["comparison"]
+
+
+def test_block_residuals_file_gives_each_blocks_first_and_last_time(tmp_path):
+    """compare --block-residuals: a row per block and channel whose t_start and t_stop are the
+    times of the block's first and last samples, the same from a spilled time column (read a
+    piece at a time) as from one in memory."""
+    from types import SimpleNamespace
+
+    from components.diagnosis.residual_export import write_block_residuals
+    from components.logs import spill
+    from components.logs.labels import SegmentLabels
+
+    rng = np.random.default_rng(9)
+    n, blocks = 50_000, 400
+    time = 3.0 + np.cumsum(rng.uniform(0.9e-3, 1.1e-3, n))
+    start = np.sort(rng.choice(n - 10, blocks, replace=False))
+    stop = np.minimum(start + rng.integers(1, 200, blocks), n + 5)  # (a stop past the end: the last sample)
+    rows = {"channel": rng.integers(0, 6, blocks), "start": start, "stop": stop, "moving": rng.random(blocks) < 0.3,
+            "z": rng.standard_normal(blocks)}
+    seg = SegmentLabels(np.array([0, n // 2]), np.array([0, 1]), ["a", "b"], n)
+    on_disk = spill.spilled_array((n,))
+    on_disk[:] = time
+    files = []
+    for t in (time, on_disk):
+        path = tmp_path / f"blocks{len(files)}.csv"
+        write_block_residuals(str(path), SimpleNamespace(rows=rows, time=t, segment=seg, misfits=None))
+        files.append(path.read_text())
+    assert files[0] == files[1]
+    lines = files[0].splitlines()
+    assert lines[0].startswith("t_start,t_stop,segment,channel")
+    got = np.array([[float(x) for x in line.split(",")[:2]] for line in lines[1:]])
+    order = np.lexsort((rows["channel"], rows["start"]))
+    assert np.array_equal(got[:, 0], time[start[order]])
+    assert np.array_equal(got[:, 1], time[np.minimum(stop[order], n) - 1])

@@ -6,6 +6,7 @@ import io
 import numpy as np
 
 from components.diagnosis.misfit import CHANNELS
+from components.logs.spill import gathered
 
 # scatter plots with more points than this draw them as one embedded image in the SVG: each point
 # as a vector element was ~110 bytes, and an 8-hour log's page came to 78 MB
@@ -78,17 +79,21 @@ def residual_vs_time(comparison, model_name: str) -> str:
     if comparison.segment is not None:
         seg = comparison.segment
         bounds = np.append(seg.starts, len(seg))
+    # the times at the blocks' middles and the segments' ends, a piece of a spilled log's column
+    # at a time (read through its mapping, each brings the pages around it along: the column)
+    mid = gathered(t, np.minimum((rows["start"] + rows["stop"]) // 2, len(t) - 1))
+    ends = gathered(t, np.concatenate([bounds[:-1], bounds[1:] - 1])) if bounds is not None else None
     for k, ax in enumerate(axes):
         sel = rows["channel"] == k
-        tm = t[np.minimum((rows["start"][sel] + rows["stop"][sel]) // 2, len(t) - 1)]
+        tm = mid[sel]
         ax.plot(tm, rows["z"][sel], ".", ms=2, color="C0" if k < 3 else "C1", rasterized=len(tm) > DENSE_POINTS)
         ax.axhline(3, color="grey", lw=0.5)
         ax.axhline(-3, color="grey", lw=0.5)
         ax.set_ylabel(CHANNELS[k], fontsize=8)
         if bounds is not None:
-            for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
-                if i % 2:
-                    ax.axvspan(t[a], t[b - 1], color="0.92", lw=0)
+            runs = len(bounds) - 1
+            for i in range(1, runs, 2):
+                ax.axvspan(ends[i], ends[runs + i], color="0.92", lw=0)
     axes[0].set_title(f"{model_name}: normalised block residual against time (segments shaded alternately; "
                       "±3 = noise bound)", fontsize=9)
     axes[-1].set_xlabel("time [s]")

@@ -19,6 +19,7 @@ import itertools
 import numpy as np
 
 from components.diagnosis.misfit import CHANNELS
+from components.logs.spill import gathered
 
 
 def write_residuals(path: str, log, comparison) -> None:
@@ -45,7 +46,11 @@ def write_block_residuals(path: str, comparison) -> None:
     """One row per block and channel: its time span, segment, whether it is a move, the
     normalised residual z, and whether its segment × channel cell misfits beyond noise."""
     rows = comparison.rows
-    t = np.asarray(comparison.time, dtype=float)
+    # the blocks' first and last times, a piece of a spilled log's column at a time
+    # (components.logs.spill.gathered; through the mapping each read brings the pages around it)
+    n = len(comparison.time)
+    t_start = np.asarray(gathered(comparison.time, rows["start"]), dtype=float)
+    t_stop = np.asarray(gathered(comparison.time, np.minimum(rows["stop"], n) - 1), dtype=float)
     seg = (comparison.segment[rows["start"]].astype(str) if comparison.segment is not None
            else np.full(len(rows["z"]), ""))
     mis = comparison.misfits
@@ -55,6 +60,5 @@ def write_block_residuals(path: str, comparison) -> None:
         f.write("t_start,t_stop,segment,channel,moving,z,segment_channel_flagged\n")
         for i in order:
             ch = CHANNELS[int(rows["channel"][i])]
-            stop = t[min(int(rows["stop"][i]), len(t)) - 1]
-            f.write(f"{float(t[rows['start'][i]])!r},{float(stop)!r},{seg[i]},{ch},{int(bool(rows['moving'][i]))},"
+            f.write(f"{float(t_start[i])!r},{float(t_stop[i])!r},{seg[i]},{ch},{int(bool(rows['moving'][i]))},"
                     f"{float(rows['z'][i])!r},{int((seg[i], ch) in flagged)}\n")
