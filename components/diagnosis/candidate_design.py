@@ -22,7 +22,7 @@ from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
 from components.estimation.stacked_qr import scaled_lstsq
 from components.estimation.whitening import whitened_pieces, whitened_r
-from components.logs.spill import is_spilled, product
+from components.logs.spill import product
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.plausibility import grade_factor
@@ -71,10 +71,9 @@ class CandidateDesign:
             sg, sa = np.where(white[:3] > 0, white[:3], sg), np.where(white[3:] > 0, white[3:], sa)
         sg, sa = noise_floor(sg, GYRO_SCALE * dt), noise_floor(sa, ACC_SCALE * dt)
         rest = rest_sigma(data.angles, rest_angle_sigma, data.encoder_resolution)
-        # a log long enough to have its samples spilled has its rows spilled too (every candidate's
-        # columns: ~0.4 GB on an 8-hour log)
-        y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0,
-                                       spill=is_spilled(data.gyro))
+        # (a long log's rows are spilled, as its samples are: every candidate's columns, ~0.4 GB
+        # on an 8-hour log)
+        y, H, w, rows = chunked_design(data, layout, params, sg, sa, rest, geo, table_params, T0)
         span = float(data.time[-1] - data.time[0] + dt)
         # table columns are derivatives at the model's geometry: the model's table values are
         # already in the motion, so their unknowns here are corrections (start at 0)

@@ -263,12 +263,13 @@ def _on_cluster(address: str, work, chunks, data: LogData):
 
 
 def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo, table_params,
-                   t0_temperature, quadrature: int = 3, lin=None, spill: bool = False):
+                   t0_temperature, quadrature: int = 3, lin=None, spill: bool | None = None):
     """components.estimation.design.design on the whole log, built a chunk at a time: the same
     y, H, weights and row information (indices into the whole log). Each chunk's rows go into
     their place as they come (the whole log's order: every gyro row, then every accelerometer
     row), so only one chunk's rows are held beside the whole; ``spill``: H is a spilled array
-    (components.logs.spill), written through its file, so not even the whole is in memory."""
+    (components.logs.spill), written through its file, so not even the whole is in memory; by
+    default when the log's samples are spilled (a long log: every estimator's rows alike)."""
     if t0_temperature is None and data.temperature is not None:
         t0_temperature = float(data.temperature[0])  # the whole log's, not each chunk's
     def rows_of(chunk: Chunk):
@@ -279,6 +280,8 @@ def chunked_design(data: LogData, layout: BlockLayout, params, sg, sa, rest, geo
 
     n_gyro = 3 * len(layout.gyro)
     n = n_gyro + 3 * len(layout.acc)
+    if spill is None:
+        spill = is_spilled(data.gyro)
     H = spilled_array((n, len(params))) if spill else np.empty((n, len(params)))
     rows: dict = {}
     at = [0, n_gyro]  # where the next chunk's gyro and accelerometer rows go

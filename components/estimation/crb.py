@@ -16,7 +16,7 @@ from components.estimation.chunks import BlockLayout, chunked_design
 from components.estimation.determinability import assess
 from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma
-from components.estimation.whitening import whiten
+from components.estimation.whitening import whitened_r
 from components.model.effects import effect_of, parameters_of
 from components.model.noise import NoiseModel
 
@@ -36,7 +36,8 @@ def cramer_rao(data: LogData, effects: list[str], noise: NoiseModel, chunk_s: fl
     # chunk of the schedule at a time like the estimators' (components.estimation.chunks)
     y, H, w, rows = chunked_design(data, BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s)), params, sg, sa, q, geo, table_params, None)
     span = data.time[-1] - data.time[0] + dt
-    _, Hw, _ = whiten(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)
+    # the whitened rows' R (their Gram matrix, a piece of rows at a time: whitening.whitened_r)
+    Hw = whitened_r(y, H, rows, 1.0 / w**2, noise, dt, span, chunk_s)[:, :-1]
     # a parameter the schedule does not determine has no bound: inf, never the min-norm σ of a
     # pseudo-inverse (which reads as a confident number)
     det = assess(Hw, params)

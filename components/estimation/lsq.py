@@ -24,7 +24,7 @@ from components.estimation.log_data import LogData
 from components.estimation.rest_angles import encoder_quantum, rest_sigma, rest_variance
 from components.estimation.stacked_qr import scaled_lstsq
 from components.estimation.whitening import whitened_r
-from components.logs.spill import is_spilled, product
+from components.logs.spill import product
 from components.model.effects import TIME_OFFSETS, effect_of, parameters_of
 from components.model.excitation import needs
 from components.model.geometry import TableGeometry
@@ -116,12 +116,8 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     layout = BlockLayout.of(data, samples_per_block(data.sample_interval, chunk_s), chunk_samples)
     gb = layout.gyro
 
-    # a log long enough to have its samples spilled has its rows spilled too (components.logs.spill)
-    spill = is_spilled(data.gyro)
-
     def rows_at(g: TableGeometry, lin=None):
-        return chunked_design(data, layout, params, sg, sa, q, g, table_params, temperature_ref, quadrature, lin,
-                              spill=spill)
+        return chunked_design(data, layout, params, sg, sa, q, g, table_params, temperature_ref, quadrature, lin)
     white = noise.white_sigma(dt_mean) if noise is not None else np.zeros(6)
     span = float(data.time[-1] - data.time[0] + dt_mean) if len(data.time) else 0.0
 
