@@ -82,7 +82,8 @@ def residual_vs_time(comparison, model_name: str) -> str:
     # the times at the blocks' middles and the segments' ends, a piece of a spilled log's column
     # at a time (read through its mapping, each brings the pages around it along: the column)
     mid = gathered(t, np.minimum((rows["start"] + rows["stop"]) // 2, len(t) - 1))
-    ends = gathered(t, np.concatenate([bounds[:-1], bounds[1:] - 1])) if bounds is not None else None
+    if bounds is not None:
+        first, last = gathered(t, bounds[:-1]), gathered(t, bounds[1:] - 1)
     for k, ax in enumerate(axes):
         sel = rows["channel"] == k
         tm = mid[sel]
@@ -91,9 +92,8 @@ def residual_vs_time(comparison, model_name: str) -> str:
         ax.axhline(-3, color="grey", lw=0.5)
         ax.set_ylabel(CHANNELS[k], fontsize=8)
         if bounds is not None:
-            runs = len(bounds) - 1
-            for i in range(1, runs, 2):
-                ax.axvspan(ends[i], ends[runs + i], color="0.92", lw=0)
+            for i in range(1, len(first), 2):
+                ax.axvspan(first[i], last[i], color="0.92", lw=0)
     axes[0].set_title(f"{model_name}: normalised block residual against time (segments shaded alternately; "
                       "±3 = noise bound)", fontsize=9)
     axes[-1].set_xlabel("time [s]")

@@ -152,12 +152,15 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
             g, j = place[name]
             stacked[g][:, j] = col.cast(pa.float64()).to_numpy()
             cols[name] = stacked[g][:, j]
-        elif name in numeric:
-            cols[name] = col.cast(pa.float64()).to_numpy()
-        elif name == "segment":
-            cols[name] = labels(col)
         else:
-            cols[name] = col.to_numpy()
+            cols[name] = light(name, col)
+
+    def light(name, col):
+        """A column outside the sensor groups as calbench holds it: numbers as float64, the
+        segment labels as runs, anything else as it is."""
+        if name in numeric:
+            return col.cast(pa.float64()).to_numpy()
+        return labels(col) if name == "segment" else col.to_numpy()
 
     def put_by_row_group(name):
         """A light column of a spilled log a row group at a time: the segment labels as each
@@ -166,8 +169,7 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
         parts, row = [], 0
         for i in range(pf.num_row_groups):
             col = checked(name, _read_columns(pf, [name], path, i).column(0), row)
-            parts.append(labels(col) if name == "segment" else
-                         col.cast(pa.float64()).to_numpy() if name in numeric else col.to_numpy())
+            parts.append(light(name, col))
             row += len(col)
         cols[name] = SegmentLabels.concatenate(parts) if name == "segment" else np.concatenate(parts)
 

@@ -153,11 +153,10 @@ def schedule_of(time: np.ndarray, segment, take=None) -> list:
     runs = list(segment.runs())
     a = np.array([r[0] for r in runs], np.int64)
     b = np.array([r[1] for r in runs], np.int64)
-    at = (take or (lambda i: np.asarray(time)[i]))(np.concatenate([[0, min(1, len(time) - 1)], a, np.maximum(a - 1, 0), b - 1]))
-    dt0 = at[1] - at[0] if len(time) > 1 else 0.0
-    k = len(runs)
-    start, before, end = at[2:2 + k], at[2 + k:2 + 2 * k], at[2 + 2 * k:]
-    return [[str(label), float(start[i] - (start[i] - before[i] if a[i] else dt0)), float(end[i])]
+    take = take or (lambda i: np.asarray(time)[i])
+    first, before, last = take(a), take(np.maximum(a - 1, 0)), take(b - 1)
+    dt0 = np.diff(take(np.arange(2)))[0] if len(time) > 1 else 0.0
+    return [[str(label), float(first[i] - (first[i] - before[i] if a[i] else dt0)), float(last[i])]
             for i, (_, _, label) in enumerate(runs)]
 
 
