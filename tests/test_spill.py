@@ -4,6 +4,7 @@ diagnosis it gives in memory (issue #18: results equal to the in-memory ones).""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import errno
 import os
 import sys
@@ -509,3 +510,51 @@ def test_a_results_schedule_reads_a_spilled_time_column_a_piece_at_a_time(monkey
     assert got == schedule_of(times, seg)
     assert got[0][1] == 0.25 - 1e-3 and got[-1][2] == times[-1]
     assert _resident_bytes(t) <= 2 * PIECE * 8
+
+
+def test_a_spilled_logs_static_mask_is_on_disk_and_the_in_memory_one(pair):
+    """The static mask of a spilled log (a byte a sample, the most of what a long log's command
+    kept in memory) goes to disk beside its columns, as do its rest samples that are usable; both
+    are the masks of the log in memory."""
+    memory, spilled = pair
+    assert spill.is_spilled(spilled.static) and not spill.is_spilled(memory.static)
+    assert np.array_equal(memory.static, spilled.static)
+    # the demo's log has no left-out sample: leave some out, as a mask or a gap would
+    valid = np.ones(len(memory.time), bool)
+    valid[::7] = False
+    masked = [dataclasses.replace(d, valid=valid) for d in pair]
+    want = np.asarray(memory.static) & valid
+    assert spill.is_spilled(masked[1].static_usable) and not spill.is_spilled(masked[0].static_usable)
+    assert np.array_equal(masked[0].static_usable, want) and np.array_equal(masked[1].static_usable, want)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/smaps")
+def test_the_static_mask_and_the_white_level_give_a_spilled_masks_pages_back():
+    """A long log's static mask is made a piece at a time into its file, and the white level's
+    pass over the rest pairs reads it a piece at a time: after each, at most about a piece of the
+    mask is resident (before, the mask was in memory whole, and the pairs at rest were a second
+    whole mask beside it)."""
+    from components.estimation.blocks import white_noise_sigma
+    from components.logs.spill import PIECE, release, spilled_array, write_rows
+    from components.model.geometry import Stage, TableGeometry
+
+    n = 16 * PIECE
+    rng = np.random.default_rng(5)
+    angles = spilled_array((n, 1))
+    # rests of 100 000 samples, moves of 5 000 between them
+    write_rows(angles, 0, (np.floor(np.arange(n) / 105_000) + np.clip(np.arange(n) % 105_000 - 100_000, 0, None)
+                           / 5000.0)[:, None])
+    gyro = spilled_array((n, 3))
+    write_rows(gyro, 0, rng.normal(0, 1e-6, (n, 3)))
+    release(angles, gyro)
+    data = LogData(time=np.arange(n) * 1e-3, angles=angles, gyro=gyro, acc=gyro,
+                   geometry=TableGeometry((Stage("inner", (0.0, 0.0, 1.0)),), latitude=0.7))
+    st = data.static
+    assert spill.is_spilled(st) and _resident_bytes(st) <= 2 * PIECE, _resident_bytes(st)
+    a = np.asarray(angles)[:, 0]
+    assert np.array_equal(st, np.concatenate([[True], a[1:] == a[:-1]]))
+    release(st)
+    sigma = white_noise_sigma(gyro, st)
+    assert _resident_bytes(st) <= 2 * PIECE, _resident_bytes(st)
+    # and it is the white level: the rest pairs' differences have σ √2 (a MAD, 1 % at this size)
+    assert np.allclose(sigma, 1e-6, rtol=0.01)

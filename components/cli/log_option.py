@@ -70,7 +70,9 @@ def describe(data) -> list[str]:
     """What the log leaves out, by reason (one line), or nothing."""
     if not data.left_out:
         return []
-    n = int((~data.usable).sum())
+    import numpy as np
+
+    n = len(data.time) - int(np.count_nonzero(data.usable))
     parts, kinds = [], []
     for k, v in data.left_out.items():
         if k.endswith("(kind excluded)"):

@@ -43,7 +43,7 @@ from components.estimation.log_data import LogData
 from components.estimation.rest_angles import rest_sigma, rest_variance
 from components.estimation.whitening import whiten
 from components.logs.labels import SegmentLabels
-from components.logs.spill import empty_like_log, gathered, pieces, release
+from components.logs.spill import both, empty_like_log, gathered, pieces, release
 from components.model.effects import effect_of
 from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
@@ -84,8 +84,7 @@ class Comparison:
     @property
     def static_usable(self) -> np.ndarray:
         """(N,) at rest and usable: the samples a per-sample noise statistic may read."""
-        st = np.asarray(self.static, bool)
-        return st if self.usable is None else st & self.usable
+        return both(self.static, self.usable)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -167,7 +166,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     for s in pieces(len(resid), resid, pred, data.gyro, data.acc):
         np.subtract(data.gyro[s], pred[s, :3], out=resid[s, :3])
         np.subtract(data.acc[s], pred[s, 3:], out=resid[s, 3:])
-    sigma = white_noise_sigma(resid, plate.static & data.usable, data.quantization_floor(noise))
+    sigma = white_noise_sigma(resid, both(plate.static, data.valid), data.quantization_floor(noise))
     dt = order_statistics.median(plate.dt)
     release(plate.dt)  # a spilled log's: its pages back (the plate's columns, 56 bytes a sample)
     # a channel without noise (a simulation that injected none, a conformance vector): its

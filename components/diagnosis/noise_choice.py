@@ -207,7 +207,7 @@ def white_noise_model(data) -> tuple[NoiseModel | None, str]:
     from components.estimation.allan import first_runs, pooled_allan, static_runs
     from components.estimation.noise_fit import white_beside_quantization, white_ceiling
 
-    use = data.static & data.usable
+    use = data.static_usable
     runs = first_runs(static_runs(use), ALLAN_SAMPLES)
     if not runs:
         raise UserError("--noise white: this log of pulse counts has no static run of 8 samples or more, so no "

@@ -18,6 +18,8 @@ import allantools
 import numpy as np
 from scipy import stats
 
+from components.model.mask_runs import runs
+
 # allantools' noise exponent α of the rate ("frequency") data per composite term
 ALPHA = {"quantization": 2, "white": 0, "bias_instability": -1, "random_walk": -2}
 
@@ -46,11 +48,7 @@ class AllanVariance:
 
 def static_runs(static: np.ndarray, min_samples: int = 8) -> list[tuple[int, int]]:
     """[a, b) index ranges of consecutive static samples, at least *min_samples* long."""
-    s = np.concatenate([[False], np.asarray(static, bool), [False]])
-    # (where the mask changes, compared as booleans: its difference as integers was two arrays of
-    # 8 bytes a sample, 0.5 GB on an 8-hour 1 kHz log)
-    edges = np.flatnonzero(s[1:] != s[:-1])
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_samples]
+    return [(int(a), int(b)) for a, b in zip(*runs(static)) if b - a >= min_samples]
 
 
 def first_runs(runs: list[tuple[int, int]], samples: int) -> list[tuple[int, int]]:

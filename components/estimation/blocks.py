@@ -241,11 +241,17 @@ def samples_per_block(dt: float, block_s: float) -> int:
     return max(1, int(round(block_s / dt)))
 
 
-def _static_differences(x: np.ndarray, both: np.ndarray, centre: float | None = None):
-    """The differences x[k+1] - x[k] where *both* (the pairs within static runs), a piece at a
-    time; with *centre*, their absolute deviations from it."""
-    for s in pieces(len(both), x):
-        v = np.diff(x[s.start:s.stop + 1])[both[s]]
+def _pairs_at_rest(static: np.ndarray, s: slice) -> np.ndarray:
+    """Of the pairs (k, k+1) for k in *s*, which have both samples static: made a piece at a
+    time (the whole log's was a byte a sample beside the mask)."""
+    return static[s.start + 1:s.stop + 1] & static[s.start:s.stop]
+
+
+def _static_differences(x: np.ndarray, static: np.ndarray, centre: float | None = None):
+    """The differences x[k+1] - x[k] of the pairs within static runs, a piece at a time; with
+    *centre*, their absolute deviations from it."""
+    for s in pieces(len(static) - 1, x, static):
+        v = np.diff(x[s.start:s.stop + 1])[_pairs_at_rest(static, s)]
         yield v if centre is None else np.abs(v - centre)
 
 
@@ -255,26 +261,25 @@ def white_noise_sigma(increments: np.ndarray, static: np.ndarray, floor=None) ->
     Returns (channels,). Falls back to NaN where there is no static pair. ``floor`` (channels,):
     the least σ a channel has whatever its scatter (a pulse output's quantization,
     LogData.quantization_floor: counts whose differences are mostly 0 collapse the scatter)."""
-    both = static[1:] & static[:-1]
-    if np.count_nonzero(both) < 2:
-        return np.full(increments.shape[1], np.nan)
+    pairs = max(len(static) - 1, 0)
     # a robust scale (median absolute deviation) so that a few steps at a run edge do not count;
     # a channel at a time and a piece at a time: a long log's differences are never made whole
     # (240 MB a channel on an 8-hour log), only those near their medians are kept
-    pairs = len(both)
-    m = int(np.count_nonzero(both))
+    m = sum(int(np.count_nonzero(_pairs_at_rest(static, s))) for s in pieces(pairs, static))
+    if m < 2:
+        return np.full(increments.shape[1], np.nan)
     # the bracketing sample: the differences at every stride-th static pair
     step, at, seen = order_statistics.stride(m), [], 0
-    for s in pieces(pairs):
-        idx = np.flatnonzero(both[s])
+    for s in pieces(pairs, static):
+        idx = np.flatnonzero(_pairs_at_rest(static, s))
         at.append(idx[(-seen) % step::step] + s.start)
         seen += len(idx)
     at = np.concatenate(at)
     mad = np.empty(increments.shape[1])
     for k in range(increments.shape[1]):
         sample = gathered(increments[:, k], at + 1) - gathered(increments[:, k], at)
-        med = order_statistics.median_of_pieces(partial(_static_differences, increments[:, k], both), m, sample)
-        mad[k] = order_statistics.median_of_pieces(partial(_static_differences, increments[:, k], both, med), m,
+        med = order_statistics.median_of_pieces(partial(_static_differences, increments[:, k], static), m, sample)
+        mad[k] = order_statistics.median_of_pieces(partial(_static_differences, increments[:, k], static, med), m,
                                                    np.abs(sample - med))
     sigma = 1.4826 * mad / np.sqrt(2)
     return sigma if floor is None else np.maximum(sigma, floor)

@@ -9,8 +9,9 @@ import numpy as np
 
 from components.estimation import order_statistics
 from components.estimation.rest_angles import encoder_quantum
+from components.logs import spill
 from components.logs.labels import SegmentLabels
-from components.logs.spill import gathered, pieces, release
+from components.logs.spill import both, empty_like_log, gathered, pieces, release
 from components.model.approach import run_sides
 from components.model.geometry import Stage, TableGeometry
 from components.model.motion import Motion, interpolate_angles, motion_from_profile, same_as_before
@@ -126,7 +127,14 @@ class LogData:
     @property
     def usable(self) -> np.ndarray:
         """(N,) bool: the samples that enter estimates."""
-        return np.ones(len(self.time), bool) if self.valid is None else self.valid
+        # (every sample: one True seen N times, not N bytes made at each call)
+        return np.broadcast_to(np.True_, (len(self.time),)) if self.valid is None else self.valid
+
+    @property
+    def static_usable(self) -> np.ndarray:
+        """(N,) bool: at rest and usable, the samples a per-sample noise statistic reads (on disk
+        for a spilled log, as the static mask)."""
+        return both(self.static, self.valid)
 
     def white_sigma_at_rest(self, sensor: str) -> np.ndarray:
         """The data's per-sample white σ (3,) of the gyro or accelerometer increments over the
@@ -136,7 +144,7 @@ class LogData:
             from components.estimation.blocks import white_noise_sigma
 
             increments = {"gyro": self.gyro, "acc": self.acc}[sensor]
-            sigma = white_noise_sigma(increments, self.static & self.usable)
+            sigma = white_noise_sigma(increments, self.static_usable)
             sigma.setflags(write=False)
             self._rest_white[sensor] = sigma
         return self._rest_white[sensor]
@@ -162,11 +170,13 @@ class LogData:
                 rests = [lab for lab, d in (kinds or {}).items() if d["kind"] == "static"]
                 st = self.segment.isin(rests) if rests else np.ones(len(self.time), bool)
             else:
-                # a piece at a time: a spilled log's angles are not brought into memory whole
+                # a piece at a time: a spilled log's angles are not brought into memory whole; and
+                # on disk beside them (a byte a sample: the most of what a long log's command kept)
                 a = self.angles
-                st = np.empty(len(a), bool)
-                st[0] = True
-                for s in pieces(len(a) - 1, a):
+                # (a chunk's window keeps its own in memory: a file each would cost more than it saves)
+                st = empty_like_log(len(a), a, bool) if len(a) > spill.PIECE else np.empty(len(a), bool)
+                st[:1] = True
+                for s in pieces(len(a) - 1, a, st):
                     same_as_before(a[s.start:s.stop + 1], out=st[s.start + 1:s.stop + 1])
             st.setflags(write=False)
             self._static = st
@@ -193,7 +203,7 @@ class LogData:
     def release(self) -> None:
         """Give back the pages of spilled sensor columns a pass has touched (components.logs.spill;
         nothing for a log in memory)."""
-        release(self.time, self.angles, self.gyro, self.acc, self.temperature)
+        release(self.time, self.angles, self.gyro, self.acc, self.temperature, self._static, self.valid)
 
     def stretch(self, a: int, b: int) -> "LogData":
         """Samples a-1..b-1 of the log as a log of their own that computes exactly what the whole

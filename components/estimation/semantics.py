@@ -103,7 +103,7 @@ def _handedness(data, log) -> list[str]:
     attitude is free) to a χ²/dof of thousands and a 'missing' g-sensitivity."""
     from components.estimation.allan import static_runs
 
-    use = data.static & data.usable
+    use = data.static_usable
     rests = static_runs(use, 10)
     if len(rests) < MIN_RESTS:
         return []

@@ -160,3 +160,17 @@ def gathered(array: np.ndarray, index: np.ndarray, columns=None) -> np.ndarray:
 def empty_like_log(shape, like, dtype=np.float64) -> np.ndarray:
     """An empty array of *shape*: spilled when *like* (a column of the log) is."""
     return spilled_array(shape, dtype) if is_spilled(like) else np.empty(shape, dtype)
+
+
+def both(mask: np.ndarray, other: np.ndarray | None) -> np.ndarray:
+    """mask & other (*other* None: *mask* itself); for a spilled *mask*, a spilled result made a
+    piece at a time, so neither it nor its operands are resident whole."""
+    if other is None:
+        return mask
+    if not is_spilled(mask):
+        return mask & other
+    out = spilled_array(len(mask), bool)
+    for s in pieces(len(mask), mask, other, out):
+        np.logical_and(mask[s], other[s], out=out[s])
+    out.setflags(write=False)
+    return out

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from components.model.mask_runs import runs
+
 
 def moving_runs(static: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) index ranges of consecutive non-static intervals."""
-    padded = np.zeros(len(static) + 2, np.int8)  # int8 throughout: a list's 0 made it int64
-    padded[1:-1] = ~np.asarray(static, bool)
-    edges = np.diff(padded)
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+    return list(zip(*runs(static, value=False)))
 
 
 def run_sides(measured: np.ndarray, static: np.ndarray, side0: np.ndarray, band: np.ndarray, after_run=None):
