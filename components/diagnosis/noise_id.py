@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from components import progress
+from components.diagnosis.noise_axes import unlike_axes
 from components.estimation.allan import first_runs, static_runs
 from components.estimation.chunks import forked_map
 from components.estimation.log_data import LogData
@@ -361,7 +362,6 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     "than a sample's noise hide it)" + ("" if rows is not None else ": the slow terms were not "
                     "estimated") + ", and σ that rest on it may be too small; give the noise with --noise (a "
                     "datasheet's terms, a grade or a noise file)")
-    notes += said
     sig, iv = {}, {}
     for k, c in enumerate(out_channels):
         for t in c.present:
@@ -372,6 +372,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     iv[name] = c.slow[t]["interval"]
                 elif t == "white" and k in white_interval:
                     iv[name] = white_interval[k]
+    said += unlike_axes(out_channels, iv)
+    notes += said
     model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
     return NoiseIdentification(model_out, out_channels, len(runs), notes, "; ".join(said) or None)
 
