@@ -26,6 +26,7 @@ at each repetition's first sample (every ~42 minutes), the one way this file dif
 single run.
 
     python benchmarks/long_log.py [--dir DIR] [--dwell 88] [--rate 200] [--hours 8]
+    python benchmarks/long_log.py --growth SHORT.parquet LONG.parquet   (the peak's growth per sample)
 """
 from __future__ import annotations
 
@@ -226,6 +227,36 @@ def measure(args: list[str], env: dict | None = None) -> tuple[float, float, flo
     return usage.ru_utime + usage.ru_stime, wall, usage.ru_maxrss / 1024**2, peak_pss[0] / 1024**3
 
 
+def growth(short: Path, long: Path, out: Path) -> int:
+    """Issue #18 item 1, memory bounded by the chunk and the parameters, not by the log: the peak
+    resident set of calibrate, compare and diagnose on two logs of the same kind and different
+    lengths (e.g. 2 and 4 hours of the thermal run), each command on one worker (a forked worker's
+    pages are its parent's: one process is the whole figure), and what the peak grows by per
+    sample of the longer log, against the log's own float64 sensor columns (time, gyro, acc: 56
+    bytes a sample), which is what a command holding the log in memory would grow by at least."""
+    import pyarrow.parquet as pq
+
+    env = {**_cached_bytecode(), "CALBENCH_WORKERS": "1"}
+    n = {log: pq.ParquetFile(log).metadata.num_rows for log in (short, long)}
+    print(f"logs: {short} ({n[short]} samples), {long} ({n[long]} samples); one worker")
+    peaks = {}
+    for log in (short, long):
+        model = out / f"{log.stem}-{n[log]}.json"
+        subprocess.run([sys.executable, "-m", "components.cli", "calibrate", str(log), "--out", str(model)],
+                       cwd=ROOT, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        for name, args in (("calibrate", ["calibrate", str(log), "--out", str(out / "again.json")]),
+                           ("compare", ["compare", str(log), "--model", str(model)]),
+                           ("diagnose", ["diagnose", str(log), "--model", str(model)])):
+            peaks[name, log] = measure(args, env)[2]
+    print(f"{'command':10s} {'peak GB':>9s} {'peak GB':>9s} {'B/sample':>9s}   against the log's float64 columns (56 B/sample)")
+    for name in ("calibrate", "compare", "diagnose"):
+        a, b = peaks[name, short], peaks[name, long]
+        per = (b - a) * 1024**3 / (n[long] - n[short])
+        print(f"{name:10s} {a:9.3f} {b:9.3f} {per:9.2f}   {per / 56:.3f}x")
+    print(f"cpus {os.cpu_count()}, load average (1 min) {os.getloadavg()[0]:.2f}")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", type=Path, help="where the log is written (default: a temporary directory)")
@@ -238,7 +269,12 @@ def main() -> int:
     ap.add_argument("--only-counts", nargs=4, help=argparse.SUPPRESS)
     ap.add_argument("--counts", help="GYRO_RAD,ACC_MPS: time the commands on the log rewritten as pulse counts of "
                     "these weights (e.g. 1e-6,1e-5; as_pulse_counts)")
+    ap.add_argument("--growth", nargs=2, type=Path, metavar=("SHORT", "LONG"),
+                    help="the peak memory's growth per sample between two Parquet logs of the same kind (growth())")
     a = ap.parse_args()
+    if a.growth:
+        with tempfile.TemporaryDirectory() as d:
+            return growth(*a.growth, Path(d))
     from numpy_ranking import CANDIDATES
 
     from components.estimation.chunks import chunk_workers
