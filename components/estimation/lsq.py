@@ -29,7 +29,7 @@ from components.model.effects import TIME_OFFSETS, effect_of, parameters_of
 from components.model.excitation import needs
 from components.model.geometry import TableGeometry
 from components.model.noise import NoiseModel
-from components.model.plausibility import grade_factor, implausible, weakly_determined
+from components.model.plausibility import bias_floors, grade_factor, implausible, weakly_determined
 from components.model.table_parameters import apply_table_parameter, table_parameter_value
 
 RCOND = 1e-7  # relative singular value below which a design direction is not resolved
@@ -215,7 +215,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
     fit.noise = noise if noise is not None and noise.coloured else None
     fit.determinability = det
     factor = grade_factor({"gyro": float(np.median(sg)) / np.sqrt(dt_mean), "acc": float(np.median(sa)) / np.sqrt(dt_mean)})
-    fit.weak = weakly_determined(dict(zip(params, fit.sigma)), factor)
+    fit.weak = weakly_determined(dict(zip(params, fit.sigma)), factor, bias_floors(noise))
     fit.implausible = implausible(dict(zip(params, value)), dt_mean)
     return fit
 

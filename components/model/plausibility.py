@@ -12,8 +12,9 @@ Two scales per effect of the vocabulary:
   on both and misalignments of +1 rad between them.
 - the **expected magnitude** of an IMU of the log's grade: the vocabulary's navigation-grade
   typical magnitude times the ratio of the log's white noise to a navigation-grade IMU's
-  (gyro 0.002 °/√h, accelerometer 10 µg/√Hz), at least 1. A σ more than ``WEAK`` times that is
-  *weakly determined*: the log says little about it beyond what any such IMU has.
+  (gyro 0.002 °/√h, accelerometer 10 µg/√Hz), at least 1; a bias at least the noise model's bias
+  instability (bias_floors). A σ more than ``WEAK`` times that is *weakly determined*: the log
+  says little about it beyond what any such IMU has.
 """
 from __future__ import annotations
 
@@ -53,15 +54,35 @@ def grade_factor(white_per_sqrt_s: dict[str, float]) -> dict[str, float]:
             for s, v in white_per_sqrt_s.items()}
 
 
-def expected_magnitude(parameter: str, factor: dict[str, float]) -> float:
-    """The typical magnitude of *parameter* for an IMU of the log's grade."""
+def expected_magnitude(parameter: str, factor: dict[str, float], floor: dict[str, float] | None = None) -> float:
+    """The typical magnitude of *parameter* for an IMU of the log's grade; at least *floor*'s
+    value for its effect (e.g. bias_floors)."""
     e = effect_of(parameter)
-    return e.typical * factor.get(e.target, 1.0)
+    return max(e.typical * factor.get(e.target, 1.0), (floor or {}).get(e.name, 0.0))
 
 
-def weakly_determined(sigmas: dict[str, float], factor: dict[str, float]) -> list[str]:
+def bias_floors(noise) -> dict[str, float]:
+    """Per sensor, the least bias an IMU with the bias instability of *noise*
+    (components.model.noise.NoiseModel; the median of its axes) has: its in-run instability. A
+    bias from one turn-on to the next is several times that (navigation FOGs 0.003 against
+    ~0.02 °/h, industrial MEMS 8 °/h against ~700), so a σ near it is a measurement of the
+    bias, not a sign the log says little of it; white noise alone scales it too little (the ARW
+    of a MEMS gyro is 150 times a navigation gyro's, its bias some thousands of times: every
+    MEMS gyro bias was weakly determined at σ 7.6 °/h under its 8 °/h instability)."""
+    if noise is None:
+        return {}
+    out = {}
+    for sensor, axes in (("gyro", slice(0, 3)), ("acc", slice(3, 6))):
+        levels = sorted(c.bias_instability for c in noise.channels[axes])
+        if levels[1] > 0:
+            out[f"{sensor}.bias"] = float(levels[1])
+    return out
+
+
+def weakly_determined(sigmas: dict[str, float], factor: dict[str, float],
+                      floor: dict[str, float] | None = None) -> list[str]:
     """Parameters whose σ exceeds ``WEAK`` times the expected magnitude for the log's grade."""
-    return [p for p, s in sigmas.items() if math.isfinite(s) and s > WEAK * expected_magnitude(p, factor)]
+    return [p for p, s in sigmas.items() if math.isfinite(s) and s > WEAK * expected_magnitude(p, factor, floor)]
 
 
 def implausible(values: dict[str, float], sample_interval: float | None = None) -> dict[str, str]:
