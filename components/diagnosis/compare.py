@@ -45,7 +45,7 @@ from components.estimation.whitening import whiten
 from components.logs.labels import SegmentLabels
 from components.logs.spill import both, empty_like_log, gathered, pieces, release
 from components.model.effects import effect_of
-from components.model.noise import NoiseModel
+from components.model.noise import NoiseModel, describe
 from components.model.result import CalibrationResult
 from components.model.table_parameters import apply_table_parameter
 
@@ -74,6 +74,9 @@ class Comparison:
     per_segment: dict = field(default_factory=dict)
     conditions: dict = field(default_factory=dict)
     coloured: bool = False         # the block residuals are whitened with a coloured noise model
+    # that model's terms (components.model.noise.describe), None under white noise: two χ²/dof of
+    # one model under two identified noise models differ, and the reader must see which is which
+    noise_terms: str | None = None
     misfits: Misfits | None = None  # which segments / conditions / channels misfit beyond noise
     # (N,) the samples that enter estimates (LogData.usable): the sample after a gap, a masked or
     # excluded one, has a residual here but enters no statistic (None: every sample)
@@ -203,6 +206,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
     comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
                       dof, rows, usable=data.usable)
     comp.coloured = noise is not None and noise.coloured
+    comp.noise_terms = describe(noise) if comp.coloured else None
     comp.no_white_level = data.without_white_level(raw, noise)
     locate(comp, data, plate, rows)
     return comp

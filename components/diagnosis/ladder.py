@@ -9,7 +9,10 @@ def ladder_entry(comparison, effects: list[str], label: str | None = None) -> di
     return {"model": label or "+".join(effects), "effects": list(effects),
             "chi2_per_dof": comparison.chi2_per_dof,
             "rms": {k: v["rms"] for k, v in ch.items()},
-            "noise_floor": {k: v["noise_floor"] for k, v in ch.items()}}
+            "noise_floor": {k: v["noise_floor"] for k, v in ch.items()},
+            # what χ²/dof was taken under: a rung made before the noise was identified again with
+            # the new effect had another noise model than the rungs after it
+            "noise": getattr(comparison, "noise_terms", None) or "white noise"}
 
 
 def ladder_lines(ladder: list[dict]) -> list[str]:
@@ -18,4 +21,8 @@ def ladder_lines(ladder: list[dict]) -> list[str]:
     for e in ladder:
         ratios = " ".join(f"{e['rms'][k] / e['noise_floor'][k]:5.2f}" for k in e["rms"])
         lines.append(f"{e['model'][:48]:48s} {e['chi2_per_dof']:9.3f}  {ratios}")
+    noises = [e.get("noise") for e in ladder]
+    if len(set(noises)) > 1:
+        # (a ladder written before the rungs said their noise has none: said as unknown)
+        lines += [f"  {e['model'][:46]}: chi2/dof under {e.get('noise') or 'a noise model not recorded'}" for e in ladder]
     return lines

@@ -70,7 +70,8 @@ def _where(view: ModelView, k: int) -> list[str]:
     c = view.comparison
     name = view.name
     parts = [_h2(f"Where {name} fails" + (f" ({view.role})" if view.role else ""), f"where-{k}")]
-    against = "whitened with the noise model" if getattr(c, "coloured", False) else "against the white-noise level"
+    against = (f"whitened with the noise model ({c.noise_terms})" if getattr(c, "noise_terms", None) else
+               "whitened with the noise model") if getattr(c, "coloured", False) else "against the white-noise level"
     parts.append(f"<p>Model <b>{html.escape(name)}</b>: χ²/dof of block sums {against} <b>{c.chi2_per_dof:.3f}</b> "
                  f"({c.dof} dof; a correct model scores 1 ± {np.sqrt(2 / max(c.dof, 1)):.3f}).</p>")
     rows = [[ch, _fmt(v["rms"]), _fmt(v["noise_floor"]), _fmt(v["rms"] / v["noise_floor"], ".3f"),
@@ -147,8 +148,10 @@ def build_report(path: str | Path, *, title: str, comparison=None, diagnosis=Non
         parts.append(_h2("Ladder: χ²/dof and RMS per model version, " + " → ".join(e["model"] for e in ladder),
                          "ladder"))
         rows = [[html.escape(e["model"]), _fmt(e["chi2_per_dof"], ".3f")]
-                + [_fmt(e["rms"][c] / e["noise_floor"][c], ".3f") for c in CHANNELS] for e in ladder]
-        parts.append(_table(["model", "χ²/dof"] + [f"{c} rms/noise" for c in CHANNELS], rows))
+                + [_fmt(e["rms"][c] / e["noise_floor"][c], ".3f") for c in CHANNELS]
+                + [html.escape(e.get("noise") or "not recorded")] for e in ladder]
+        parts.append(_table(["model", "χ²/dof"] + [f"{c} rms/noise" for c in CHANNELS] + ["χ²/dof under the noise"],
+                            rows))
         parts.append(f"<figure>{ladder_plot(ladder)}</figure>")
     for k, v in enumerate(views):
         parts += _where(v, k)

@@ -267,13 +267,12 @@ def _magnitude(v, where: str) -> float:
 
 
 def describe(noise: NoiseModel | None) -> str:
-    """One line: each sensor's terms in readable units (the x axis; '…' where the axes differ)."""
+    """One line: each sensor's terms in readable units; each axis's where the axes differ (one
+    axis's identified floor against the others' is what tells an effect taken for noise)."""
     if noise is None:
         return "white noise"
-    parts = []
-    for sensor, off in (("gyro", 0), ("acc", 3)):
-        ch = noise.channels[off]
-        same = all(c == ch for c in noise.channels[off:off + 3])
+
+    def terms(sensor: str, ch: ChannelNoise) -> str:
         items = []
         for term, (vname, _, dunit, scale) in TERMS[sensor].items():
             v = getattr(ch, term)
@@ -281,7 +280,15 @@ def describe(noise: NoiseModel | None) -> str:
                 items.append(f"{vname.split('.')[-1]} {v / scale:.3g} {dunit}")
         for s, T in ch.gauss_markov:
             items.append(f"GM {s / GM_UNITS[sensor][2]:.3g} {GM_UNITS[sensor][1]} ({T:.3g} s)")
-        parts.append(f"{sensor} " + (", ".join(items) or "none") + ("" if same else " (x; y, z differ)"))
+        return ", ".join(items) or "none"
+
+    parts = []
+    for sensor, off in (("gyro", 0), ("acc", 3)):
+        axes = noise.channels[off:off + 3]
+        if all(c == axes[0] for c in axes):
+            parts.append(f"{sensor} {terms(sensor, axes[0])}")
+        else:
+            parts.append(f"{sensor} " + " / ".join(f"{a}: {terms(sensor, c)}" for a, c in zip("xyz", axes)))
     return "; ".join(parts)
 
 
