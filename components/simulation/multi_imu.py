@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable
 
-from orchestrator.component import Component, Var
+from components.simulation.temperature import TemperatureSource
 
 
 @dataclass
@@ -29,22 +29,6 @@ class Variant:
     seed: int | None = None
     replace_effects: bool = False  # True: the scenario's [imu.effects] are dropped
     temperature_env: bool = False  # connect the temperature source to this instance
-
-
-class TemperatureSource(Component):
-    """Output ``temperature_env`` [degC] = profile(t) at the end of each step."""
-
-    variables = [Var("temperature_env", "output", "Real", 25.0, "degC")]
-
-    def __init__(self, name: str, profile: Callable[[float], float] | None = None) -> None:
-        super().__init__(name)
-        self.profile = profile or (lambda t: 25.0)
-
-    def initialize(self, t0: float) -> None:
-        self["temperature_env"] = float(self.profile(t0))
-
-    def do_step(self, t: float, h: float) -> None:
-        self["temperature_env"] = float(self.profile(t + h))
 
 
 def heat_cool_cycle(mean: float = 25.0, amplitude: float = 5.0, period: float = 120.0) -> Callable:
@@ -77,6 +61,9 @@ def run_variants(sc, variants: list[Variant], temperature_profile: Callable | No
     record = [r for r in system.record if not r.startswith("imu.")]
     order = [u for u in (system.order or []) if u != "imu"]
     if temperature_profile is not None:
+        if sc.temperature_profile is not None:
+            raise ScenarioError(f"{sc.source}: [temperature] profile is given, and run_variants a temperature "
+                                "profile besides: give one")
         units.insert(0, UnitSpec("tempsrc", component=TemperatureSource("tempsrc", temperature_profile)))
         order.insert(0, "tempsrc")
     unit_names = {}

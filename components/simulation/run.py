@@ -187,6 +187,19 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     if len(integrals) == 2 and "input_integrals" in imu_names and "input_integrals" not in iparams:
         conns += [Connection(f"table.{src}", f"imu.{dst}") for src, dst in integrals]
         iparams["input_integrals"] = 1
+    units, order = [], ["ctrl", "table", "imu"]
+    if sc.temperature_profile is not None:
+        from components.simulation.temperature import TemperatureSource, piecewise_linear
+
+        env = sc.imu_mapping.get("temperature_env", "temperature_env")
+        if env not in imu_names:
+            raise ScenarioError(f"{sc.source}: [temperature] profile: the IMU {imu_path.name} has no input {env!r} to "
+                                "take it (map its environment temperature input in [imu] mapping)")
+        if "temperature.mode" in imu_names:
+            iparams["temperature.mode"] = 2  # (ours: follow the input; a supplier's IMU as it is made)
+        units.append(UnitSpec("tempsrc", component=TemperatureSource("tempsrc", piecewise_linear(sc.temperature_profile))))
+        order.insert(0, "tempsrc")
+        conns.append(Connection("tempsrc.temperature_env", "imu.temperature_env"))
     rec = ["imu.gyro", "imu.acc", "ctrl.segment", "ctrl.done"]
     if sc.imu_mapping.get("temperature", "temperature") in imu_names:
         rec.append("imu.temperature")
@@ -198,8 +211,8 @@ def build_system(sc: Scenario, record: list[str] | None = None):
     bound = sc.schedule.time_bound(min(acc))
     n_steps = int(math.ceil(bound / period)) * multiple
     system = System(
-        name=sc.name, step=sc.step, start=0.0, stop=n_steps * sc.step, order=["ctrl", "table", "imu"],
-        units=[UnitSpec("ctrl", component=ctrl, step_multiple=multiple),
+        name=sc.name, step=sc.step, start=0.0, stop=n_steps * sc.step, order=order,
+        units=units + [UnitSpec("ctrl", component=ctrl, step_multiple=multiple),
                UnitSpec("table", fmu=str(table_path), role="turntable", role_options={"axes": list(axes)},
                         parameters=tparams, mapping=dict(sc.table_mapping)),
                UnitSpec("imu", fmu=str(imu_path), role="imu",
@@ -332,6 +345,8 @@ def truth_of(sc: Scenario, ctrl: CalibrationController, info: dict, rec) -> dict
                       "acc_max_rps2": info["acc_max"]},
         # as the log states it: the scenario's 0 (normal gravity) is the log's null
         "site": {**sc.site, "gravity_mps2": sc.site["gravity_mps2"] or None},
+        # the environment the IMU followed (None: its own temperature parameters)
+        "temperature_profile": None if sc.temperature_profile is None else [list(k) for k in sc.temperature_profile],
         "geometry": {"axes": [{"name": a, "axis": info["geometry"][a]} for a in sc.table_axes],
                      "base_tilt_rad": [info["table_parameters"].get("base.tilt.x", 0.0),
                                        info["table_parameters"].get("base.tilt.y", 0.0)],

@@ -66,6 +66,7 @@ from pathlib import Path
 from components.control.schedule import DEG, Schedule, load_schedule
 from components.errors import ScenarioError, ScheduleError
 from components.model.quantities import NOISE_TERM_UNITS, UNITS, QuantityError, effect_value, noise_value, quantity
+from components.simulation.temperature import profile_from_table
 from orchestrator.tomlfile import read_toml
 
 TRUTH_FORMAT = "calbench-truth/1"
@@ -104,6 +105,9 @@ class Scenario:
     geometry_axes: dict = field(default_factory=dict)   # role axis -> rotation axis (filled by build_system)
     source: str | None = None
     base_dir: Path = field(default_factory=Path.cwd)
+    # ((time [s], temperature [degC]), ...): the IMU's environment, piecewise linear
+    # (components.simulation.temperature); None: the IMU's own temperature parameters
+    temperature_profile: tuple | None = None
 
 
 # ----------------------------------------------------------------------------- parsing
@@ -131,7 +135,7 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
                        overrides: dict | None = None) -> Scenario:
     """``overrides``: schedule parameter values that replace the file's (e.g. from ``--dwell``)."""
     base_dir = base_dir or Path.cwd()
-    _keys(data, {"scenario", "schedule", "site", "turntable", "imu"}, source)
+    _keys(data, {"scenario", "schedule", "site", "turntable", "imu", "temperature"}, source)
     sc = _table(data, "scenario", source)
     w = f"{source}: [scenario]"
     _keys(sc, {"name", "description", "step", "controller_rate_hz", "seed"}, w)
@@ -251,7 +255,14 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
         if not isinstance(mp, dict) or not all(isinstance(v, str) for v in mp.values()):
             raise ScenarioError(f"{source}: {ww}: mapping = {mp!r}: expected a table of role name = FMU name")
 
+    profile = profile_from_table(data.get("temperature"), f"{source}: [temperature]")
+    mode = imu_params.get("temperature.mode")
+    if profile is not None and mode is not None and mode != 2:
+        raise ScenarioError(f"{source}: [imu.parameters] temperature.mode = {mode!r} and a [temperature] profile: the "
+                            "profile drives the IMU in mode 2 (its input temperature_env); leave temperature.mode out")
+
     return Scenario(
+        temperature_profile=profile,
         name=sc.get("name", Path(source).stem), description=sc.get("description", ""), schedule=schedule,
         step=float(step), controller_rate_hz=float(rate), seed=seed, site=site_out,
         table_fmu=tt.get("fmu", "builtin:turntable"), table_axes=list(axes), table_mapping=dict(tt.get("mapping", {})),
