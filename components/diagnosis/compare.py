@@ -84,6 +84,11 @@ class Comparison:
     # pulse channels without a white level (LogData.without_white_level)
     no_white_level: list = field(default_factory=list)
 
+    def whitened_under(self, noise: NoiseModel | None) -> None:
+        """Record the noise model the block residuals were whitened with (None: white noise)."""
+        self.coloured = noise is not None and noise.coloured
+        self.noise_terms = describe(noise) if self.coloured else None
+
     @property
     def static_usable(self) -> np.ndarray:
         """(N,) at rest and usable: the samples a per-sample noise statistic may read."""
@@ -203,10 +208,11 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
             "whiteness_p": ljung_box(zk[order]),
             "noise_free": bool(noise_free[k]) and not (noise is not None and noise.coloured),
         }
+    # (the mask itself, None for every sample: static_usable is then the static mask, not a copy
+    # of it made against a mask of all True, a file's worth on a spilled log)
     comp = Comparison(data.time, data.segment, plate.static, resid, pred, sigma, channels, chi2,
-                      dof, rows, usable=data.usable)
-    comp.coloured = noise is not None and noise.coloured
-    comp.noise_terms = describe(noise) if comp.coloured else None
+                      dof, rows, usable=data.valid)
+    comp.whitened_under(noise)
     comp.no_white_level = data.without_white_level(raw, noise)
     locate(comp, data, plate, rows)
     return comp

@@ -20,7 +20,7 @@ from components.estimation.log_data import LogData
 from components.estimation.positions import SUPPORTED, calibrate_positions
 from components.estimation.positions_design import PositionsDesign
 from components.model.effects import effect_of
-from components.model.noise import NoiseModel, describe
+from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
 
 STEP_TOL = 1e-4     # attitude iterations stop below this fraction of an angle's σ
@@ -104,8 +104,7 @@ def compare_positions(data: LogData, model: CalibrationResult, *, fitted_paramet
             "whiteness_p": ljung_box(zk[order]),
         }
     comp = Comparison(data.time, data.segment, rest, resid, pred, sigma, channels, chi2, dof, rows)
-    comp.coloured = noise is not None and noise.coloured
-    comp.noise_terms = describe(noise) if comp.coloured else None
+    comp.whitened_under(noise)
     locate(comp, data, PlateAtSamples.of(motion), rows)
     comp.attitudes = C  # type: ignore[attr-defined]
     return comp

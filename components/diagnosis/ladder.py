@@ -12,7 +12,7 @@ def ladder_entry(comparison, effects: list[str], label: str | None = None) -> di
             "noise_floor": {k: v["noise_floor"] for k, v in ch.items()},
             # what χ²/dof was taken under: a rung made before the noise was identified again with
             # the new effect had another noise model than the rungs after it
-            "noise": getattr(comparison, "noise_terms", None) or "white noise"}
+            "noise": comparison.noise_terms or "white noise"}
 
 
 def ladder_lines(ladder: list[dict]) -> list[str]:

@@ -70,8 +70,7 @@ def _where(view: ModelView, k: int) -> list[str]:
     c = view.comparison
     name = view.name
     parts = [_h2(f"Where {name} fails" + (f" ({view.role})" if view.role else ""), f"where-{k}")]
-    against = (f"whitened with the noise model ({c.noise_terms})" if getattr(c, "noise_terms", None) else
-               "whitened with the noise model") if getattr(c, "coloured", False) else "against the white-noise level"
+    against = f"whitened with the noise model ({c.noise_terms})" if c.noise_terms else "against the white-noise level"
     parts.append(f"<p>Model <b>{html.escape(name)}</b>: χ²/dof of block sums {against} <b>{c.chi2_per_dof:.3f}</b> "
                  f"({c.dof} dof; a correct model scores 1 ± {np.sqrt(2 / max(c.dof, 1)):.3f}).</p>")
     rows = [[ch, _fmt(v["rms"]), _fmt(v["noise_floor"]), _fmt(v["rms"] / v["noise_floor"], ".3f"),

@@ -26,6 +26,7 @@ def runs(mask: np.ndarray, value: bool = True, piece: int = PIECE) -> tuple[np.n
         starts.append(at[inside[at]] + a)
         stops.append(at[~inside[at]] + a)
         before = bool(inside[-1])
-    starts.append(np.zeros(0, np.int64))
-    stops.append(np.array([n], np.int64) if before else np.zeros(0, np.int64))
-    return np.concatenate(starts).astype(np.int64), np.concatenate(stops).astype(np.int64)
+    if before:
+        stops.append(np.array([n]))
+    empty = np.zeros(0, np.int64)
+    return np.concatenate([empty, *starts], dtype=np.int64), np.concatenate([empty, *stops], dtype=np.int64)
