@@ -5,9 +5,8 @@ and cool: the changes of temperature that a temperature coefficient needs, which
 single ramp does not give (on a ramp a temperature term and a linear drift are one column)."""
 from __future__ import annotations
 
+from bisect import bisect_right
 from typing import Callable
-
-import numpy as np
 
 from components.errors import ScenarioError
 from orchestrator.component import Component, Var
@@ -33,9 +32,21 @@ class TemperatureSource(Component):
 
 
 def piecewise_linear(knots: tuple) -> Callable[[float], float]:
-    """T(t) through the (time [s], temperature [degC]) *knots*, held after the last."""
-    t, T = np.array([k[0] for k in knots], float), np.array([k[1] for k in knots], float)
-    return lambda s: float(np.interp(s, t, T))
+    """T(t) through the (time [s], temperature [degC]) *knots*, held before the first and after
+    the last; numpy's interpolation formula in plain Python: it runs at every co-simulation step,
+    where np.interp on one number cost 1 µs of a ~14 µs step."""
+    t = [float(k[0]) for k in knots]
+    T = [float(k[1]) for k in knots]
+    slope = [(T[j + 1] - T[j]) / (t[j + 1] - t[j]) for j in range(len(t) - 1)]
+
+    def at(s: float) -> float:
+        if s <= t[0]:
+            return T[0]
+        if s >= t[-1]:
+            return T[-1]
+        j = bisect_right(t, s) - 1
+        return slope[j] * (s - t[j]) + T[j]
+    return at
 
 
 def profile_from_table(table, where: str) -> tuple | None:
