@@ -181,13 +181,17 @@ def verdict_lines(d) -> list[str]:
     else:
         lines = [f"verdict: {d.verdict} is missing{found}"]
         top = next((c for c in d.ranking if c.effect == d.verdict), None)
-        twins = [(e, r) for e, r, _ in (top.indistinguishable if top else []) if
-                 any(o.effect == e and o.p_adjusted < d.alpha for o in d.ranking)]
+        # significant: under the noise the ranking was made with, or without the identified slow
+        # terms that had taken the verdict for noise
+        significant = {o.effect for o in d.ranking if o.p_adjusted < d.alpha} | \
+            {e for t in d.taken_for_noise if t.effect == d.verdict for e in t.significant_without}
+        twins = [(e, r) for e, r, _ in (top.indistinguishable if top else []) if e in significant]
         if twins:
             # which of them is first is chance on this log: the verdict must not pretend to know
             lines[0] = (f"verdict: {d.verdict} or {' or '.join(e for e, _ in twins)} is missing: this log cannot "
                         f"tell them apart (correlation {max(r for _, r in twins):.3f}), so which comes first is "
                         f"chance; see the ranking's notes for the motion that separates them{found}")
+    lines += [taken_line(t) for t in d.taken_for_noise]
     kinds = ["noise" if "noise_term" in st else "effect" for st in d.steps]
     if "effect" in kinds and "noise" in kinds[kinds.index("effect") + 1:]:
         # the ranking above was made under a noise model the log then showed too simple: a
@@ -205,3 +209,24 @@ def verdict_lines(d) -> list[str]:
         lines.append(f"   {len(others)} other candidate(s) with p < α = {d.alpha} are not the verdict: "
                      + "; ".join(f"{s}: {', '.join(es)}" for s, es in by.items()) + " (each line says why)")
     return lines
+
+
+def taken_line(t) -> str:
+    """Why an effect not significant under the identified noise is named
+    (components.diagnosis.taken_for_noise): the slow terms it had been taken for, as refitted
+    without and beside it, and its likelihood ratio with them free under both."""
+    from components.model.noise import CHANNELS, TERMS
+
+    moved = []
+    for name, before in t.terms.items():
+        after = t.terms_beside.get(name, before)
+        if abs(after - before) > 0.1 * max(abs(before), abs(after)):
+            sensor, _, short, axis = name.split(".")
+            term = next(k for k, v in TERMS[sensor].items() if v[0] == f"{sensor}.noise.{short}")
+            _, _, unit, scale = TERMS[sensor][term]
+            moved.append(f"{CHANNELS[(0 if sensor == 'gyro' else 3) + 'xyz'.index(axis)]}'s {term.replace('_', ' ')} "
+                         f"{before / scale:.3g} -> {after / scale:.3g} {unit}")
+    return (f"   {t.effect} is not significant under the identified noise, which had taken it for noise: refitted "
+            f"beside it, {'; '.join(moved) or 'the slow terms change little'}; its likelihood ratio with the slow "
+            f"terms free under both is {t.likelihood_ratio:.3g} against {t.critical:.3g} (χ² of its rank at α over the "
+            "candidates)")

@@ -43,6 +43,7 @@ from components.diagnosis.candidate_design import CandidateDesign
 from components.diagnosis.candidate_notes import annotate
 from components.diagnosis.noise_terms import NOISE_CANDIDATES, has_term, noise_candidates
 from components.diagnosis.ranking import Candidate, rank
+from components.diagnosis.taken_for_noise import taken_for_noise
 from components.estimation.chunks import CHUNK_SAMPLES
 from components.estimation.log_data import LogData
 from components.model.effects import EFFECTS, effect_of, parameters_of
@@ -71,6 +72,8 @@ class Diagnosis:
     forward: bool = True  # forward selection ran (each passing candidate was re-tested after the verdict)
     # why the noise terms the model lacks were not tested ("" when they were, or it lacks none)
     noise_untested: str = ""
+    # the effects named because identified noise had taken them for noise (taken_for_noise)
+    taken_for_noise: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {"verdict": self.verdict, "verdict_kind": self.verdict_kind, "found": self.found,
@@ -129,6 +132,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     kinds: list[str] = []
     noise_now = noise
     noise_terms = [t for t in noise_asked if not has_term(noise_now, t)]
+    taken_records: list = []
     for _ in range(max_steps if forward else 1):
         ranking, chi2_base, dof_base = rank(design, base, available, alpha)
         stochastic = noise_candidates(design, base, noise_now, noise_terms, alpha) if noise_terms else []
@@ -172,21 +176,37 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
                           "chi2_per_dof_after": chi2_after / max(design.n - rank_after, 1),
                           "loglik_gain": best_noise["loglik_gain"]})
             continue
+        taken = None
         if winner is None:
-            break
+            # nothing missing under identified noise may be an effect the identification took
+            # for a slow noise term: tested with those terms free beside it
+            taken = taken_for_noise(design, base, available, alpha, noise_now, rank)
+            if taken is None:
+                break
+            winner = taken.candidate
+            taken_records.append(taken)
+            noise_now = taken.noise
         found.append(winner.effect)
         kinds.append("effect")
         base = base + available.pop(winner.effect)
+        design.rewhiten(noise_now)
         chi2_after, _, _, rank_after = design.fit(base)
         steps.append({"effect": winner.effect, "chi2_per_dof_before": chi2_base / dof_base,
                       "chi2_per_dof_after": chi2_after / max(design.n - rank_after, 1),
-                      "p_adjusted": winner.p_adjusted, "bic_delta": winner.bic_delta})
+                      "p_adjusted": winner.p_adjusted, "bic_delta": winner.bic_delta}
+                     | ({"taken_for_noise": taken.to_json()} if taken else {}))
         if not available:
             break
     out = Diagnosis(found[0] if found else None, first_ranking or [], found, steps,
                     chi2_first or float("nan"), design.n, alpha,
                     [{k: v for k, v in n.items() if k != "model"} for n in (first_noise or [])],
                     kinds[0] if kinds else None, noise_now, unseeable, forward, untested)
+    out.taken_for_noise = taken_records
+    for t in taken_records:
+        shown = next((c for c in out.ranking if c.effect == t.effect), None)
+        if shown is not None and not shown.indistinguishable:
+            # its look-alikes, as the ranking without the identified terms found them
+            shown.indistinguishable = list(t.candidate.indistinguishable)
     annotate(out)
     return out
 

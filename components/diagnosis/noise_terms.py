@@ -5,13 +5,14 @@ Akaike's gain and significance, so the diagnosis can weigh it against the effect
 (components.diagnosis.diagnose)."""
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 
 from components import progress
 from components.estimation.distributions import chi2_isf
-from components.estimation.noise_likelihood import fit_one_term
+from components.estimation.noise_likelihood import fit_one_term, restricted_loglik
 from components.estimation.whitening import advance_of, block_timing, channel_rows
 from components.logs.spill import gathered
 from components.model.noise import TERM_OF_NAME, NoiseModel
@@ -29,14 +30,46 @@ def has_term(noise: NoiseModel | None, term: str) -> bool:
     return all(getattr(c, TERM_OF_NAME[t]) > 0 for c in chans)
 
 
-def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, alpha: float) -> list:
+class ChannelRows:
+    """One channel's block rows with *base*'s columns (those it sees), in the order the noise
+    likelihood takes them (components.estimation.noise_likelihood): gathered once per channel,
+    as a long log's rows are read from disk."""
+
+    def __init__(self, design, base: list[str]):
+        self.design, self.cols, self._rows = design, [design.index[p] for p in base], {}
+
+    def __call__(self, k: int) -> tuple:
+        """(y, H, durations, white variance, span, t_lo, advance, gaps) of channel *k*."""
+        if k not in self._rows:
+            d = self.design
+            y, H, w, rows = d.raw
+            idx = channel_rows(rows, k)
+            Hc = gathered(H, idx, self.cols)
+            durations, gaps = block_timing(rows, idx, d.dt)
+            self._rows[k] = (y[idx], Hc[:, np.any(Hc != 0, axis=0)], durations, 1.0 / w[idx] ** 2, d.span, d.t_lo,
+                             advance_of(rows, idx), gaps)
+        return self._rows[k]
+
+
+def loglik(rows_of: ChannelRows, noise: NoiseModel, channels) -> float:
+    """The ordinary log-likelihood of *channels*' rows under *noise*, the columns profiled out
+    (noise_likelihood.restricted_loglik with restricted=False): what compares noise models on the
+    same columns."""
+    total = 0.0
+    for k in channels:
+        y, H, durations, white_var, span, t_lo, advance, gaps = rows_of(k)
+        total += restricted_loglik(noise.channels[k], y, H, durations, white_var, span, t_lo, False, advance, gaps)
+    return total
+
+
+def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, alpha: float,
+                     rows_of: ChannelRows | None = None) -> list:
     """Each missing noise term fitted by maximum likelihood on the base model's rows, channel by
     channel (the axes that lack it): its magnitudes, the log-likelihood gain, Akaike's gain (minus
     one per axis fitted), significance (likelihood ratio against the 1 % point of χ² with a degree
-    of freedom per axis fitted, conservative on the boundary) and the noise model with it."""
-    y, H, w, rows = design.raw
-    cols = [design.index[p] for p in base]
-    base_rows: dict = {}  # channel -> (its rows, their base columns), gathered once for every term
+    of freedom per axis fitted, conservative on the boundary) and the noise model with it.
+    *rows_of*: the channels' rows with *base*'s columns, when the caller has them."""
+    rows_of = rows_of or ChannelRows(design, base)
     current = noise if noise is not None else NoiseModel.white(design.white_sigma, design.dt, "white noise")
     out = []
     with progress.steps("noise terms", len(terms)) as bar:
@@ -50,14 +83,9 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
                     values.append(getattr(chans[k], field_))
                     continue
                 n_new += 1
-                if k not in base_rows:
-                    idx = channel_rows(rows, k)
-                    base_rows[k] = idx, gathered(H, idx, cols)
-                idx, Hc = base_rows[k]
-                active = np.any(Hc != 0, axis=0)
-                durations, gaps = block_timing(rows, idx, design.dt)
-                value, g = fit_one_term(chans[k], field_, y[idx], Hc[:, active], durations, 1.0 / w[idx] ** 2,
-                                        design.span, design.t_lo, advance=advance_of(rows, idx), gaps=gaps)
+                y, H, durations, white_var, span, t_lo, advance, gaps = rows_of(k)
+                value, g = fit_one_term(chans[k], field_, y, H, durations, white_var, span, t_lo, advance=advance,
+                                        gaps=gaps)
                 chans[k] = replace(chans[k], **{field_: value})
                 gain += g
                 values.append(value)
@@ -69,3 +97,37 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
             bar.update()
     out.sort(key=lambda n: -n["aic_gain"])
     return out
+
+
+def refit_terms(rows_of: ChannelRows, noise: NoiseModel, terms: list[str]) -> NoiseModel:
+    """*noise* with the magnitudes of the slow *terms* (vocabulary names, ``acc.noise.rrw``)
+    re-estimated together, channel by channel, by ordinary maximum likelihood on *rows_of*'s rows
+    (Nelder–Mead over the log magnitudes from *noise*'s own; a term a channel lacks starts at a
+    thousandth of its white level, which is as good as absent). The floor's flicker range and
+    everything else stay."""
+    from scipy.optimize import minimize
+
+    chans = list(noise.channels)
+    for sensor in sorted({t.split(".")[0] for t in terms}):
+        fields = [TERM_OF_NAME[t.split(".")[2]] for t in terms if t.startswith(sensor + ".")]
+        for k in (range(3) if sensor == "gyro" else range(3, 6)):
+            y, H, durations, white_var, span, t_lo, advance, gaps = rows_of(k)
+            level = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
+            levels = np.array([level / (math.sqrt(span) if f == "random_walk" else 1.0) for f in fields])
+            lo, hi = np.log(levels * 1e-3), np.log(levels * 1e3)
+            ch = chans[k]
+
+            def nll(x, ch=ch, y=y, H=H, durations=durations, white_var=white_var, span=span, t_lo=t_lo,
+                    advance=advance, gaps=gaps, lo=lo, hi=hi):
+                v = np.exp(np.clip(x, lo, hi))
+                return -restricted_loglik(replace(ch, **dict(zip(fields, v.tolist()))), y, H, durations, white_var,
+                                          span, t_lo, False, advance, gaps)
+
+            x0 = np.array([math.log(getattr(ch, f)) if getattr(ch, f) > 0 else lo[i] for i, f in enumerate(fields)])
+            x0 = np.clip(x0, lo, hi)
+            r = minimize(nll, x0, method="Nelder-Mead", options={"xatol": 1e-2, "fatol": 1e-3, "maxfev": 400})
+            x = r.x if r.fun < nll(x0) else x0
+            v = np.exp(np.clip(x, lo, hi))
+            # at the lower bound a term is as good as absent: left out, not kept at a floor value
+            chans[k] = replace(ch, **{f: (float(v[i]) if x[i] > lo[i] + 1e-6 else 0.0) for i, f in enumerate(fields)})
+    return NoiseModel(tuple(chans), noise.source, noise.sigmas)
