@@ -4,7 +4,10 @@ coloured noise (gyro ARW 0.3 deg/sqrt(h), bias instability 8 deg/h as a flicker 
 to an hour, rate random walk 3 deg/h/sqrt(h); accelerometer VRW 60 ug/sqrt(Hz), bias instability
 20 ug, random walk 10 ug/sqrt(h)) and a hidden K2 of 300 ug/g2 on z, on the twenty-six-position
 schedule (36 minutes at 200 Hz); with ``--thermal``, a heat, soak and cool (25 -> 45 -> 25 degC,
-the scenario's [temperature] profile) and a hidden 20 ug/K on acc_z besides.
+the scenario's [temperature] profile) and a hidden 20 ug/K on acc_z besides; with ``--ramp``, the
+same 20 ug/K under a single ramp of 0.01 K/s from 25 degC instead (on a ramp acc.temp and
+acc.drift are one column: either may be named, and a drift's truth is then the coefficient times
+the ramp's rate, 720 ug/h).
 
     calbench simulate; calbench calibrate (the default model);
     then, until diagnose names nothing: calbench diagnose --noise identify, calbench add --effect VERDICT --noise identify
@@ -14,7 +17,7 @@ parameter of the last model against the truth: z = (estimate - truth) / sigma, t
 honest sigma; the baseline named: a standard normal's, with its 99 % band for this many
 parameters from the chi-square distribution) and the largest |z|.
 
-    python benchmarks/mems_grade.py [--seed 19] [--thermal]
+    python benchmarks/mems_grade.py [--seed 19] [--thermal | --ramp]
 """
 from __future__ import annotations
 
@@ -89,6 +92,8 @@ fmu = "builtin:imu"
 """
 THERMAL_EFFECT = '"acc.temp.z" = "20 ug/K"'
 THERMAL_PROFILE = "[temperature]\nprofile = [[0, 25], [600, 45], [1200, 45], [1800, 25]]"
+RAMP_RATE = 0.01  # K/s
+RAMP_PROFILE = f"[temperature]\nprofile = [[0, 25], [3600, {25 + 3600 * RAMP_RATE}]]"
 
 
 def calbench(*args: str, json_out: Path | None = None) -> dict | None:
@@ -102,18 +107,22 @@ def calbench(*args: str, json_out: Path | None = None) -> dict | None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=19)
-    ap.add_argument("--thermal", action="store_true", help="a heat, soak and cool with 20 ug/K on acc_z besides")
+    kind = ap.add_mutually_exclusive_group()
+    kind.add_argument("--thermal", action="store_true", help="a heat, soak and cool with 20 ug/K on acc_z besides")
+    kind.add_argument("--ramp", action="store_true", help="a single 0.01 K/s ramp with 20 ug/K on acc_z besides")
     a = ap.parse_args()
+    profile = THERMAL_PROFILE if a.thermal else RAMP_PROFILE if a.ramp else ""
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
-        (d / "mems.toml").write_text(SCENARIO.format(seed=a.seed, thermal_effect=THERMAL_EFFECT if a.thermal else "",
-                                                     thermal_profile=THERMAL_PROFILE if a.thermal else ""))
+        (d / "mems.toml").write_text(SCENARIO.format(seed=a.seed, thermal_effect=THERMAL_EFFECT if profile else "",
+                                                     thermal_profile=profile))
         calbench("simulate", str(d / "mems.toml"), "--out", str(d / "log"))
         log = str(d / "log.json")
         calbench("calibrate", log, "--out", str(d / "m0.json"))
         model, added = d / "m0.json", []
-        print(f"MEMS grade, seed {a.seed}{', heat/soak/cool with acc.temp.z 20 ug/K' if a.thermal else ''}; "
+        what = ", heat/soak/cool" if a.thermal else f", a {RAMP_RATE} K/s ramp" if a.ramp else ""
+        print(f"MEMS grade, seed {a.seed}{what + ' with acc.temp.z 20 ug/K' if profile else ''}; "
               "hidden acc.k2.z 300 ug/g2")
         for k in range(4):
             diag = calbench("diagnose", log, "--model", str(model), "--noise", "identify", json_out=d / f"d{k}.json")
@@ -127,6 +136,9 @@ def main() -> int:
             model = d / f"m{k + 1}.json"
         result = json.loads(model.read_text())
         truth = json.loads((d / "log.truth.json").read_text())["effects"]
+        if a.ramp:
+            # on a ramp from the coefficient's reference temperature a drift is the same column
+            truth["acc.drift.z"] = truth["acc.temp.z"] * RAMP_RATE
         z = {p: (v["value"] - truth.get(p, 0.0)) / v["sigma"] for p, v in result["parameters"].items()}
         n = len(z)
         rms = float(np.sqrt(np.mean(np.square(list(z.values())))))
@@ -136,7 +148,8 @@ def main() -> int:
         print(f"  {n} parameters against the truth: RMS z {rms:.2f} (a standard normal's: 1, 99 % band for {n}: "
               f"{lo:.2f}-{hi:.2f}); largest {worst} {z[worst]:+.2f}")
         # display units: ug/g2 (SI 1/(m/s2): x g0 / 1e-6) and ug/K (SI m/s2/K: / (1e-6 g0))
-        for p, unit, per_si in (("acc.k2.z", "ug/g2", 9.80665 / 1e-6), ("acc.temp.z", "ug/K", 1 / 9.80665e-6)):
+        for p, unit, per_si in (("acc.k2.z", "ug/g2", 9.80665 / 1e-6), ("acc.temp.z", "ug/K", 1 / 9.80665e-6),
+                                ("acc.drift.z", "ug/h", 3600 / 9.80665e-6)):
             if p in result["parameters"]:
                 v = result["parameters"][p]
                 print(f"  {p}: {v['value'] * per_si:.1f} ± {v['sigma'] * per_si:.1f} {unit} "
