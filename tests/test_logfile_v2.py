@@ -63,6 +63,26 @@ def test_log_without_table_round_trips(tmp_path, fmt):
     assert not data.usable[:4].any() and data.segment_kinds["pos1"]["up"].tolist() == [0, 0, 1]
 
 
+@pytest.mark.parametrize("step", [1, 37, 300, 301, 10_000])
+def test_the_usable_mask_a_piece_at_a_time_is_every_reason_at_once(tmp_path, step):
+    """A long log's usable mask is made a piece at a time (no whole mask per reason): at every
+    piece length — a gap on a piece's first sample included — it is the samples no reason
+    leaves out, each reason's count its own, all read here from the columns directly."""
+    log = _handheld(jitter=2e-4, gap_at=300)
+    log.mask = np.ones(log.n, bool)
+    log.mask[10:13] = False
+    log.exclude = [[0.3, 0.35], "pos2"]
+    gap = np.concatenate([[False], np.diff(log.time) > 1.5 / log.sample_rate_hz])
+    seg = np.asarray(log.segment, object)
+    expect = {"gap (the sample after it)": gap, "mask = 0": ~log.mask,
+              "t = 0.3-0.35 s (exclude)": (log.time >= 0.3) & (log.time <= 0.35),
+              "segment 'pos2' (exclude)": seg == "pos2", "segment 'move' (kind excluded)": seg == "move"}
+    out = np.zeros(log.n, bool)
+    counts = log.usable_into(out, step=step)
+    assert counts == {k: int(m.sum()) for k, m in expect.items()}
+    assert np.array_equal(out, ~np.logical_or.reduce(list(expect.values())))
+
+
 def test_a_version_1_log_is_written_as_version_1(tmp_path, conformance):
     log = read_log(conformance / "ideal")
     write_log(tmp_path / "again", log)

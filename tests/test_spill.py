@@ -108,6 +108,25 @@ def test_estimates_comparison_and_diagnosis_equal_in_memory(pair):
     assert [(c.effect, c.statistic) for c in diags[0].ranking] == [(c.effect, c.statistic) for c in diags[1].ranking]
 
 
+def test_a_spilled_logs_usable_mask_is_on_disk_and_the_same(pair, monkeypatch):
+    """Samples left out (--exclude and a segment label): a spilled log's usable mask is a
+    spilled file, made a piece at a time, with the in-memory log's bits and counts."""
+    memory, spilled = pair
+    path = memory.source["log"]
+    exclude = [[20.0, 35.5], "move-pos03"]
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", str(1 << 40))  # (the module's pair spills by default)
+    kept = LogData.from_log(read_log(path, lean=True), exclude)
+    monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
+    monkeypatch.setattr(spill, "PIECE", 3000)
+    on_disk = LogData.from_log(read_log(path, lean=True), exclude)
+    assert spill.is_spilled(on_disk.valid) and not spill.is_spilled(kept.valid)
+    assert np.array_equal(on_disk.valid, kept.valid) and on_disk.left_out == kept.left_out
+    t = np.asarray(kept.time)
+    assert kept.left_out["t = 20-35.5 s (exclude)"] == int(((t >= 20.0) & (t <= 35.5)).sum()) > 0
+    assert kept.left_out["segment 'move-pos03' (exclude)"] == int((np.asarray(kept.segment, object)
+                                                                   == "move-pos03").sum()) > 0
+
+
 def test_spilled_groups_read_by_name_and_empty_cells_named(pair, tmp_path, monkeypatch):
     """A spilled column is read a row group at a time: in a file holding the columns in another
     order they still land on their axes, and an empty cell in a later row group is named by its

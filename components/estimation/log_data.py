@@ -256,20 +256,20 @@ class LogData:
         geo = TableGeometry(tuple(Stage(n, tuple(float(x) for x in v))
                                   for n, v in zip(log.axis_names, log.axis_vectors)),
                             latitude=log.latitude, height=log.height_m, gravity=log.gravity)
-        reasons = log.left_out(exclude)
-        valid = None
-        if reasons:
-            valid = np.ones(log.n, bool)
-            for m in reasons.values():
-                valid &= ~m
         gyro, acc = log.gyro_increment(), log.acc_increment()
+        # the usable mask a piece at a time, spilled with a spilled log: a byte a sample, and
+        # no whole mask per reason beside it
+        valid = empty_like_log(log.n, gyro, bool)
+        left_out = log.usable_into(valid, exclude)
+        if not left_out:
+            valid = None
         _check_range(log, gyro, acc, valid)
         return cls(time=log.time, angles=log.angles, gyro=gyro,
                    acc=acc, geometry=geo, temperature=log.temperature,
                    segment=log.segment, dt0=log.dt, source={"log": log.source},
                    count_weight=(log.gyro_count_rad if log.gyro_output == "counts" else None,
                                  log.acc_count_mps if log.acc_output == "counts" else None),
-                   valid=valid, left_out={k: int(m.sum()) for k, m in reasons.items()},
+                   valid=valid, left_out=left_out,
                    encoder_resolution=log.encoder_resolution,
                    segments=log.segments, noise=log.noise)
 

@@ -260,7 +260,7 @@ def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
                                 "description", "extra_metadata", "encoder_resolution", "timing", "max_interval_s",
                                 "segments", "exclude", "noise")},
     )
-    log.left_out()  # an 'exclude' label the log does not hold is refused here, naming the file
+    log.reasons_left_out()  # an 'exclude' label the log does not hold is refused here, naming the file
     return log
 
 

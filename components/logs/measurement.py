@@ -131,16 +131,18 @@ class MeasurementLog:
         limit = self.max_interval_s if self.max_interval_s is not None else 1.5 * self.dt
         return self.intervals() > limit
 
-    def left_out(self, more: list | None = None) -> dict[str, np.ndarray]:
-        """Why samples are left out: {reason: (N,) bool} for gaps, the mask, each ``exclude``
-        item (and *more*, e.g. the command line's ``--exclude``) and each excluded segment label.
-        Reasons with no sample are not listed."""
-        out: dict[str, np.ndarray] = {}
-        g = self.gaps()
-        if g.any():
-            out["gap (the sample after it)"] = g
-        if self.mask is not None and not self.mask.all():
-            out["mask = 0"] = ~self.mask
+    def reasons_left_out(self, more: list | None = None) -> list:
+        """Why samples may be left out, as (reason, a function from a slice of rows to their (rows,)
+        bool mask): gaps, the mask, each ``exclude`` item (and *more*, e.g. the command line's
+        ``--exclude``) and each excluded segment label; a label the log does not hold is refused
+        here, naming the file. A reason may hit no sample (:meth:`left_out` lists only those that
+        do). A function of a slice lets a long log be masked a piece at a time."""
+        out: list = []
+        if self.timing == "measured":
+            limit = self.max_interval_s if self.max_interval_s is not None else 1.5 * self.dt
+            out.append(("gap (the sample after it)", lambda s: self.intervals(s) > limit))
+        if self.mask is not None:
+            out.append(("mask = 0", lambda s: ~np.asarray(self.mask[s], bool)))
         labels = None  # the log's segment labels, gathered only for a label to check (a set of
         # every sample's label was 0.2 s of each call on an 8-hour log)
         for item in list(self.exclude) + list(more or []):
@@ -151,25 +153,48 @@ class MeasurementLog:
                 if item not in labels:
                     raise LogFormatError(f"{self.source or 'log'}: exclude {item!r}: no segment has this label "
                                          f"(labels: {', '.join(sorted(map(str, labels))[:20]) or 'none'})")
-                out[f"segment {item!r} (exclude)"] = self.segment == item
+                out.append((f"segment {item!r} (exclude)", lambda s, item=item: self.segment[s] == item))
             else:
                 t0, t1 = item
-                hit = (self.time >= t0) & (self.time <= t1)
-                if hit.any():
-                    out[f"t = {t0:g}-{t1:g} s (exclude)"] = hit
+                out.append((f"t = {t0:g}-{t1:g} s (exclude)",
+                            lambda s, t0=t0, t1=t1: (self.time[s] >= t0) & (self.time[s] <= t1)))
         for lab, d in (self.segments or {}).items():
             if isinstance(d, dict) and d.get("kind") == "excluded" and self.segment is not None:
-                hit = self.segment == lab
-                if hit.any():
-                    out[f"segment {lab!r} (kind excluded)"] = hit
+                out.append((f"segment {lab!r} (kind excluded)", lambda s, lab=lab: self.segment[s] == lab))
+        return out
+
+    def left_out(self, more: list | None = None) -> dict[str, np.ndarray]:
+        """Why samples are left out: {reason: (N,) bool} for the reasons of :meth:`reasons_left_out`
+        that hit a sample (whole masks: :meth:`usable_into` is the one for a long log)."""
+        out = {}
+        for reason, hit in self.reasons_left_out(more):
+            m = np.asarray(hit(slice(0, self.n)), bool)
+            if m.any():
+                out[reason] = m
         return out
 
     def usable(self, more: list | None = None) -> np.ndarray:
         """(N,) bool: the sample enters estimates (see :meth:`left_out`)."""
         ok = np.ones(self.n, bool)
-        for m in self.left_out(more).values():
-            ok &= ~m
+        self.usable_into(ok, more)
         return ok
+
+    def usable_into(self, out: np.ndarray, more: list | None = None, step: int | None = None) -> dict[str, int]:
+        """Write into *out* (N,) whether each sample enters estimates, *step* samples at a time
+        (default: a spill piece; *out* may be a spilled array), and return how many samples each
+        reason leaves out (the reasons that leave some)."""
+        from components.logs.spill import pieces
+
+        reasons = self.reasons_left_out(more)
+        counts = dict.fromkeys((r for r, _ in reasons), 0)
+        for s in pieces(self.n, out, self.time, self.mask, step=step):
+            ok = np.ones(s.stop - s.start, bool)
+            for reason, hit in reasons:
+                m = np.asarray(hit(s), bool)
+                counts[reason] += int(np.count_nonzero(m))
+                ok &= ~m
+            out[s] = ok
+        return {r: k for r, k in counts.items() if k}
 
     def gyro_increment(self) -> np.ndarray:
         """(N, 3) angle increments [rad] over each sample interval."""
