@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import tomllib
+from dataclasses import replace
 
 import pytest
 
@@ -104,3 +105,17 @@ def test_terms_given_by_hand_are_not_refitted():
     given = from_terms({"acc.noise.vrw": 1e-4, "acc.noise.bi": 1e-4, "acc.noise.rrw": 1e-5}, source="given by hand")
     assert identified_slow_terms(given) == []
     assert without_identified(given).channels == given.channels
+
+
+def test_a_term_given_over_an_identified_model_is_given_and_the_rest_stay_identified():
+    """`--noise identify --noise gyro.noise.bi=…`: the gyro floor is the user's (never refitted),
+    the accelerometer's identified random walk is still the identification's."""
+    identified = from_terms({"gyro.noise.arw": 1e-6, "gyro.noise.bi": 1e-7, "acc.noise.vrw": 1e-4,
+                             "acc.noise.rrw.z": 1e-5}, source="identified on this log")
+    identified = replace(identified, intervals={"gyro.noise.bi.x": (5e-8, 2e-7), "acc.noise.rrw.z": (5e-6, 2e-5)},
+                         sigmas={"gyro.noise.bi.x": 3e-8, "acc.noise.rrw.z": 3e-6})
+    assert identified_slow_terms(identified) == ["acc.noise.rrw", "gyro.noise.bi"]
+    given = from_terms({"gyro.noise.bi": 2e-7}, identified, "given by hand")
+    assert identified_slow_terms(given) == ["acc.noise.rrw"]
+    assert given.intervals == {"acc.noise.rrw.z": (5e-6, 2e-5)} and given.sigmas == {"acc.noise.rrw.z": 3e-6}
+    assert without_identified(given).channels[5].random_walk == 0 and without_identified(given).channels[0].bias_instability == 2e-7

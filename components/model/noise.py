@@ -302,8 +302,12 @@ RANGE_OF_NAME = {"bi_tau_min": 0, "bi_tau_max": 1}
 def from_terms(terms: dict, base: NoiseModel | None = None, source: str = "given") -> NoiseModel:
     """A model from named terms in SI, ``{"gyro.noise.arw": N, "acc.noise.bi.y": B, ...}`` (a name
     without an axis sets all three), on top of *base* (default: no noise). ``bi_tau_min`` and
-    ``bi_tau_max`` [s] bound the bias instability's flicker range (unbounded: the log's)."""
+    ``bi_tau_max`` [s] bound the bias instability's flicker range (unbounded: the log's). The σ
+    and profile intervals *base* has for terms not set here stay (an identified term keeps what
+    says it was identified; one given by hand has none)."""
     chans = list(base.channels) if base is not None else [ChannelNoise()] * 6
+    sigmas = dict(base.sigmas) if base is not None else {}
+    intervals = dict(base.intervals) if base is not None else {}
     for name, v in terms.items():
         parts = name.split(".")
         if len(parts) not in (3, 4) or parts[0] not in ("gyro", "acc") or parts[1] != "noise" \
@@ -325,7 +329,10 @@ def from_terms(terms: dict, base: NoiseModel | None = None, source: str = "given
                 chans[off + a] = replace(ch, flicker_range=tuple(rng))
             else:
                 chans[off + a] = replace(ch, **{TERM_OF_NAME[parts[2]]: float(v)})
-    return NoiseModel(tuple(chans), source)
+                set_here = term_name(off + a, TERM_OF_NAME[parts[2]])
+                sigmas.pop(set_here, None)
+                intervals.pop(set_here, None)
+    return NoiseModel(tuple(chans), source, sigmas, intervals)
 
 
 def from_fmu_parameters(noise: dict, gyro_count: float | None = None, acc_count: float | None = None,
