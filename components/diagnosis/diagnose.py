@@ -183,7 +183,8 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
             taken = taken_for_noise(design, base, available, alpha, noise_now, rank)
             if taken is None:
                 break
-            winner = taken.candidate
+            # its line under the noise the ranking was made with (its p there, not without the terms)
+            winner = next((c for c in ranking if c.effect == taken.effect), taken.candidate)
             taken_records.append(taken)
             noise_now = taken.noise
         found.append(winner.effect)

@@ -12,7 +12,7 @@ import numpy as np
 
 from components import progress
 from components.estimation.distributions import chi2_isf
-from components.estimation.noise_likelihood import fit_one_term, restricted_loglik
+from components.estimation.noise_likelihood import fit_one_term, restricted_loglik, term_level
 from components.estimation.whitening import advance_of, block_timing, channel_rows
 from components.logs.spill import gathered
 from components.model.noise import TERM_OF_NAME, NoiseModel
@@ -112,8 +112,7 @@ def refit_terms(rows_of: ChannelRows, noise: NoiseModel, terms: list[str]) -> No
         fields = [TERM_OF_NAME[t.split(".")[2]] for t in terms if t.startswith(sensor + ".")]
         for k in (range(3) if sensor == "gyro" else range(3, 6)):
             y, H, durations, white_var, span, t_lo, advance, gaps = rows_of(k)
-            level = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
-            levels = np.array([level / (math.sqrt(span) if f == "random_walk" else 1.0) for f in fields])
+            levels = np.array([term_level(f, durations, white_var, span) for f in fields])
             lo, hi = np.log(levels * 1e-3), np.log(levels * 1e3)
             ch = chans[k]
 

@@ -487,6 +487,13 @@ def _inverse_curvature(nll, x: np.ndarray, f0: float, h: float = 1e-2) -> np.nda
         return np.full((n, n), np.nan)
 
 
+def term_level(term: str, durations: np.ndarray, white_var: np.ndarray, span: float) -> float:
+    """The magnitude of a slow *term* at the level of the rows' white noise (a block's white σ as a
+    rate; a random walk's over the log's *span*): the scale a term's fit searches around."""
+    level = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
+    return level / math.sqrt(span) if term == "random_walk" else level
+
+
 def fit_one_term(ch: ChannelNoise, term: str, y: np.ndarray, H: np.ndarray, durations: np.ndarray,
                  white_var: np.ndarray, span: float, t_lo: float, restricted: bool = False,
                  advance: np.ndarray | None = None, gaps: np.ndarray | None = None) -> tuple[float, float]:
@@ -496,9 +503,7 @@ def fit_one_term(ch: ChannelNoise, term: str, y: np.ndarray, H: np.ndarray, dura
     from scipy.optimize import minimize_scalar
 
     base = restricted_loglik(ch, y, H, durations, white_var, span, t_lo, restricted, advance, gaps)
-    level = math.sqrt(max(float(np.median(white_var / np.maximum(durations, 1e-12) ** 2)), 1e-300))
-    if term == "random_walk":
-        level /= math.sqrt(span)
+    level = term_level(term, durations, white_var, span)
     lo, hi = math.log(level * 1e-3), math.log(level * 1e3)
 
     def nll(x):
