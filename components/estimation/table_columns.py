@@ -21,7 +21,6 @@ import hashlib
 from collections import OrderedDict
 
 import numpy as np
-from scipy import sparse
 
 from components import progress
 from components.estimation.blocks import Blocks
@@ -65,6 +64,10 @@ class _BlockMap:
         row = _row_of(st, start, stop)
         inside = row >= 0
         n_att = 0 if profile.attitudes is None else len(profile.attitudes)
+        # imported at use: scipy.sparse was ~0.1 s of every diagnose, calibrate and compare, and
+        # only table effects' columns need it
+        from scipy import sparse
+
         self.rests = (sparse.csr_matrix((profile.dt[st][inside], (row[inside], profile.attitude_of[inside])),
                                         shape=(self.n, n_att)) if n_att else sparse.csr_matrix((self.n, 0)))
         self.moving_row = _row_of(moving_index, start, stop)
