@@ -38,15 +38,42 @@ def pyplot():
     return plt
 
 
+# segments the heat map shows at most: an 8-hour log has 768, a map of every one was a 29 000-pixel
+# image and most of the report's peak memory (0.9 GB), and no one reads it
+MAP_ROWS = 48
+
+
+def map_segments(per_segment: dict, flagged=()) -> list[str]:
+    """The segments the heat map shows, in the log's order: every one when they are at most
+    :data:`MAP_ROWS`, else the *flagged* ones (beyond noise) and then those whose block RMS / noise
+    lies farthest from 1 on some channel (logarithmically: ½ as far as 2), up to MAP_ROWS."""
+    segs = list(per_segment)
+    if len(segs) <= MAP_ROWS:
+        return segs
+
+    def distance(s):
+        v = np.array([np.nan if x is None else x for x in per_segment[s]], float)
+        v = np.abs(np.log(v[np.isfinite(v) & (v > 0)]))
+        return float(v.max()) if len(v) else -1.0
+
+    flagged = set(flagged)
+    order = sorted(segs, key=lambda s: (s not in flagged, -distance(s)))
+    keep = set(order[:MAP_ROWS])
+    return [s for s in segs if s in keep]
+
+
 def segment_map(comparison, model_name: str, gid: str = "misfit-map") -> str:
     """Segment × channel heat map of the block RMS / noise on a diverging scale centred on 1 (white
     = noise, blue = below, red = above), logarithmic so that ½ and 2 are equally far from 1; cells
     that misfit beyond noise given how many were looked at (components.diagnosis.misfit) are
-    marked ×."""
+    marked ×. A log of more than :data:`MAP_ROWS` segments shows those of :func:`map_segments`
+    (every segment's figures are in the page's JSON twin)."""
     from matplotlib.colors import LogNorm
 
     plt = pyplot()
-    segs = list(comparison.per_segment)
+    mis = comparison.misfits
+    flagged = [c.name for c in mis.flagged("segment")] if mis is not None else []
+    segs = map_segments(comparison.per_segment, flagged)
     if not segs:
         return ""
     M = np.array([[np.nan if v is None else v for v in comparison.per_segment[s]] for s in segs])
@@ -56,17 +83,19 @@ def segment_map(comparison, model_name: str, gid: str = "misfit-map") -> str:
                    interpolation="nearest")
     ax.set_xticks(range(6), CHANNELS)
     ax.set_yticks(range(len(segs)), segs, fontsize=7)
-    mis = comparison.misfits
     if mis is not None:
         for c in mis.flagged("segment"):
-            ax.text(CHANNELS.index(c.channel), segs.index(c.name), "×", ha="center", va="center", fontsize=9)
+            if c.name in segs:
+                ax.text(CHANNELS.index(c.channel), segs.index(c.name), "×", ha="center", va="center", fontsize=9)
     ticks = [t for t in (1 / top, 0.5, 1.0, 2.0, top) if 1 / top <= t <= top]
     cb = fig.colorbar(im, ax=ax, label="block RMS / noise (1 = noise)", ticks=ticks)
     cb.ax.set_yticklabels([f"{t:.3g}" for t in ticks])
     cb.ax.minorticks_off()
     cb.ax.set_gid(f"{gid}-legend")
     ax.set_gid(gid)
-    ax.set_title(f"where {model_name} fails: segment × channel (× = beyond noise)", fontsize=9)
+    shown = "" if len(segs) == len(comparison.per_segment) else \
+        f"; the {len(segs)} of {len(comparison.per_segment)} segments farthest from noise"
+    ax.set_title(f"where {model_name} fails: segment × channel (× = beyond noise{shown})", fontsize=9)
     return svg_of(fig)
 
 
