@@ -105,7 +105,10 @@ class CandidateDesign:
 
     def rewhiten(self, noise: NoiseModel | None) -> None:
         """Whiten the same rows with another noise model (a noise term added); back to the
-        whitening before it without whitening again (a noise term tried and dropped)."""
+        whitening before it without whitening again (a noise term tried and dropped); the model
+        it is whitened with already: nothing to do."""
+        if noise is self.noise:
+            return
         state = (self.noise, self._compressed)
         if self._before is not None and self._before[0] is noise:
             self.noise, self._compressed = self._before

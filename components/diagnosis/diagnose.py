@@ -187,10 +187,10 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
             winner = next((c for c in ranking if c.effect == taken.effect), taken.candidate)
             taken_records.append(taken)
             noise_now = taken.noise
+            design.rewhiten(noise_now)
         found.append(winner.effect)
         kinds.append("effect")
         base = base + available.pop(winner.effect)
-        design.rewhiten(noise_now)
         chi2_after, _, _, rank_after = design.fit(base)
         steps.append({"effect": winner.effect, "chi2_per_dof_before": chi2_base / dof_base,
                       "chi2_per_dof_after": chi2_after / max(design.n - rank_after, 1),

@@ -54,18 +54,23 @@ class TakenForNoise:
                 "noise_after": self.noise.source}
 
 
+def _identified(noise: NoiseModel, k: int, term: str) -> bool:
+    """Channel *k* of *noise* has the slow *term*, identified by likelihood: it has a profile
+    interval (a term given by hand has none)."""
+    return getattr(noise.channels[k], term) > 0 and term_name(k, term) in noise.intervals
+
+
 def identified_slow_terms(noise: NoiseModel | None) -> list[str]:
-    """The slow terms (vocabulary names, ``acc.noise.rrw``) identified by likelihood on some
-    axis of *noise* — those with a profile interval; a term given by hand has none."""
+    """The slow terms (vocabulary names, ``acc.noise.rrw``) identified on some axis of *noise*."""
     if noise is None:
         return []
-    return sorted({f"{sensor_of(k)}.noise.{SLOW_NAMES[t]}" for k, c in enumerate(noise.channels)
-                   for t in SLOW_NAMES if getattr(c, t) > 0 and term_name(k, t) in noise.intervals})
+    return sorted({f"{sensor_of(k)}.noise.{SLOW_NAMES[t]}" for k in range(6) for t in SLOW_NAMES
+                   if _identified(noise, k, t)})
 
 
 def without_identified(noise: NoiseModel) -> NoiseModel:
     """*noise* without the slow terms it identified (what was given by hand stays)."""
-    chans = [replace(c, **{t: 0.0 for t in SLOW_NAMES if getattr(c, t) > 0 and term_name(k, t) in noise.intervals})
+    chans = [replace(c, **{t: 0.0 for t in SLOW_NAMES if _identified(noise, k, t)})
              for k, c in enumerate(noise.channels)]
     return NoiseModel(tuple(chans), noise.source + "; without its identified slow terms", noise.sigmas)
 

@@ -123,13 +123,15 @@ class MeasurementLog:
             return np.concatenate([[self.dt], np.diff(self.time[:b])])
         return np.diff(self.time[a - 1:b])
 
-    def gaps(self) -> np.ndarray:
-        """(N,) bool: the sample's interval is longer than ``max_interval_s`` (default 1.5 nominal
-        intervals) under measured timing: its start is unknown."""
+    def gaps(self, rows: slice = slice(None)) -> np.ndarray:
+        """(rows,) bool: the sample's interval is longer than ``max_interval_s`` (default 1.5
+        nominal intervals) under measured timing: its start is unknown (*rows* as for
+        :meth:`intervals`)."""
         if self.timing != "measured":
-            return np.zeros(self.n, bool)
+            a, b, _ = rows.indices(self.n)
+            return np.zeros(max(b - a, 0), bool)
         limit = self.max_interval_s if self.max_interval_s is not None else 1.5 * self.dt
-        return self.intervals() > limit
+        return self.intervals(rows) > limit
 
     def reasons_left_out(self, more: list | None = None) -> list:
         """Why samples may be left out, as (reason, a function from a slice of rows to their (rows,)
@@ -139,8 +141,7 @@ class MeasurementLog:
         do). A function of a slice lets a long log be masked a piece at a time."""
         out: list = []
         if self.timing == "measured":
-            limit = self.max_interval_s if self.max_interval_s is not None else 1.5 * self.dt
-            out.append(("gap (the sample after it)", lambda s: self.intervals(s) > limit))
+            out.append(("gap (the sample after it)", self.gaps))
         if self.mask is not None:
             out.append(("mask = 0", lambda s: ~np.asarray(self.mask[s], bool)))
         labels = None  # the log's segment labels, gathered only for a label to check (a set of
