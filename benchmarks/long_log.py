@@ -25,7 +25,13 @@ ended, and appended to one Parquet file a row group at a time; so the noise stat
 at each repetition's first sample (every ~42 minutes), the one way this file differs from a
 single run.
 
-    python benchmarks/long_log.py [--dir DIR] [--dwell 88] [--rate 200] [--hours 8]
+The table times each command once. A single figure is the machine's as much as the command's:
+the system time of touching fresh memory varies two- to three-fold from run to run on these
+virtual machines (the numpy ranking's on the 8-hour log: 5-17 s of its CPU), so diagnose told
+the ranking's eight candidates and the ranking are then run in alternating pairs (``--pairs``,
+3 by default) and compared by their medians, user and system time apart.
+
+    python benchmarks/long_log.py [--dir DIR] [--dwell 88] [--rate 200] [--hours 8] [--pairs 3]
     python benchmarks/long_log.py --growth SHORT.parquet LONG.parquet   (the peak's growth per sample)
 """
 from __future__ import annotations
@@ -39,6 +45,7 @@ import tempfile
 import time
 import tomllib
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -197,10 +204,19 @@ def _one_blas_thread(env: dict) -> dict:
     return {**env, **ONE_BLAS_THREAD}
 
 
-def measure(args: list[str], env: dict | None = None) -> tuple[float, float, float, float]:
-    """(CPU s, wall s, peak RSS GB, peak PSS GB of the process tree) of ``calbench ARGS`` (or,
-    when ARGS starts with a .py file, that script) in a child process: CPU from its rusage
-    (its worker processes' included), the tree's PSS sampled every 0.2 s."""
+class Run(NamedTuple):
+    cpu: float  # s, user + system
+    wall: float  # s
+    peak: float  # GB, the command's resident set
+    tree: float  # GB, the peak of the proportional set size summed over the process tree
+    user: float  # s
+    system: float  # s
+
+
+def measure(args: list[str], env: dict | None = None) -> Run:
+    """The figures of ``calbench ARGS`` (or, when ARGS starts with a .py file, that script) in
+    a child process: CPU from its rusage (its worker processes' included), the tree's PSS sampled
+    every 0.2 s."""
     import threading
 
     t = time.perf_counter()
@@ -224,7 +240,30 @@ def measure(args: list[str], env: dict | None = None) -> tuple[float, float, flo
     # 1 is a calbench command's "a check failed" (a verdict named); a script's 1 is an exception
     if p.returncode not in ((0,) if args[0].endswith(".py") else (0, 1)):
         raise SystemExit(f"{' '.join(args)} exited {p.returncode}")
-    return usage.ru_utime + usage.ru_stime, wall, usage.ru_maxrss / 1024**2, peak_pss[0] / 1024**3
+    return Run(usage.ru_utime + usage.ru_stime, wall, usage.ru_maxrss / 1024**2, peak_pss[0] / 1024**3,
+               usage.ru_utime, usage.ru_stime)
+
+
+def paired(steps: dict, pairs: int, n: int) -> None:
+    """diagnose8 and the one-thread numpy ranking run in turn *pairs* times; each pair's CPU
+    (user + system) and ratio, then the medians."""
+    import statistics
+
+    print(f"paired runs, in turn ({pairs}): diagnose8 against numpy1, CPU s as user + system")
+    runs: dict = {"diagnose8": [], "numpy1": []}
+    for i in range(pairs):
+        for name in runs:
+            env = _one_blas_thread(_cached_bytecode()) if name == "numpy1" else None
+            runs[name].append(measure(steps[name], env))
+        d, r = runs["diagnose8"][-1], runs["numpy1"][-1]
+        print(f"  pair {i + 1}: diagnose8 {d.user:.1f} + {d.system:.1f} = {d.cpu:.1f}, numpy1 {r.user:.1f} + "
+              f"{r.system:.1f} = {r.cpu:.1f}: {d.cpu / r.cpu:.2f}x", flush=True)
+    med = {k: Run(*(statistics.median(getattr(x, f) for x in v) for f in Run._fields)) for k, v in runs.items()}
+    d, r = med["diagnose8"], med["numpy1"]
+    print(f"median of {pairs}: diagnose8 {d.cpu:.1f} s CPU ({d.user:.1f} user), numpy1 {r.cpu:.1f} s CPU "
+          f"({r.user:.1f} user): {d.cpu / r.cpu:.2f}x CPU ({d.user / r.user:.2f}x user), "
+          f"{max(d.peak, d.tree) / r.peak:.2f}x memory; per sample {d.cpu / n * 1e6:.2f} against "
+          f"{r.cpu / n * 1e6:.2f} us")
 
 
 def growth(short: Path, long: Path, out: Path) -> int:
@@ -271,6 +310,8 @@ def main() -> int:
                     "these weights (e.g. 1e-6,1e-5; as_pulse_counts)")
     ap.add_argument("--growth", nargs=2, type=Path, metavar=("SHORT", "LONG"),
                     help="the peak memory's growth per sample between two Parquet logs of the same kind (growth())")
+    ap.add_argument("--pairs", type=int, default=3, help="diagnose8 and numpy1 run in turn this many times after "
+                    "the table (module docstring; 0: none)")
     a = ap.parse_args()
     if a.growth:
         with tempfile.TemporaryDirectory() as d:
@@ -338,7 +379,7 @@ def main() -> int:
     got = {}
     for name, args in steps:
         env = _one_blas_thread(_cached_bytecode()) if name == "numpy1" else None
-        cpu, wall, peak, tree = got[name] = measure(args, env)
+        cpu, wall, peak, tree, _, _ = got[name] = measure(args, env)
         ratios = "; ".join(f"{b}: {cpu / c:.2f}x CPU, {peak / m:.2f}x memory"
                            for b, (c, m) in (BASELINES.get(name, {}) if a.rate == 200 else {}).items())
         if name.startswith("diagnose"):
@@ -350,18 +391,20 @@ def main() -> int:
         print(f"report page: {page.stat().st_size / 1e6:.2f} MB (its JSON twin {page.with_suffix('.json').stat().st_size / 1e6:.2f} MB)")
     # the stricter baseline: the ranking with the fewer CPU seconds (numpy1: one BLAS thread)
     base = min(("numpy", "numpy1"), key=lambda k: got[k][0])
-    nc, _, nm, _ = got[base]
+    nc, _, nm, _, _, _ = got[base]
     print(f"numpy ranking baseline: {base} ({'one BLAS thread, as calbench runs' if base == 'numpy1' else 'BLAS threads at their default'}; "
           f"the other {got['numpy1' if base == 'numpy' else 'numpy'][0]:.1f} s CPU)")
     for name, what in (("diagnose", "all its candidates"),
                        ("diagnose8", f"the numpy ranking's {len(CANDIDATES)} candidates: the same test")):
-        dc, _, dm, dt_ = got[name]
+        dc, _, dm, dt_, _, _ = got[name]
         print(f"diagnose ({what}) against the numpy ranking, side by side: {dc / nc:.2f}x CPU, "
               f"{max(dm, dt_) / nm:.2f}x memory")
     three = [got[k] for k in ("calibrate", "compare", "diagnose")]
     print(f"calibrate + compare + diagnose: {sum(g[0] for g in three):.0f} s CPU, {sum(g[1] for g in three):.0f} s "
           f"wall on {chunk_workers()} worker(s), peak {max(max(g[2], g[3]) for g in three):.2f} GB "
           "(issue #18 for an 8-hour 1 kHz log: <= 10 minutes on 2 cores, <= 4 GB)")
+    if a.pairs > 0:
+        paired(dict(steps), a.pairs, n)
     print(f"cpus {os.cpu_count()}, load average (1 min) {os.getloadavg()[0]:.2f}")
     if tmp is not None:
         tmp.cleanup()

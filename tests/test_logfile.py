@@ -496,3 +496,35 @@ def test_a_files_hash_is_read_again_only_when_the_file_changed(tmp_path):
     st = os.stat(f)
     os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 1))
     assert sha256_file(f) == hashlib.sha256(b"b" * 1001).hexdigest()
+
+
+@pytest.mark.parametrize("spill", [False, True])
+def test_parquet_columns_of_other_types_read_as_their_float64_values(tmp_path, ideal, monkeypatch, spill):
+    """A Parquet log from other software: pulse counts as int32, the temperature as float32,
+    the labels as plain (not dictionary-encoded) strings. Each reads as exactly the float64
+    value of what is stored (an int32 count is exact in float64, a float32 widens exactly),
+    whole and, spilled, a row group at a time."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    if spill:
+        monkeypatch.setenv("CALBENCH_SPILL_SAMPLES", "0")
+    write_log(tmp_path / "other", ideal, fmt="parquet")
+    table = pq.read_table(tmp_path / "other.parquet")
+    counts = {c: np.round(ideal.gyro[:, j] / 1e-7).astype(np.int32) for j, c in enumerate(("gyro_x", "gyro_y", "gyro_z"))}
+    temperature = (ideal.temperature + 0.3).astype(np.float32)
+    for name, values in [*counts.items(), ("temperature", temperature),
+                         ("segment", pa.array(ideal.segment.tolist(), pa.string()))]:
+        table = table.set_column(table.schema.get_field_index(name), name, pa.array(values))
+    pq.write_table(table, tmp_path / "other.parquet", row_group_size=97)
+    meta = json.loads((tmp_path / "other.json").read_text())
+    meta["imu"].update(gyro_output="counts", gyro_count_rad=1e-7)
+    (tmp_path / "other.json").write_text(json.dumps(meta))
+
+    back = read_log(tmp_path / "other.parquet", lean=spill)
+    for j, c in enumerate(counts):
+        assert np.array_equal(bits(back.gyro[:, j]), bits(counts[c].astype(np.float64)))
+    assert back.temperature.dtype == np.float64 and back.gyro.dtype == np.float64
+    assert np.array_equal(bits(back.temperature), bits(temperature.astype(np.float64)))
+    assert np.array_equal(bits(back.acc), bits(ideal.acc))
+    assert back.segment.tolist() == ideal.segment.tolist()

@@ -47,6 +47,14 @@ def sensor_groups(meta: dict) -> dict[str, list[str]]:
             "gimbal": [f"gimbal_{a}" for a in meta["axis_names"]]}
 
 
+def float_values(col) -> np.ndarray:
+    """A numeric Arrow column as float64 numpy values. A float64 column is not cast: Arrow's
+    cast is its compute module, whose import alone is ~40 ms of every command's start."""
+    import pyarrow as pa
+
+    return (col if col.type == pa.float64() else col.cast(pa.float64())).to_numpy()
+
+
 def labels(col) -> SegmentLabels:
     """The segment labels of a (chunked) dictionary or string column, as runs (an empty value
     reads as the empty label, which a log refuses)."""
@@ -57,7 +65,8 @@ def labels(col) -> SegmentLabels:
         if not pa.types.is_dictionary(ch.type):
             ch = ch.dictionary_encode()
         names = ch.dictionary.to_pylist() + [""]
-        parts.append(SegmentLabels.from_codes(ch.indices.fill_null(len(names) - 1).to_numpy(), names))
+        codes = ch.indices.fill_null(len(names) - 1) if ch.indices.null_count else ch.indices
+        parts.append(SegmentLabels.from_codes(codes.to_numpy(), names))
     return SegmentLabels.concatenate(parts) if parts else SegmentLabels.of([])
 
 

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import LogFormatError
-from components.logs.csv_log import csv_row, labels, not_utf8, read_csv, sensor_groups, wanted_columns
+from components.logs.csv_log import csv_row, float_values, labels, not_utf8, read_csv, sensor_groups, wanted_columns
 from components.logs.labels import SegmentLabels
 from components.logs.measurement import MeasurementLog
 from components.logs.rules import (  # noqa: F401  (FORMAT: re-exported)
@@ -150,7 +150,7 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
         col = checked(name, col, 0)
         if name in place:
             g, j = place[name]
-            stacked[g][:, j] = col.cast(pa.float64()).to_numpy()
+            stacked[g][:, j] = float_values(col)
             cols[name] = stacked[g][:, j]
         else:
             cols[name] = light(name, col)
@@ -159,7 +159,7 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
         """A column outside the sensor groups as calbench holds it: numbers as float64, the
         segment labels as runs, anything else as it is."""
         if name in numeric:
-            return col.cast(pa.float64()).to_numpy()
+            return float_values(col)
         return labels(col) if name == "segment" else col.to_numpy()
 
     def put_by_row_group(name):
@@ -192,7 +192,7 @@ def _read_parquet(path: Path, meta: dict, lean: bool = False) -> tuple[dict, dic
             table = _read_columns(pf, cs, path, i)
             block = np.empty((table.num_rows,) + target.shape[1:])
             for name in cs:
-                values = checked(name, table.column(name), row).cast(pa.float64()).to_numpy()
+                values = float_values(checked(name, table.column(name), row))
                 if name in place:
                     block[:, place[name][1]] = values
                 else:
