@@ -296,6 +296,26 @@ def growth(short: Path, long: Path, out: Path) -> int:
     return 0
 
 
+def summary(got: dict, candidates: int) -> None:
+    """The table's ratios against the numpy ranking, and the issue's bound for the three commands."""
+    from components.estimation.chunks import chunk_workers
+
+    # the stricter baseline: the ranking with the fewer CPU seconds (numpy1: one BLAS thread)
+    base = min(("numpy", "numpy1"), key=lambda k: got[k][0])
+    nc, _, nm, _, _, _ = got[base]
+    print(f"numpy ranking baseline: {base} ({'one BLAS thread, as calbench runs' if base == 'numpy1' else 'BLAS threads at their default'}; "
+          f"the other {got['numpy1' if base == 'numpy' else 'numpy'][0]:.1f} s CPU)")
+    for name, what in (("diagnose", "all its candidates"),
+                       ("diagnose8", f"the numpy ranking's {candidates} candidates: the same test")):
+        dc, _, dm, dt_, _, _ = got[name]
+        print(f"diagnose ({what}) against the numpy ranking, side by side: {dc / nc:.2f}x CPU, "
+              f"{max(dm, dt_) / nm:.2f}x memory")
+    three = [got[k] for k in ("calibrate", "compare", "diagnose")]
+    print(f"calibrate + compare + diagnose: {sum(g[0] for g in three):.0f} s CPU, {sum(g[1] for g in three):.0f} s "
+          f"wall on {chunk_workers()} worker(s), peak {max(max(g[2], g[3]) for g in three):.2f} GB "
+          "(issue #18 for an 8-hour 1 kHz log: <= 10 minutes on 2 cores, <= 4 GB)")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", type=Path, help="where the log is written (default: a temporary directory)")
@@ -310,6 +330,8 @@ def main() -> int:
                     "these weights (e.g. 1e-6,1e-5; as_pulse_counts)")
     ap.add_argument("--growth", nargs=2, type=Path, metavar=("SHORT", "LONG"),
                     help="the peak memory's growth per sample between two Parquet logs of the same kind (growth())")
+    ap.add_argument("--steps", help="the table's commands to time, comma-separated (default: all; the ratios "
+                    "that need the others are left out)")
     ap.add_argument("--pairs", type=int, default=3, help="diagnose8 and numpy1 run in turn this many times after "
                     "the table (module docstring; 0: none)")
     a = ap.parse_args()
@@ -317,8 +339,6 @@ def main() -> int:
         with tempfile.TemporaryDirectory() as d:
             return growth(*a.growth, Path(d))
     from numpy_ranking import CANDIDATES
-
-    from components.estimation.chunks import chunk_workers
 
     if a.only_counts:
         src, stem, g, f = a.only_counts
@@ -377,7 +397,11 @@ def main() -> int:
           "  (CPU: the command's and its worker processes'; peak: the command's resident set; tree: the peak of "
           "the proportional set size summed over the command and its workers)")
     got = {}
-    for name, args in steps:
+    chosen = a.steps.split(",") if a.steps else [name for name, _ in steps]
+    unknown = set(chosen) - {name for name, _ in steps}
+    if unknown:
+        raise SystemExit(f"--steps: no such command {sorted(unknown)}; the table has {[name for name, _ in steps]}")
+    for name, args in ((k, v) for k, v in steps if k in chosen):
         env = _one_blas_thread(_cached_bytecode()) if name == "numpy1" else None
         cpu, wall, peak, tree, _, _ = got[name] = measure(args, env)
         ratios = "; ".join(f"{b}: {cpu / c:.2f}x CPU, {peak / m:.2f}x memory"
@@ -387,22 +411,10 @@ def main() -> int:
         print(f"{name:10s} {cpu:7.1f} {wall:7.1f} {peak:8.2f} {tree:8.2f} {cpu / n * 1e6:9.1f} "
               f"{max(peak, tree) * 1024**3 / n:8.0f}   {ratios}", flush=True)
     page = a.dir / "report.html"
-    if page.exists():
+    if "report" in got and page.exists():
         print(f"report page: {page.stat().st_size / 1e6:.2f} MB (its JSON twin {page.with_suffix('.json').stat().st_size / 1e6:.2f} MB)")
-    # the stricter baseline: the ranking with the fewer CPU seconds (numpy1: one BLAS thread)
-    base = min(("numpy", "numpy1"), key=lambda k: got[k][0])
-    nc, _, nm, _, _, _ = got[base]
-    print(f"numpy ranking baseline: {base} ({'one BLAS thread, as calbench runs' if base == 'numpy1' else 'BLAS threads at their default'}; "
-          f"the other {got['numpy1' if base == 'numpy' else 'numpy'][0]:.1f} s CPU)")
-    for name, what in (("diagnose", "all its candidates"),
-                       ("diagnose8", f"the numpy ranking's {len(CANDIDATES)} candidates: the same test")):
-        dc, _, dm, dt_, _, _ = got[name]
-        print(f"diagnose ({what}) against the numpy ranking, side by side: {dc / nc:.2f}x CPU, "
-              f"{max(dm, dt_) / nm:.2f}x memory")
-    three = [got[k] for k in ("calibrate", "compare", "diagnose")]
-    print(f"calibrate + compare + diagnose: {sum(g[0] for g in three):.0f} s CPU, {sum(g[1] for g in three):.0f} s "
-          f"wall on {chunk_workers()} worker(s), peak {max(max(g[2], g[3]) for g in three):.2f} GB "
-          "(issue #18 for an 8-hour 1 kHz log: <= 10 minutes on 2 cores, <= 4 GB)")
+    if {"numpy", "numpy1", "diagnose", "diagnose8", "calibrate", "compare"} <= set(got):
+        summary(got, len(CANDIDATES))
     if a.pairs > 0:
         paired(dict(steps), a.pairs, n)
     print(f"cpus {os.cpu_count()}, load average (1 min) {os.getloadavg()[0]:.2f}")
