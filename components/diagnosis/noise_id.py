@@ -35,7 +35,7 @@ from components.estimation.noise_likelihood import (
     fit_slow_terms,
     pooled_critical,
 )
-from components.estimation.whitening import block_timing, channel_rows
+from components.estimation.whitening import channel_blocks
 from components.logs.spill import release
 from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of, term_name
 
@@ -274,10 +274,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     critical = family_critical(tests)
 
     def slow_channel(k: int, decided: dict | None = None, fits: dict | None = None) -> tuple[ChannelNoise, dict, dict]:
-        idx = channel_rows(rows, k)
-        H = rows["H"][idx]
-        active = np.any(H != 0, axis=0)
-        durations, gaps = block_timing(rows, idx, dt)
+        b = channel_blocks(rows, k, dt, rows["y"], rows["H"], rows["weight"])
         base = replace(chans[k], bias_instability=0.0, random_walk=0.0, gauss_markov=())
         # (the count remainder as independent here, not turning: the advance read from the same
         # counts sets part of what the block sums show, and the white level the scale measures
@@ -285,9 +282,9 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         # logs, a false verdict on 6 of 20 with the datasheet's slow terms over it; independent,
         # 6.7e-7 and 19 of 20, no false verdict)
         fits = {} if fits is None else fits  # (the maximisations, back from a forked worker for a refit)
-        return (*fit_slow_terms(base, rows["y"][idx], H[:, active], durations, 1.0 / rows["weight"][idx] ** 2, span,
-                                chunk_s, slow_terms[k], critical=critical, variance_bound=k in hidden, gaps=gaps,
-                                decided=decided, fits=fits), fits)
+        return (*fit_slow_terms(base, b.y, b.H, b.durations, b.white_var, span, chunk_s, slow_terms[k],
+                                critical=critical, variance_bound=k in hidden, gaps=b.gaps, decided=decided,
+                                fits=fits), fits)
 
     with progress.steps("noise likelihood per channel", 6 if rows is not None else 0) as bar:
         slow_fits = forked_map(slow_channel, 6, bar) if rows is not None else [(c, {}, {}) for c in chans]
@@ -397,12 +394,9 @@ def add_noise_terms(data: LogData, model, noise: NoiseModel | None, terms: list[
         sensor, _, t = term.split(".")
         field_ = TERM_OF_NAME[t]
         for k in (range(3) if sensor == "gyro" else range(3, 6)):
-            idx = channel_rows(rows, k)
-            H = rows["H"][idx]
-            Hc = H[:, np.any(H != 0, axis=0)]
-            durations, gaps = block_timing(rows, idx, dt)
-            ch, rep = fit_slow_terms(replace(chans[k], **{field_: 0.0}), rows["y"][idx], Hc, durations,
-                                     1.0 / rows["weight"][idx] ** 2, span, chunk_s, [field_], gaps=gaps)
+            b = channel_blocks(rows, k, dt, rows["y"], rows["H"], rows["weight"])
+            ch, rep = fit_slow_terms(replace(chans[k], **{field_: 0.0}), b.y, b.H, b.durations, b.white_var, span,
+                                     chunk_s, [field_], gaps=b.gaps)
             r = rep[field_]
             chans[k] = replace(ch, **{field_: r["value"]})
             report[f"{term}.{AXES[k % 3]}"] = r

@@ -13,8 +13,7 @@ import numpy as np
 from components import progress
 from components.estimation.distributions import chi2_isf
 from components.estimation.noise_likelihood import fit_one_term, restricted_loglik, term_level
-from components.estimation.whitening import advance_of, block_timing, channel_rows
-from components.logs.spill import gathered
+from components.estimation.whitening import ChannelBlocks, channel_blocks
 from components.model.noise import TERM_OF_NAME, NoiseModel
 
 # noise terms a model can lack: (vocabulary name, channels, ChannelNoise field)
@@ -38,16 +37,10 @@ class ChannelRows:
     def __init__(self, design, base: list[str]):
         self.design, self.cols, self._rows = design, [design.index[p] for p in base], {}
 
-    def __call__(self, k: int) -> tuple:
-        """(y, H, durations, white variance, span, t_lo, advance, gaps) of channel *k*."""
+    def __call__(self, k: int) -> ChannelBlocks:
         if k not in self._rows:
-            d = self.design
-            y, H, w, rows = d.raw
-            idx = channel_rows(rows, k)
-            Hc = gathered(H, idx, self.cols)
-            durations, gaps = block_timing(rows, idx, d.dt)
-            self._rows[k] = (y[idx], Hc[:, np.any(Hc != 0, axis=0)], durations, 1.0 / w[idx] ** 2, d.span, d.t_lo,
-                             advance_of(rows, idx), gaps)
+            y, H, w, rows = self.design.raw
+            self._rows[k] = channel_blocks(rows, k, self.design.dt, y, H, w, self.cols)
         return self._rows[k]
 
 
@@ -55,10 +48,11 @@ def loglik(rows_of: ChannelRows, noise: NoiseModel, channels) -> float:
     """The ordinary log-likelihood of *channels*' rows under *noise*, the columns profiled out
     (noise_likelihood.restricted_loglik with restricted=False): what compares noise models on the
     same columns."""
-    total = 0.0
+    d, total = rows_of.design, 0.0
     for k in channels:
-        y, H, durations, white_var, span, t_lo, advance, gaps = rows_of(k)
-        total += restricted_loglik(noise.channels[k], y, H, durations, white_var, span, t_lo, False, advance, gaps)
+        b = rows_of(k)
+        total += restricted_loglik(noise.channels[k], b.y, b.H, b.durations, b.white_var, d.span, d.t_lo, False,
+                                   b.advance, b.gaps)
     return total
 
 
@@ -83,9 +77,9 @@ def noise_candidates(design, base: list[str], noise: NoiseModel | None, terms, a
                     values.append(getattr(chans[k], field_))
                     continue
                 n_new += 1
-                y, H, durations, white_var, span, t_lo, advance, gaps = rows_of(k)
-                value, g = fit_one_term(chans[k], field_, y, H, durations, white_var, span, t_lo, advance=advance,
-                                        gaps=gaps)
+                b = rows_of(k)
+                value, g = fit_one_term(chans[k], field_, b.y, b.H, b.durations, b.white_var, design.span, design.t_lo,
+                                        advance=b.advance, gaps=b.gaps)
                 chans[k] = replace(chans[k], **{field_: value})
                 gain += g
                 values.append(value)
@@ -107,20 +101,19 @@ def refit_terms(rows_of: ChannelRows, noise: NoiseModel, terms: list[str]) -> No
     everything else stay."""
     from scipy.optimize import minimize
 
-    chans = list(noise.channels)
+    chans, span, t_lo = list(noise.channels), rows_of.design.span, rows_of.design.t_lo
     for sensor in sorted({t.split(".")[0] for t in terms}):
         fields = [TERM_OF_NAME[t.split(".")[2]] for t in terms if t.startswith(sensor + ".")]
         for k in (range(3) if sensor == "gyro" else range(3, 6)):
-            y, H, durations, white_var, span, t_lo, advance, gaps = rows_of(k)
-            levels = np.array([term_level(f, durations, white_var, span) for f in fields])
+            b = rows_of(k)
+            levels = np.array([term_level(f, b.durations, b.white_var, span) for f in fields])
             lo, hi = np.log(levels * 1e-3), np.log(levels * 1e3)
             ch = chans[k]
 
-            def nll(x, ch=ch, y=y, H=H, durations=durations, white_var=white_var, span=span, t_lo=t_lo,
-                    advance=advance, gaps=gaps, lo=lo, hi=hi):
+            def nll(x, ch=ch, b=b, lo=lo, hi=hi):
                 v = np.exp(np.clip(x, lo, hi))
-                return -restricted_loglik(replace(ch, **dict(zip(fields, v.tolist()))), y, H, durations, white_var,
-                                          span, t_lo, False, advance, gaps)
+                return -restricted_loglik(replace(ch, **dict(zip(fields, v.tolist()))), b.y, b.H, b.durations,
+                                          b.white_var, span, t_lo, False, b.advance, b.gaps)
 
             x0 = np.array([math.log(getattr(ch, f)) if getattr(ch, f) > 0 else lo[i] for i, f in enumerate(fields)])
             x0 = np.clip(x0, lo, hi)

@@ -13,13 +13,14 @@ block's σ that the estimators have always done (the same bits).
 from __future__ import annotations
 
 import ctypes
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from components.errors import EstimationError
 from components.estimation.stacked_qr import StackedQR
-from components.logs.spill import pieces
+from components.logs.spill import gathered, pieces
 from components.model.noise import BlockNoise, NoiseModel, block_noise
 
 
@@ -141,6 +142,30 @@ def advance_of(rows: dict, idx: np.ndarray) -> np.ndarray | None:
     if not np.any(np.isfinite(adv)):
         return None
     return adv
+
+
+@dataclass(frozen=True)
+class ChannelBlocks:
+    """One channel's block rows as the noise likelihood and block_noise take them, in block order."""
+
+    idx: np.ndarray  # the rows' indices in the design
+    y: np.ndarray
+    H: np.ndarray  # the columns the channel sees (those not zero on every one of its rows)
+    durations: np.ndarray  # [s]
+    gaps: np.ndarray  # [s] (block_timing)
+    white_var: np.ndarray  # the rows' variance from white noise and rest angles
+    advance: np.ndarray | None  # a pulse output's count phase (advance_of)
+
+
+def channel_blocks(rows: dict, channel: int, dt: float, y: np.ndarray, H: np.ndarray, weight: np.ndarray,
+                   columns: list[int] | None = None) -> ChannelBlocks:
+    """:class:`ChannelBlocks` of *channel* from a design's rows (*y*, *H* — or its *columns* —
+    and the rows' *weight*, 1/σ); a spilled *H* is read a piece at a time."""
+    idx = channel_rows(rows, channel)
+    Hc = gathered(H, idx, columns)
+    durations, gaps = block_timing(rows, idx, dt)
+    return ChannelBlocks(idx, y[idx], Hc[:, np.any(Hc != 0, axis=0)], durations, gaps, 1.0 / weight[idx] ** 2,
+                         advance_of(rows, idx))
 
 
 def whiten(y: np.ndarray, H: np.ndarray, rows: dict, white_var: np.ndarray, noise: NoiseModel | None,
