@@ -139,8 +139,11 @@ def main() -> int:
               f"hidden acc.k2.z 300 ug/g2{'; pulse counts of ' + a.counts if a.counts else ''}")
         for k in range(4):
             diag = calbench("diagnose", log, "--model", str(model), "--noise", "identify", json_out=d / f"d{k}.json")
+            taken = (diag["steps"][0].get("taken_for_noise") if diag["steps"] else None)
+            how = (f"; named by the test of effects taken for noise, likelihood ratio {taken['likelihood_ratio']:.1f} "
+                   f"against {taken['critical']:.1f}" if taken else "")
             print(f"  diagnose ({', '.join(['default'] + added)}): verdict {diag['verdict'] or 'none'} "
-                  f"({diag['verdict_kind'] or '-'}), chi2/dof of the base {diag['base_chi2_per_dof']:.3f}")
+                  f"({diag['verdict_kind'] or '-'}), chi2/dof of the base {diag['base_chi2_per_dof']:.3f}{how}")
             if not diag["verdict"]:
                 break
             added.append(diag["verdict"])
