@@ -17,6 +17,7 @@ import pytest
 
 from components.cli.demo import SCENARIO
 from components.diagnosis.candidate_design import CandidateDesign
+from components.diagnosis.candidate_notes import verdict_lines
 from components.diagnosis.diagnose import default_candidates, diagnose
 from components.diagnosis.noise_choice import choose_noise
 from components.diagnosis.noise_terms import ChannelRows, loglik, refit_terms
@@ -76,6 +77,13 @@ def test_a_ramp_effect_the_identification_took_for_a_random_walk_is_named(ramp):
     taken = d.steps[0]["taken_for_noise"]
     assert taken["likelihood_ratio"] > taken["critical"]
     assert taken["slow_terms_beside"]["acc.noise.rrw.z"] < 0.5 * taken["slow_terms"]["acc.noise.rrw.z"]
+    # the verdict's line says what it was taken for, in the term's display unit: ug/sqrt(h) is
+    # 1e-6 g0 per sqrt(3600 s)
+    line = next(x for x in verdict_lines(d) if "taken it for noise" in x)
+    per = 9.80665e-6 / 60.0
+    said = f"acc_z's random walk {taken['slow_terms']['acc.noise.rrw.z'] / per:.3g} -> " \
+           f"{taken['slow_terms_beside']['acc.noise.rrw.z'] / per:.3g} ug/sqrt(h)"
+    assert said in line, line
 
 
 def test_its_likelihood_ratio_is_the_profile_one_from_each_channels_likelihood(ramp):

@@ -215,14 +215,14 @@ def taken_line(t) -> str:
     """Why an effect not significant under the identified noise is named
     (components.diagnosis.taken_for_noise): the slow terms it had been taken for, as refitted
     without and beside it, and its likelihood ratio with them free under both."""
-    from components.model.noise import CHANNELS, TERMS
+    from components.model.noise import CHANNELS, TERM_OF_NAME, TERMS
 
     moved = []
     for name, before in t.terms.items():
         after = t.terms_beside.get(name, before)
         if abs(after - before) > 0.1 * max(abs(before), abs(after)):
             sensor, _, short, axis = name.split(".")
-            term = next(k for k, v in TERMS[sensor].items() if v[0] == f"{sensor}.noise.{short}")
+            term = TERM_OF_NAME[short]
             _, _, unit, scale = TERMS[sensor][term]
             moved.append(f"{CHANNELS[(0 if sensor == 'gyro' else 3) + 'xyz'.index(axis)]}'s {term.replace('_', ' ')} "
                          f"{before / scale:.3g} -> {after / scale:.3g} {unit}")
