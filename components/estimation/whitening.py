@@ -148,7 +148,6 @@ def advance_of(rows: dict, idx: np.ndarray) -> np.ndarray | None:
 class ChannelBlocks:
     """One channel's block rows as the noise likelihood and block_noise take them, in block order."""
 
-    idx: np.ndarray  # the rows' indices in the design
     y: np.ndarray
     H: np.ndarray  # the columns the channel sees (those not zero on every one of its rows)
     durations: np.ndarray  # [s]
@@ -164,7 +163,7 @@ def channel_blocks(rows: dict, channel: int, dt: float, y: np.ndarray, H: np.nda
     idx = channel_rows(rows, channel)
     Hc = gathered(H, idx, columns)
     durations, gaps = block_timing(rows, idx, dt)
-    return ChannelBlocks(idx, y[idx], Hc[:, np.any(Hc != 0, axis=0)], durations, gaps, 1.0 / weight[idx] ** 2,
+    return ChannelBlocks(y[idx], Hc[:, np.any(Hc != 0, axis=0)], durations, gaps, 1.0 / weight[idx] ** 2,
                          advance_of(rows, idx))
 
 
