@@ -215,17 +215,19 @@ def taken_line(t) -> str:
     """Why an effect not significant under the identified noise is named
     (components.diagnosis.taken_for_noise): the slow terms it had been taken for, as refitted
     without and beside it, and its likelihood ratio with them free under both."""
-    from components.model.noise import CHANNELS, TERM_OF_NAME, TERMS
+    from components.estimation.noise_likelihood import SLOW
+    from components.model.noise import CHANNELS, TERMS, sensor_of, term_name
 
     moved = []
-    for name, before in t.terms.items():
-        after = t.terms_beside.get(name, before)
-        if abs(after - before) > 0.1 * max(abs(before), abs(after)):
-            sensor, _, short, axis = name.split(".")
-            term = TERM_OF_NAME[short]
-            _, _, unit, scale = TERMS[sensor][term]
-            moved.append(f"{CHANNELS[(0 if sensor == 'gyro' else 3) + 'xyz'.index(axis)]}'s {term.replace('_', ' ')} "
-                         f"{before / scale:.3g} -> {after / scale:.3g} {unit}")
+    for k in range(6):
+        for term in SLOW:
+            name = term_name(k, term)
+            if name not in t.terms:
+                continue
+            before, after = t.terms[name], t.terms_beside.get(name, t.terms[name])
+            if abs(after - before) > 0.1 * max(abs(before), abs(after)):
+                _, _, unit, scale = TERMS[sensor_of(k)][term]
+                moved.append(f"{CHANNELS[k]}'s {term.replace('_', ' ')} {before / scale:.3g} -> {after / scale:.3g} {unit}")
     return (f"   {t.effect} is not significant under the identified noise, which had taken it for noise: refitted "
             f"beside it, {'; '.join(moved) or 'the slow terms change little'}; its likelihood ratio with the slow "
             f"terms free under both is {t.likelihood_ratio:.3g} against {t.critical:.3g} (χ² of its rank at α over the "

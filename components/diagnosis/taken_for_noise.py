@@ -29,12 +29,12 @@ from dataclasses import dataclass, replace
 
 from components.diagnosis.noise_terms import ChannelRows, loglik, refit_terms
 from components.estimation.distributions import chi2_isf
-from components.model.noise import NoiseModel, sensor_of, term_name
+from components.estimation.noise_likelihood import SLOW
+from components.model.noise import TERMS, NoiseModel, sensor_of, term_name
 
 # the effects significant without the identified slow terms, best first, tried (each costs a fit
 # of the terms beside its columns and a whitening of the design)
 TRIED = 3
-SLOW_NAMES = {"bias_instability": "bi", "random_walk": "rrw"}
 
 
 @dataclass
@@ -54,6 +54,11 @@ class TakenForNoise:
                 "noise_after": self.noise.source}
 
 
+def _vocabulary_name(k: int, term: str) -> str:
+    """The name of *term* (a ChannelNoise field) for channel *k*'s sensor: ``acc.noise.rrw``."""
+    return TERMS[sensor_of(k)][term][0]
+
+
 def _identified(noise: NoiseModel, k: int, term: str) -> bool:
     """Channel *k* of *noise* has the slow *term*, identified by likelihood: it has a profile
     interval (a term given by hand has none)."""
@@ -64,13 +69,13 @@ def identified_slow_terms(noise: NoiseModel | None) -> list[str]:
     """The slow terms (vocabulary names, ``acc.noise.rrw``) identified on some axis of *noise*."""
     if noise is None:
         return []
-    return sorted({f"{sensor_of(k)}.noise.{SLOW_NAMES[t]}" for k in range(6) for t in SLOW_NAMES
+    return sorted({_vocabulary_name(k, t) for k in range(6) for t in SLOW
                    if _identified(noise, k, t)})
 
 
 def without_identified(noise: NoiseModel) -> NoiseModel:
     """*noise* without the slow terms it identified (what was given by hand stays)."""
-    chans = [replace(c, **{t: 0.0 for t in SLOW_NAMES if _identified(noise, k, t)})
+    chans = [replace(c, **{t: 0.0 for t in SLOW if _identified(noise, k, t)})
              for k, c in enumerate(noise.channels)]
     return NoiseModel(tuple(chans), noise.source + "; without its identified slow terms", noise.sigmas)
 
@@ -127,7 +132,7 @@ def _magnitudes(noise: NoiseModel, terms: list[str]) -> dict:
     """Each channel's magnitude of *terms* (term name with its axis -> SI value)."""
     out = {}
     for k, c in enumerate(noise.channels):
-        for t, short in SLOW_NAMES.items():
-            if f"{sensor_of(k)}.noise.{short}" in terms:
+        for t in SLOW:
+            if _vocabulary_name(k, t) in terms:
                 out[term_name(k, t)] = float(getattr(c, t))
     return out
