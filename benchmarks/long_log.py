@@ -244,6 +244,12 @@ def measure(args: list[str], env: dict | None = None) -> Run:
                usage.ru_utime, usage.ru_stime)
 
 
+def environment(name: str) -> dict:
+    """The child's environment for the table's command *name*: the numpy ranking's "numpy1" with one
+    BLAS thread, as calbench runs; every command with its bytecode compiled (_cached_bytecode)."""
+    return _one_blas_thread(_cached_bytecode()) if name == "numpy1" else _cached_bytecode()
+
+
 def paired(steps: dict, pairs: int, n: int) -> None:
     """diagnose8 and the one-thread numpy ranking run in turn *pairs* times; each pair's CPU
     (user + system) and ratio, then the medians."""
@@ -253,8 +259,7 @@ def paired(steps: dict, pairs: int, n: int) -> None:
     runs: dict = {"diagnose8": [], "numpy1": []}
     for i in range(pairs):
         for name in runs:
-            env = _one_blas_thread(_cached_bytecode()) if name == "numpy1" else None
-            runs[name].append(measure(steps[name], env))
+            runs[name].append(measure(steps[name], environment(name)))
         d, r = runs["diagnose8"][-1], runs["numpy1"][-1]
         print(f"  pair {i + 1}: diagnose8 {d.user:.1f} + {d.system:.1f} = {d.cpu:.1f}, numpy1 {r.user:.1f} + "
               f"{r.system:.1f} = {r.cpu:.1f}: {d.cpu / r.cpu:.2f}x", flush=True)
@@ -301,18 +306,18 @@ def summary(got: dict, candidates: int) -> None:
     from components.estimation.chunks import chunk_workers
 
     # the stricter baseline: the ranking with the fewer CPU seconds (numpy1: one BLAS thread)
-    base = min(("numpy", "numpy1"), key=lambda k: got[k][0])
-    nc, _, nm, _, _, _ = got[base]
+    base = min(("numpy", "numpy1"), key=lambda k: got[k].cpu)
+    b = got[base]
     print(f"numpy ranking baseline: {base} ({'one BLAS thread, as calbench runs' if base == 'numpy1' else 'BLAS threads at their default'}; "
-          f"the other {got['numpy1' if base == 'numpy' else 'numpy'][0]:.1f} s CPU)")
+          f"the other {got['numpy1' if base == 'numpy' else 'numpy'].cpu:.1f} s CPU)")
     for name, what in (("diagnose", "all its candidates"),
                        ("diagnose8", f"the numpy ranking's {candidates} candidates: the same test")):
-        dc, _, dm, dt_, _, _ = got[name]
-        print(f"diagnose ({what}) against the numpy ranking, side by side: {dc / nc:.2f}x CPU, "
-              f"{max(dm, dt_) / nm:.2f}x memory")
+        d = got[name]
+        print(f"diagnose ({what}) against the numpy ranking, side by side: {d.cpu / b.cpu:.2f}x CPU, "
+              f"{max(d.peak, d.tree) / b.peak:.2f}x memory")
     three = [got[k] for k in ("calibrate", "compare", "diagnose")]
-    print(f"calibrate + compare + diagnose: {sum(g[0] for g in three):.0f} s CPU, {sum(g[1] for g in three):.0f} s "
-          f"wall on {chunk_workers()} worker(s), peak {max(max(g[2], g[3]) for g in three):.2f} GB "
+    print(f"calibrate + compare + diagnose: {sum(g.cpu for g in three):.0f} s CPU, {sum(g.wall for g in three):.0f} s "
+          f"wall on {chunk_workers()} worker(s), peak {max(max(g.peak, g.tree) for g in three):.2f} GB "
           "(issue #18 for an 8-hour 1 kHz log: <= 10 minutes on 2 cores, <= 4 GB)")
 
 
@@ -402,8 +407,7 @@ def main() -> int:
     if unknown:
         raise SystemExit(f"--steps: no such command {sorted(unknown)}; the table has {[name for name, _ in steps]}")
     for name, args in ((k, v) for k, v in steps if k in chosen):
-        env = _one_blas_thread(_cached_bytecode()) if name == "numpy1" else None
-        cpu, wall, peak, tree, _, _ = got[name] = measure(args, env)
+        cpu, wall, peak, tree, _, _ = got[name] = measure(args, environment(name))
         ratios = "; ".join(f"{b}: {cpu / c:.2f}x CPU, {peak / m:.2f}x memory"
                            for b, (c, m) in (BASELINES.get(name, {}) if a.rate == 200 else {}).items())
         if name.startswith("diagnose"):
