@@ -748,6 +748,57 @@ pos01 = {{ kind = "static" }}
     assert np.array_equal(back.gyro[:, 1], -back.gyro[:, 0]) and not back.gyro[:, 2].any()
 
 
+# a thermometer's fixed points in each unit a rig may log, and the same temperatures in °C: ice,
+# boiling water, the point where the Fahrenheit and Celsius scales meet, a body
+FIXED_POINTS_DEGC = [0.0, 100.0, -40.0, 37.0]
+FIXED_POINTS = {"degC": FIXED_POINTS_DEGC, "degF": [32.0, 212.0, -40.0, 98.6], "K": [273.15, 373.15, 233.15, 310.15]}
+
+
+@pytest.mark.parametrize("unit", sorted(FIXED_POINTS))
+def test_a_temperature_column_in_any_unit_is_read_as_degC(tmp_path, capsys, unit):
+    """A rig's thermometer in °F or kelvin (the foreign rig of benchmarks/foreign_rig.py writes
+    °F) is read in °C, the unit every temperature effect's coefficient is per; the import says
+    it converted."""
+    n = 400
+    t = np.arange(n) * 0.005
+    temp = np.repeat(FIXED_POINTS[unit], n // 4)
+    _write_delimited(tmp_path / "imu.csv", ["t", "one", "zero", "T"], [t, np.ones(n), np.zeros(n), temp])
+    m = _mapping(tmp_path / "map.toml", f'''
+[imu]
+file = "imu.csv"
+sample_rate_hz = 200.0
+[imu.time]
+column = "t"
+[imu.gyro]
+output = "rate"
+unit = "deg/s"
+x = "zero"
+y = "zero"
+z = "zero"
+[imu.acc]
+output = "specific_force"
+unit = "g"
+x = "zero"
+y = "zero"
+z = "one"
+[imu.temperature]
+column = "T"
+unit = "{unit}"
+[labels]
+[[labels.ranges]]
+from = 0.0
+to = 10.0
+label = "pos01"
+[segments]
+pos01 = {{ kind = "static" }}
+{SITE}''')
+    assert main(["import", str(m), "--out", str(tmp_path / "imported")]) == 0
+    said = capsys.readouterr()
+    assert ("converted to degC" in said.out + said.err) == (unit != "degC")
+    back = read_log(tmp_path / "imported")
+    assert np.allclose(back.temperature, np.repeat(FIXED_POINTS_DEGC, n // 4), rtol=0, atol=1e-9)
+
+
 @pytest.mark.parametrize("edit, words", [
     # an empty cell was "np.float64(nan) is not finite"; a NaN written as such is said as a number
     (lambda ls: ls.__setitem__(5, ls[5].replace(",0,", ",,")), r"rec.csv: column 'g': row 5: empty value; expected a number"),
