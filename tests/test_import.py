@@ -707,14 +707,12 @@ encoder_resolution = "exact"
     assert "labels.column: row 8: empty label" in capsys.readouterr().err
 
 
-def test_a_csv_column_used_twice_is_the_same_both_times(tmp_path):
-    """A CSV column is dropped from the parsed file once converted; a mapping that names it twice
-    (here one gyro column for two axes, one flipped) gets it again, the same values."""
-    n = 400
-    t = np.arange(n) * 0.005
-    w = np.sin(np.arange(n) * 0.01) * 10.0       # deg/s
-    _write_delimited(tmp_path / "imu.csv", ["t", "w", "one", "zero"], [t, w, np.ones(n), np.zeros(n)])
-    m = _mapping(tmp_path / "map.toml", f'''
+def _one_rest_mapping(gyro: tuple[str, str, str], more: str = "") -> str:
+    """The mapping of imu.csv (columns t, the gyro's three, 'one' and 'zero'): rates in deg/s from
+    the columns *gyro*, the accelerometers reading 1 g on z, the first 10 s one rest, no table;
+    *more* (TOML) besides."""
+    x, y, z = gyro
+    return f'''
 [imu]
 file = "imu.csv"
 sample_rate_hz = 200.0
@@ -723,15 +721,16 @@ column = "t"
 [imu.gyro]
 output = "rate"
 unit = "deg/s"
-x = "w"
-y = "-w"
-z = "zero"
+x = "{x}"
+y = "{y}"
+z = "{z}"
 [imu.acc]
 output = "specific_force"
 unit = "g"
 x = "zero"
 y = "zero"
 z = "one"
+{more}
 [labels]
 [[labels.ranges]]
 from = 0.0
@@ -739,7 +738,17 @@ to = 10.0
 label = "pos01"
 [segments]
 pos01 = {{ kind = "static" }}
-{SITE}''')
+{SITE}'''
+
+
+def test_a_csv_column_used_twice_is_the_same_both_times(tmp_path):
+    """A CSV column is dropped from the parsed file once converted; a mapping that names it twice
+    (here one gyro column for two axes, one flipped) gets it again, the same values."""
+    n = 400
+    t = np.arange(n) * 0.005
+    w = np.sin(np.arange(n) * 0.01) * 10.0       # deg/s
+    _write_delimited(tmp_path / "imu.csv", ["t", "w", "one", "zero"], [t, w, np.ones(n), np.zeros(n)])
+    m = _mapping(tmp_path / "map.toml", _one_rest_mapping(("w", "-w", "zero")))
     assert main(["import", str(m), "--out", str(tmp_path / "imported")]) == 0
     back = read_log(tmp_path / "imported")
     rate = np.radians(w)
@@ -763,35 +772,8 @@ def test_a_temperature_column_in_any_unit_is_read_as_degC(tmp_path, capsys, unit
     t = np.arange(n) * 0.005
     temp = np.repeat(FIXED_POINTS[unit], n // 4)
     _write_delimited(tmp_path / "imu.csv", ["t", "one", "zero", "T"], [t, np.ones(n), np.zeros(n), temp])
-    m = _mapping(tmp_path / "map.toml", f'''
-[imu]
-file = "imu.csv"
-sample_rate_hz = 200.0
-[imu.time]
-column = "t"
-[imu.gyro]
-output = "rate"
-unit = "deg/s"
-x = "zero"
-y = "zero"
-z = "zero"
-[imu.acc]
-output = "specific_force"
-unit = "g"
-x = "zero"
-y = "zero"
-z = "one"
-[imu.temperature]
-column = "T"
-unit = "{unit}"
-[labels]
-[[labels.ranges]]
-from = 0.0
-to = 10.0
-label = "pos01"
-[segments]
-pos01 = {{ kind = "static" }}
-{SITE}''')
+    m = _mapping(tmp_path / "map.toml", _one_rest_mapping(("zero", "zero", "zero"),
+                                                          f'[imu.temperature]\ncolumn = "T"\nunit = "{unit}"'))
     assert main(["import", str(m), "--out", str(tmp_path / "imported")]) == 0
     said = capsys.readouterr()
     assert ("converted to degC" in said.out + said.err) == (unit != "degC")
