@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 from components.diagnosis.noise_terms import ChannelRows, loglik, refit_terms
 from components.estimation.distributions import chi2_isf
 from components.estimation.noise_likelihood import SLOW
-from components.model.noise import TERMS, NoiseModel, sensor_of, term_name
+from components.model.noise import NoiseModel, sensor_of, sensor_term_name, term_name
 
 # the effects significant without the identified slow terms, best first, tried (each costs a fit
 # of the terms beside its columns and a whitening of the design)
@@ -54,11 +54,6 @@ class TakenForNoise:
                 "noise_after": self.noise.source}
 
 
-def _vocabulary_name(k: int, term: str) -> str:
-    """The name of *term* (a ChannelNoise field) for channel *k*'s sensor: ``acc.noise.rrw``."""
-    return TERMS[sensor_of(k)][term][0]
-
-
 def _identified(noise: NoiseModel, k: int, term: str) -> bool:
     """Channel *k* of *noise* has the slow *term*, identified by likelihood: it has a profile
     interval (a term given by hand has none)."""
@@ -69,7 +64,7 @@ def identified_slow_terms(noise: NoiseModel | None) -> list[str]:
     """The slow terms (vocabulary names, ``acc.noise.rrw``) identified on some axis of *noise*."""
     if noise is None:
         return []
-    return sorted({_vocabulary_name(k, t) for k in range(6) for t in SLOW
+    return sorted({sensor_term_name(k, t) for k in range(6) for t in SLOW
                    if _identified(noise, k, t)})
 
 
@@ -133,6 +128,6 @@ def _magnitudes(noise: NoiseModel, terms: list[str]) -> dict:
     out = {}
     for k, c in enumerate(noise.channels):
         for t in SLOW:
-            if _vocabulary_name(k, t) in terms:
+            if sensor_term_name(k, t) in terms:
                 out[term_name(k, t)] = float(getattr(c, t))
     return out

@@ -63,9 +63,14 @@ def sensor_of(channel: int) -> str:
     return "gyro" if channel < 3 else "acc"
 
 
+def sensor_term_name(channel: int, term: str) -> str:
+    """The vocabulary name of *term* for *channel*'s sensor, all three axes: ``acc.noise.rrw``."""
+    return TERMS[sensor_of(channel)][term][0]
+
+
 def term_name(channel: int, term: str) -> str:
     """The vocabulary name of *term* on *channel* (0-5): ``gyro.noise.arw.x``, ``acc.noise.bi.z``."""
-    return f"{TERMS[sensor_of(channel)][term][0]}.{AXES[channel % 3]}"
+    return f"{sensor_term_name(channel, term)}.{AXES[channel % 3]}"
 
 
 @dataclass(frozen=True)
