@@ -9,10 +9,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from forked_chunks import send_chunks_to_workers
 
 from components.cli.demo import SCENARIO
 from components.diagnosis.compare import compare
 from components.diagnosis.diagnose import diagnose
+from components.estimation import chunks
 from components.estimation.chunks import BlockLayout
 from components.estimation.log_data import LogData
 from components.estimation.lsq import calibrate
@@ -176,10 +178,13 @@ def test_chunks_on_two_processes_give_the_same_bits(data, monkeypatch):
     effects = list(DEFAULT_EFFECTS) + ["acc.k2"]
     fits, diags = [], []
     for workers in ("1", "2"):
-        monkeypatch.setenv("CALBENCH_WORKERS", workers)
-        fits.append(calibrate(data, effects, chunk_samples=SMALL))
-        model = result_from_fit(fits[-1], effects, data)
-        diags.append(diagnose(data, model, forward=False, chunk_samples=SMALL))
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setenv("CALBENCH_WORKERS", "1")
+            pools = send_chunks_to_workers(mp) if workers == "2" else None
+            fits.append(calibrate(data, effects, chunk_samples=SMALL))
+            model = result_from_fit(fits[-1], effects, data)
+            diags.append(diagnose(data, model, forward=False, chunk_samples=SMALL))
+    assert pools.started >= 2  # the fit's and the diagnosis' chunks did go to workers
     assert np.array_equal(fits[0].value, fits[1].value)
     assert np.array_equal(fits[0].covariance, fits[1].covariance)
     assert [(c.effect, c.statistic) for c in diags[0].ranking] == [(c.effect, c.statistic) for c in diags[1].ranking]
@@ -197,13 +202,16 @@ def test_the_rows_held_at_once_are_a_chunks_not_the_logs(data, monkeypatch, work
     from components.estimation.chunks import chunked_design
     from components.model.effects import parameters_of
 
-    monkeypatch.setenv("CALBENCH_WORKERS", workers)
+    pools = send_chunks_to_workers(monkeypatch) if workers == "2" else None
+    if pools is None:
+        monkeypatch.setenv("CALBENCH_WORKERS", "1")
     model = result_from_fit(calibrate(data, list(DEFAULT_EFFECTS)), list(DEFAULT_EFFECTS), data)
     params = parameters_of(list(DEFAULT_EFFECTS) + ["acc.k2", "acc.k3", "acc.temp", "gyro.drift", "acc.drift"])
     layout = BlockLayout.of(data, 4, 2000)  # short blocks: many rows a sample, as an 8-hour log has many samples
     geo = model_geometry(data, model)
     args = (data, layout, params, np.full(3, 1e-6), np.full(3, 1e-5), np.zeros(3), geo, [], None)
     y, H, w, rows = chunked_design(*args)
+    before = pools.started if pools else 0
     tracemalloc.start()
     try:
         y2, H2, w2, rows2 = chunked_design(*args, spill=True)
@@ -216,6 +224,7 @@ def test_the_rows_held_at_once_are_a_chunks_not_the_logs(data, monkeypatch, work
     # against H's 312) a chunk's rows and, on one process, its work arrays; every chunk's rows
     # listed (then copied into H, as before) are H's size at least
     assert peak < 0.6 * H.nbytes, (peak, H.nbytes)
+    assert pools is None or pools.started > before  # the spilled rows did come from workers
 
 
 def test_chunks_on_a_dask_cluster_give_the_same_bits(data, monkeypatch):
@@ -236,6 +245,7 @@ def test_chunks_on_a_dask_cluster_give_the_same_bits(data, monkeypatch):
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
             Client(cluster) as watcher, get_task_stream(client=watcher) as stream:
         monkeypatch.setenv("CALBENCH_SCHEDULER", cluster.scheduler_address)
+        monkeypatch.setattr(chunks, "PARALLEL_CHUNKS", 2)  # a dozen chunks: below it they stay here
         there = calibrate(data, effects, chunk_samples=SMALL)
         diag_there = diagnose(data, model, forward=False, chunk_samples=SMALL)
     # the chunks ran there, on both workers
@@ -250,9 +260,9 @@ def test_chunks_on_a_dask_cluster_give_the_same_bits(data, monkeypatch):
 
 def test_an_unreachable_scheduler_is_one_clear_error(data, monkeypatch):
     from components.errors import UserError
-    from components.estimation import chunks
 
     monkeypatch.setattr(chunks, "SCHEDULER_TIMEOUT", "1s")
+    monkeypatch.setattr(chunks, "PARALLEL_CHUNKS", 2)
     monkeypatch.setenv("CALBENCH_SCHEDULER", "tcp://127.0.0.1:9")
     with pytest.raises(UserError, match="CALBENCH_SCHEDULER=tcp://127.0.0.1:9: no Dask scheduler answers"):
         calibrate(data, list(DEFAULT_EFFECTS), chunk_samples=SMALL)

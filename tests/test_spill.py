@@ -13,6 +13,7 @@ import tomllib
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from forked_chunks import send_chunks_to_workers
 
 from components.cli.demo import SCENARIO
 from components.diagnosis.compare import compare
@@ -27,6 +28,7 @@ from components.simulation.run import run_scenario
 from components.simulation.scenario import scenario_from_dict
 
 CHUNK = 5000
+_POOLS = None  # the worker pools the pair's fixture counts
 
 
 def _write(tmp_path, name, counts=False):
@@ -49,7 +51,8 @@ def pair(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.setenv("CALBENCH_SPILL_SAMPLES", "0")
     mp.setattr(spill, "PIECE", 3000)  # passes in pieces smaller than a chunk
-    mp.setenv("CALBENCH_WORKERS", "2")  # the spilled prediction filled by forked workers
+    global _POOLS
+    _POOLS = send_chunks_to_workers(mp)  # the spilled prediction filled by forked workers
     spilled = LogData.from_log(read_log(path, lean=True))
     yield memory, spilled
     mp.undo()
@@ -98,7 +101,9 @@ def test_estimates_comparison_and_diagnosis_equal_in_memory(pair):
     assert np.array_equal(fits[0].value, fits[1].value)
     assert np.array_equal(fits[0].covariance, fits[1].covariance)
     model = result_from_fit(fits[0], effects, memory)
+    before = _POOLS.started
     comps = [compare(d, model, fitted_parameters=len(model.values), chunk_samples=CHUNK) for d in pair]
+    assert _POOLS.started > before  # the spilled prediction did come from workers
     assert comps[0].chi2 == comps[1].chi2 and comps[0].dof == comps[1].dof
     assert comps[0].channels == comps[1].channels
     assert np.array_equal(comps[0].residual, comps[1].residual)

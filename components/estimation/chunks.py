@@ -140,7 +140,13 @@ def chunk_scheduler() -> str | None:
 # the work a forked worker runs (inherited at the fork: a closure over the log cannot be pickled,
 # and the log's arrays are shared, not copied)
 _FORKED = None
-PARALLEL_CHUNKS = 4  # fewer chunks than this are not worth starting processes for
+# fewer chunks than this are done in this process: starting the workers and sending each chunk's
+# rows back cost more than halving the chunk work saves (on 2 cores, one worker against two: a
+# 42-minute 200 Hz log, 8 chunks, diagnose 0.89x the CPU and 0.96-1.1x the wall time, calibrate
+# 0.77x the CPU and 0.90x the wall; a 2.1-hour one, 23 chunks, diagnose and calibrate 0.81-0.89x
+# the CPU at 1.07-1.10x the wall; on an 8-hour 1 kHz log, 460 chunks, the three commands took
+# 161 s of CPU in 117 s: benchmarks/long_log_8h.txt)
+PARALLEL_CHUNKS = 32
 IN_FLIGHT = 2  # chunks sent to a cluster per worker thread before the first result is back
 SCHEDULER_TIMEOUT = "30s"  # connecting to CALBENCH_SCHEDULER
 
