@@ -374,6 +374,37 @@ def test_case_child_dies_with_its_worker(campaign_file, tmp_path):
 
 
 @pytest.mark.parametrize("isolation", ["fork", "spawn"])
+def test_a_case_runs_its_chunk_work_and_blas_on_one_process(tmp_path, monkeypatch, isolation):
+    """Whatever the caller's environment asks, a case's process has one chunk worker and one BLAS
+    thread: the campaign's workers are the parallelism (a case forking a chunk worker per CPU
+    beside them oversubscribes the machine). Read from the environment the case process gets."""
+    from components.campaign import isolate
+
+    for name, value in (("CALBENCH_WORKERS", "2"), ("OPENBLAS_NUM_THREADS", "4")):
+        monkeypatch.setenv(name, value)
+    if isolation == "fork":
+        if not isolate._use_server():
+            pytest.skip("case servers fork on Linux only")
+        server = isolate._Server()
+        try:
+            raw = Path(f"/proc/{server.p.pid}/environ").read_bytes()
+        finally:
+            server.close()
+        env = dict(item.split("=", 1) for item in raw.decode().split("\0") if "=" in item)
+    else:
+        seen = {}
+
+        def run(cmd, env, **kwargs):
+            seen.update(env)
+            return subprocess.CompletedProcess(cmd, 0)
+
+        monkeypatch.setattr(isolate.subprocess, "run", run)
+        isolate._spawn(tmp_path / "in.json", tmp_path / "out.json", tmp_path / "err.txt", tmp_path, 10.0)
+        env = seen
+    assert env["CALBENCH_WORKERS"] == "1" and env["OPENBLAS_NUM_THREADS"] == "1"
+
+
+@pytest.mark.parametrize("isolation", ["fork", "spawn"])
 def test_killed_case_leaves_no_temporary_files(campaign_file, tmp_path, monkeypatch, isolation):
     """A case killed at its timeout runs no clean-up of its own: what it unpacked (its FMUs) must
     still go with it. Found: two unpacked FMUs left in the temporary directory per killed case."""

@@ -20,6 +20,11 @@ from pathlib import Path
 from components import ONE_BLAS_THREAD
 from components.campaign.forkserver import die_with_parent
 
+# a case's process: one BLAS thread, and a long log's chunk work (components.estimation.chunks) on
+# the case's own process, whatever the caller's environment: the campaign's workers are the
+# parallelism, and a case forking a worker per CPU beside them oversubscribes the machine
+CASE_ENVIRONMENT = {**ONE_BLAS_THREAD, "CALBENCH_WORKERS": "1"}
+
 
 def signal_name(signum: int) -> str:
     try:
@@ -36,7 +41,7 @@ def _use_server() -> bool:
 class _Server:
     def __init__(self):
         self.p = subprocess.Popen([sys.executable, "-m", "components.campaign.forkserver"],
-                                  env={**os.environ, **ONE_BLAS_THREAD}, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                  env={**os.environ, **CASE_ENVIRONMENT}, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                   preexec_fn=die_with_parent)
         if json.loads(self._read(120.0) or "{}").get("status") != "ready":
             self.close()
@@ -94,8 +99,7 @@ def _spawn(tin: Path, tout: Path, terr: Path, scratch: Path, timeout: float) -> 
     cmd = [sys.executable, "-m", "components.campaign.case", str(tin), str(tout)]
     with open(terr, "wb") as err:
         try:
-            # one BLAS thread per case, whatever the caller's environment: the workers are the parallelism
-            p = subprocess.run(cmd, env={**os.environ, **ONE_BLAS_THREAD, "TMPDIR": str(scratch)},
+            p = subprocess.run(cmd, env={**os.environ, **CASE_ENVIRONMENT, "TMPDIR": str(scratch)},
                                stdout=err, stderr=err, timeout=timeout,
                                preexec_fn=die_with_parent if sys.platform.startswith("linux") else None)
         except subprocess.TimeoutExpired:
