@@ -39,6 +39,7 @@ from __future__ import annotations
 import argparse
 import copy
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -271,32 +272,42 @@ def paired(steps: dict, pairs: int, n: int) -> None:
           f"{r.cpu / n * 1e6:.2f} us")
 
 
-def growth(short: Path, long: Path, out: Path) -> int:
+def growth(short: Path, long: Path, out: Path, repeat: int = 3) -> int:
     """Issue #18 item 1, memory bounded by the chunk and the parameters, not by the log: the peak
     resident set of calibrate, compare and diagnose on two logs of the same kind and different
     lengths (e.g. 2 and 4 hours of the thermal run), each command on one worker (a forked worker's
     pages are its parent's: one process is the whole figure), and what the peak grows by per
     sample of the longer log, against the log's own float64 sensor columns (time, gyro, acc: 56
-    bytes a sample), which is what a command holding the log in memory would grow by at least."""
+    bytes a sample), which is what a command holding the log in memory would grow by at least.
+    Each command runs *repeat* times on each log, the two logs in turn: one run's peak moves by a
+    few MB from run to run (the C heap's and Arrow's pools), as much as 4 hours of samples add, so
+    the growth is taken between the medians and printed beside the runs' spread."""
     import pyarrow.parquet as pq
 
     env = {**_cached_bytecode(), "CALBENCH_WORKERS": "1"}
     n = {log: pq.ParquetFile(log).metadata.num_rows for log in (short, long)}
-    print(f"logs: {short} ({n[short]} samples), {long} ({n[long]} samples); one worker")
-    peaks = {}
+    print(f"logs: {short} ({n[short]} samples), {long} ({n[long]} samples); one worker; each command "
+          f"{repeat} times on each log, in turn")
+    models = {}
     for log in (short, long):
-        model = out / f"{log.stem}-{n[log]}.json"
-        subprocess.run([sys.executable, "-m", "components.cli", "calibrate", str(log), "--out", str(model)],
+        models[log] = out / f"{log.stem}-{n[log]}.json"
+        subprocess.run([sys.executable, "-m", "components.cli", "calibrate", str(log), "--out", str(models[log])],
                        cwd=ROOT, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        for name, args in (("calibrate", ["calibrate", str(log), "--out", str(out / "again.json")]),
-                           ("compare", ["compare", str(log), "--model", str(model)]),
-                           ("diagnose", ["diagnose", str(log), "--model", str(model)])):
-            peaks[name, log] = measure(args, env)[2]
-    print(f"{'command':10s} {'peak GB':>9s} {'peak GB':>9s} {'B/sample':>9s}   against the log's float64 columns (56 B/sample)")
+    peaks: dict = {}
+    for _ in range(repeat):
+        for log in (short, long):
+            for name, args in (("calibrate", ["calibrate", str(log), "--out", str(out / "again.json")]),
+                               ("compare", ["compare", str(log), "--model", str(models[log])]),
+                               ("diagnose", ["diagnose", str(log), "--model", str(models[log])])):
+                peaks.setdefault((name, log), []).append(measure(args, env)[2])
+    per_sample = 1024**3 / (n[long] - n[short])
+    print(f"{'command':10s} {'peak GB':>9s} {'peak GB':>9s} {'B/sample':>9s}   against the log's float64 columns "
+          f"(56 B/sample); the runs' spread (max - min) on each log, in B/sample of the difference")
     for name in ("calibrate", "compare", "diagnose"):
-        a, b = peaks[name, short], peaks[name, long]
-        per = (b - a) * 1024**3 / (n[long] - n[short])
-        print(f"{name:10s} {a:9.3f} {b:9.3f} {per:9.2f}   {per / 56:.3f}x")
+        a, b = (statistics.median(peaks[name, log]) for log in (short, long))
+        spread = [(max(peaks[name, log]) - min(peaks[name, log])) * per_sample for log in (short, long)]
+        print(f"{name:10s} {a:9.3f} {b:9.3f} {(b - a) * per_sample:9.2f}   {(b - a) * per_sample / 56:.3f}x   "
+              f"spread {spread[0]:.2f} and {spread[1]:.2f}")
     print(f"cpus {os.cpu_count()}, load average (1 min) {os.getloadavg()[0]:.2f}")
     return 0
 
@@ -335,6 +346,7 @@ def main() -> int:
                     "these weights (e.g. 1e-6,1e-5; as_pulse_counts)")
     ap.add_argument("--growth", nargs=2, type=Path, metavar=("SHORT", "LONG"),
                     help="the peak memory's growth per sample between two Parquet logs of the same kind (growth())")
+    ap.add_argument("--repeat", type=int, default=3, help="--growth: runs of each command on each log (medians)")
     ap.add_argument("--steps", help="the table's commands to time, comma-separated (default: all; the ratios "
                     "that need the others are left out)")
     ap.add_argument("--pairs", type=int, default=3, help="diagnose8 and numpy1 run in turn this many times after "
@@ -342,7 +354,7 @@ def main() -> int:
     a = ap.parse_args()
     if a.growth:
         with tempfile.TemporaryDirectory() as d:
-            return growth(*a.growth, Path(d))
+            return growth(*a.growth, Path(d), a.repeat)
     from numpy_ranking import CANDIDATES
 
     if a.only_counts:
