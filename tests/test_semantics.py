@@ -1,5 +1,5 @@
-"""The gyro unit check's moves (components.estimation.semantics): the angles are interpolated
-around the moves only, in windows; what it measures is the gyro's rotation over the angles'."""
+"""The unit checks (components.estimation.semantics): the gyro's rotation over what the table
+angles' chords give during the moves, the accelerometers' gravity at rest."""
 import dataclasses
 
 import numpy as np
@@ -8,7 +8,6 @@ import pytest
 from components.estimation import semantics
 from components.estimation.log_data import LogData
 from components.logs.logfile import read_log
-from components.model.approach import moving_runs
 
 
 def _ratio(data):
@@ -19,34 +18,20 @@ def _ratio(data):
     expected = np.linalg.norm(ideal, axis=1)
     assert len(ideal) == np.count_nonzero(moving)
     turning = expected > 0.1 * np.median(expected)
-    return np.median(measured[turning] / expected[turning]), upto
+    return np.median(measured[turning] / expected[turning]), len(ideal)
 
 
-def test_windows_cover_every_move_once_and_stay_short(monkeypatch):
-    monkeypatch.setattr(semantics, "WINDOW", 50)
-    rng = np.random.default_rng(3)
-    static = rng.random(5000) < 0.7  # dithering: short moves everywhere
-    static[1000:1400] = False  # a move longer than a window
-    static[3000:4000] = True
-    covered = np.zeros(len(static), int)
-    windows = list(semantics._move_windows(static))
-    for a, b in windows:
-        assert 0 < b - a <= 50
-        covered[a:b] += 1
-    assert np.all(covered[~static] == 1)  # every moving sample in exactly one window
-    assert np.all(covered <= 1)
-    assert len(windows) < len(moving_runs(static)) / 3  # neighbouring moves share windows
-
-
-@pytest.mark.parametrize("window", [1 << 17, 40])
-def test_the_gyros_turn_as_the_angles_say(conformance, monkeypatch, window):
-    """On the independent simulator's log the gyros turn 1.000 × what the angles give (scale
-    factors of a few hundred ppm), windows cut inside moves or not; with the angles in degrees
-    declared as radians, 180/π."""
-    monkeypatch.setattr(semantics, "WINDOW", window)
+@pytest.mark.parametrize("enough", [50_000, 700])
+def test_the_gyros_turn_as_the_angles_say(conformance, monkeypatch, enough):
+    """On the independent simulator's log the gyros turn 1.000 × what the angles' chords give
+    (scale factors of a few hundred ppm), from all its moving samples or the first few hundred;
+    with the angles in degrees declared as radians, 180/π."""
+    monkeypatch.setattr(semantics, "ENOUGH_MOVING", enough)
     log = read_log(conformance / "example")
-    ratio, upto = _ratio(LogData.from_log(log))
-    assert ratio == pytest.approx(1.0, abs=2e-3) and upto > 0
+    data = LogData.from_log(log)
+    ratio, picked = _ratio(data)
+    assert ratio == pytest.approx(1.0, abs=2e-3)
+    assert picked == min(enough, np.count_nonzero(~data.static & data.usable))
     bad = dataclasses.replace(log, gimbal={k: np.degrees(v) for k, v in log.gimbal.items()})
     ratio_bad, _ = _ratio(LogData.from_log(bad))
     assert ratio_bad == pytest.approx(np.pi / 180, rel=2e-3)
