@@ -52,7 +52,7 @@ def test_dithering_encoder_at_rest_is_not_a_move_of_the_gyros(conformance):
     assert ratio == pytest.approx(1.0, abs=2e-3)
 
 
-@pytest.mark.parametrize("enough", [1 << 20, 500])
+@pytest.mark.parametrize("enough", [1 << 20, 1 << 16, 500])
 def test_the_accelerometers_read_gravity_from_a_spread_of_the_rests(conformance, monkeypatch, enough):
     """The accelerometers' check reads g at rest from every rest sample, or from a stride of
     them over the whole log; increments declared as specific force are found either way, and

@@ -32,7 +32,7 @@ MATCH = 1.3
 # median of this many reads the ratio to far better than MATCH (the checks ran over a whole
 # 8-hour log: ~3 s of every command)
 ENOUGH_MOVING = 50_000  # moving samples of the gyro's check
-ENOUGH_STATIC = 1 << 20  # static samples of the accelerometers' check, spread over the log
+ENOUGH_STATIC = 1 << 16  # samples of the accelerometers' check (the static among them), spread over the log
 
 
 def _near(ratio: float, target: float) -> bool:
