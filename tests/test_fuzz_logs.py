@@ -192,7 +192,11 @@ def _random_log(draw) -> MeasurementLog:
     t = np.arange(1, n + 1) / fs + draw(st.floats(-10.0, 10.0))
     floats = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False, width=64)
     arr = lambda k: np.array(draw(st.lists(floats, min_size=n * k, max_size=n * k))).reshape(n, k)  # noqa: E731
-    return MeasurementLog(time=t, gimbal={"outer": arr(1)[:, 0]}, gyro=arr(3), acc=arr(3), axis_names=["outer"],
+    # a continuous angle (steps under half a turn): readings to one turn that wrap are made
+    # continuous as they are read (tests/test_angle_turns.py)
+    steps = draw(st.lists(st.floats(-3.0, 3.0), min_size=n - 1, max_size=n - 1))
+    angle = draw(floats) + np.concatenate([[0.0], np.cumsum(steps)])
+    return MeasurementLog(time=t, gimbal={"outer": angle}, gyro=arr(3), acc=arr(3), axis_names=["outer"],
                           axis_vectors=np.array([[0.0, 0.0, 1.0]]), sample_rate_hz=fs,
                           latitude_deg=draw(st.floats(-90, 90)),
                           segment=np.array(draw(st.lists(st.sampled_from(["a", "b,c", " d", "é"]), min_size=n,

@@ -50,7 +50,9 @@ def read(args, *, say: bool = True, commands: bool = False):
     except ValueError as e:
         raise UserError(str(e)) from None
     if say:
-        for line in describe(data):
+        from components.logs.angle_turns import said
+
+        for line in describe(data) + [x for x in [said(log.turns_mended)] if x]:
             print(line)
         if log.has_table:
             print(resolution_note(data.angles, data.encoder_resolution))

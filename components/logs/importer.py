@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import MappingError
+from components.logs.angle_turns import said, unwrap_turns, wraps
 from components.logs.clock_curve import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
@@ -217,6 +218,17 @@ def _labels(m: Mapping, cols: Columns, t: np.ndarray):
     return None
 
 
+def _continuous(cols: Columns, axis, notes: list[str]) -> np.ndarray:
+    """The *axis*'s angle readings [rad], made continuous where a controller read them to one
+    turn (components.logs.angle_turns; the note names the axis), before anything interpolates
+    them or takes their steps as the table's travel."""
+    angle = np.array(cols.values(axis.channel, f"table.axes.{axis.name}") * axis.unit_si, float)
+    line = said({axis.name: unwrap_turns(angle) if wraps(angle) else 0})
+    if line:
+        notes.append(f"{cols.where}: {line}")
+    return angle
+
+
 def _counted(m: Mapping, angle: np.ndarray, notes: list[str]) -> np.ndarray:
     """*angle* [rad] rounded to whole counts of the encoder when the mapping asks for it: a rest
     then reads one count (two where its noise crosses a count's edge) instead of a new value at
@@ -260,8 +272,7 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
     names = [a.name for a in m.axes]
     vectors = [a.vector for a in m.axes]
     if m.table is None:
-        gimbal = {a.name: _counted(m, cols.values(a.channel, f"table.axes.{a.name}") * a.unit_si, notes)
-                  for a in m.axes}
+        gimbal = {a.name: _counted(m, _continuous(cols, a, notes), notes) for a in m.axes}
         command = {a.name: cols.values(a.command, f"table.axes.{a.name}.command") * a.unit_si
                    for a in m.axes if a.command is not None}
         return gimbal, command, names, vectors, None
@@ -271,8 +282,7 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
         i = int(np.argmax(np.diff(tt) <= 0)) + 1
         raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected strictly "
                            "increasing times")
-    ang = np.column_stack([_counted(m, tc.values(a.channel, f"table.axes.{a.name}") * a.unit_si, notes)
-                           for a in m.axes])
+    ang = np.column_stack([_counted(m, _continuous(tc, a, notes), notes) for a in m.axes])
     cmd = {a.name: tc.values(a.command, f"table.axes.{a.name}.command") * a.unit_si for a in m.axes
            if a.command is not None}
     if m.clock_offset == "estimate":

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import LogFormatError
+from components.logs.angle_turns import unwrap_turns, wraps
 from components.logs.csv_log import csv_row, float_values, labels, not_utf8, read_csv, sensor_groups, wanted_columns
 from components.logs.labels import SegmentLabels
 from components.logs.measurement import MeasurementLog
@@ -235,6 +236,7 @@ def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
         row = csv_row
     check_samples(cols, meta, str(data), row)
     axes = meta["axis_names"]
+    turns = _continuous_angles(cols, axes)
     known = {"time", "temperature", "segment", "mask"} | {f"{s}_{c}" for s in ("gyro", "acc") for c in XYZ} | \
         {f"{p}_{a}" for p in ("gimbal", "command") for a in axes}
     seg = cols.get("segment")
@@ -255,6 +257,7 @@ def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
         extra={k: v for k, v in cols.items() if k not in known},
         source=str(data),
         mask=cols["mask"].astype(bool) if "mask" in cols else None,
+        turns_mended=turns,
         **{k: meta[k] for k in ("axis_names", "axis_vectors", "sample_rate_hz", "gyro_output", "acc_output",
                                 "gyro_count_rad", "acc_count_mps", "latitude_deg", "height_m", "gravity_mps2",
                                 "description", "extra_metadata", "encoder_resolution", "timing", "max_interval_s",
@@ -262,6 +265,20 @@ def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
     )
     log.reasons_left_out()  # an 'exclude' label the log does not hold is refused here, naming the file
     return log
+
+
+def _continuous_angles(cols: dict, axes: list[str]) -> dict[str, int]:
+    """A controller's angles read to one turn (0-360°) made continuous, in place (a column
+    Arrow lent read-only is copied first; the commands stay as read): axis -> wraps mended
+    (components.logs.angle_turns)."""
+    mended = {}
+    for a in axes:
+        name = f"gimbal_{a}"
+        if name in cols and wraps(cols[name]):
+            if not cols[name].flags.writeable:
+                cols[name] = cols[name].copy()
+            mended[a] = unwrap_turns(cols[name])
+    return mended
 
 
 def _check_labels(meta: dict, seg, where: str) -> None:

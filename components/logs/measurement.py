@@ -58,6 +58,9 @@ class MeasurementLog:
     # (N, n_axes) the gimbal angles as one array when the reader filled them so (``gimbal``'s
     # arrays are then its columns): ``angles`` returns it instead of stacking a copy
     angle_matrix: np.ndarray | None = field(default=None, repr=False)
+    # axis -> readings the reader found stepping by a whole turn and made continuous (the file's
+    # angles read to one turn: components.logs.angle_turns)
+    turns_mended: dict[str, int] = field(default_factory=dict)
 
     def __post_init__(self):
         if self.segment is not None and not isinstance(self.segment, SegmentLabels):
