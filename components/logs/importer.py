@@ -16,7 +16,7 @@ from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
 from components.logs.sources import Columns
 from components.logs.table_clock import angles_at, estimate_clock_offset, table_to_imu
-from components.logs.timebase import gaps, regularise
+from components.logs.timebase import gaps, regularise, stamp_resolution
 
 
 @dataclass
@@ -45,13 +45,27 @@ def import_log(m: Mapping) -> Imported:
     t = cols.values(m.time, "imu.time.column") * m.time_si
     if len(t) < 2:
         raise MappingError(f"{cols.where}: fewer than two samples")
-    if np.any(np.diff(t) <= 0):
-        i = int(np.argmax(np.diff(t) <= 0)) + 1
-        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected strictly "
-                           "increasing times")
+    # a host's clock coarser than the samples stamps several alike (Windows' tick of 15.6 ms):
+    # a regular grid fitted to all of them places the samples as well, so only the stamps a
+    # grid replaces may repeat
+    repeats = m.timing == "regularise"
+    back = np.diff(t) < 0 if repeats else np.diff(t) <= 0
+    if np.any(back):
+        i = int(np.argmax(back)) + 1
+        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected "
+                           + ("times that never go back" if repeats else "strictly increasing times"))
+    if t[-1] == t[0]:
+        raise MappingError(f"{cols.where}: imu.time: every stamp is {float(t[0])!r} s; expected times that advance")
     nominal = 1.0 / m.sample_rate_hz
-    _check_rate(m, t, nominal)
+    tick = stamp_resolution(t)
+    _check_rate(m, t, nominal, tick)
     max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
+    if tick:
+        shared = float(np.mean(np.diff(t) == 0))
+        # an interval between two ticks is up to a tick longer than the samples' own
+        max_int += tick
+        notes.append(f"time stamps repeat ({shared:.0%} of the intervals zero): a clock of {tick * 1e3:.4g} ms resolution; "
+                     f"a gap is an interval beyond {max_int * 1e3:.4g} ms (a sample lost inside a tick is not seen)")
     timing, fs = "nominal", m.sample_rate_hz
     logged = None  # the log's time where it is not the host's (a drift, the sensor keeping time)
     bow = None  # with a drift: the host's stamps less the sensor's grid at each sample
@@ -80,7 +94,8 @@ def import_log(m: Mapping) -> Imported:
                          f"(the host's stamps {(1 / (nominal * reg.rate_hz) - 1) * 1e6:+.3g} ppm on it); the table's "
                          "angles " + ("are matched against it (table.time.clock = 'controller')"
                                       if m.table_clock == "controller" else "are taken at the host's stamps of its samples"))
-        reach = 3 * math.sqrt(2) * reg.jitter_rms_s  # how far jitter stretches one interval, at most about
+        # how far jitter stretches one interval, at most about (a clock's tick: at most a tick)
+        reach = tick or 3 * math.sqrt(2) * reg.jitter_rms_s
         if max_int - 1 / reg.rate_hz < reach:
             # a jittered interval then passes for a gap, and the runs between such gaps, chosen by
             # their long ends, fit a clock too fast, with samples a whole interval off (±0.3 ms
@@ -167,10 +182,13 @@ def _conversion(sensor, kind: str, si: str) -> str:
     return f"{what}; {', '.join(cols)}" + (f" (sign reversed: {', '.join(reversed_)})" if reversed_ else "")
 
 
-def _check_rate(m: Mapping, t: np.ndarray, nominal: float) -> None:
+def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float = 0.0) -> None:
     """The time stamps against the stated sample rate: a unit or a rate off by a factor (ms read
-    as s: every interval a gap) is named here, with the mapping's keys, not by what it breaks later."""
-    d = np.diff(t)
+    as s: every interval a gap) is named here, with the mapping's keys, not by what it breaks later.
+    Stamps of a clock with a *tick* coarser than the samples: the median interval over enough
+    samples to span eight ticks (one tick off in eight is within the factor looked for)."""
+    k = max(1, math.ceil(8 * tick / nominal))
+    d = (t[k:] - t[:-k]) / k if len(t) > k else np.diff(t)
     med = float(np.median(d[::max(1, len(d) // (1 << 20))]))  # a factor is all it looks for: 1 M intervals do
     ratio = med / nominal
     if not 1 / RATE_MISMATCH < ratio < RATE_MISMATCH:

@@ -31,6 +31,17 @@ class Regularised:
             self.sensor_time = self.time
 
 
+def stamp_resolution(t: np.ndarray) -> float:
+    """0 where no two stamps *t* are alike; else the resolution of a clock coarser than the
+    samples it stamps (Windows' tick, a host's millisecond): the median of the intervals that
+    advance, each a tick or a few."""
+    d = np.diff(t)
+    if not len(d) or np.all(d != 0):
+        return 0.0
+    moved = d[d > 0]
+    return float(np.median(moved)) if len(moved) else 0.0
+
+
 def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
     """(N,) bool: the sample's interval from the one before exceeds *max_interval*."""
     out = np.zeros(len(t), bool)
