@@ -16,7 +16,7 @@ from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
 from components.logs.sources import Columns
 from components.logs.table_clock import angles_at, estimate_clock_offset, table_to_imu
-from components.logs.timebase import gaps, regularise, stamp_resolution
+from components.logs.timebase import gaps, regularise, stamp_resolution, unrolled
 
 
 @dataclass
@@ -42,9 +42,12 @@ def import_log(m: Mapping) -> Imported:
     """The log the mapping *m* describes."""
     notes: list[str] = []
     cols = Columns(m.imu)
-    t = cols.values(m.time, "imu.time.column") * m.time_si
+    t, rolled = unrolled(cols.values(m.time, "imu.time.column") * m.time_si, m.time_rollover_s)
     if len(t) < 2:
         raise MappingError(f"{cols.where}: fewer than two samples")
+    if rolled:
+        notes.append(f"the time counter rolled over {rolled} time(s) (imu.time.rollover: every "
+                     f"{m.time_rollover_s:.10g} s); counted on")
     # a host's clock coarser than the samples stamps several alike (Windows' tick of 15.6 ms):
     # a regular grid fitted to all of them places the samples as well, so only the stamps a
     # grid replaces may repeat
@@ -53,7 +56,8 @@ def import_log(m: Mapping) -> Imported:
     if np.any(back):
         i = int(np.argmax(back)) + 1
         raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected "
-                           + ("times that never go back" if repeats else "strictly increasing times"))
+                           + ("times that never go back" if repeats else "strictly increasing times")
+                           + _rollover_hint(t, i, m.time_rollover_s, "imu.time"))
     if t[-1] == t[0]:
         raise MappingError(f"{cols.where}: imu.time: every stamp is {float(t[0])!r} s; expected times that advance")
     nominal = 1.0 / m.sample_rate_hz
@@ -182,6 +186,19 @@ def _conversion(sensor, kind: str, si: str) -> str:
     return f"{what}; {', '.join(cols)}" + (f" (sign reversed: {', '.join(reversed_)})" if reversed_ else "")
 
 
+def _rollover_hint(t: np.ndarray, i: int, period: float | None, key: str) -> str:
+    """What to give where time steps back at row *i* by more than a few samples' worth: a
+    counter that rolls over, unless its period is given already."""
+    if period is not None:
+        return ""
+    back = float(t[i - 1] - t[i])
+    usual = float(np.median(np.diff(t[max(0, i - 1000):i]))) if i > 1 else 0.0
+    if not back > (100 * usual if usual > 0 else 1.0):
+        return ""
+    return (f" (back by {back:.10g} s: a counter that rolls over? give '{key}.rollover', its period in '{key}.unit', "
+            "e.g. 4294967296 for a 32-bit count of microseconds)")
+
+
 def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float = 0.0) -> None:
     """The time stamps against the stated sample rate: a unit or a rate off by a factor (ms read
     as s: every interval a gap) is named here, with the mapping's keys, not by what it breaks later.
@@ -295,11 +312,14 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
                    for a in m.axes if a.command is not None}
         return gimbal, command, names, vectors, None
     tc = Columns(m.table)
-    tt = tc.values(m.table_time, "table.time.column") * m.table_time_si
+    tt, rolled = unrolled(tc.values(m.table_time, "table.time.column") * m.table_time_si, m.table_time_rollover_s)
+    if rolled:
+        notes.append(f"{tc.where}: the table's time counter rolled over {rolled} time(s) (table.time.rollover: every "
+                     f"{m.table_time_rollover_s:.10g} s); counted on")
     if np.any(np.diff(tt) <= 0):
         i = int(np.argmax(np.diff(tt) <= 0)) + 1
         raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected strictly "
-                           "increasing times")
+                           "increasing times" + _rollover_hint(tt, i, m.table_time_rollover_s, "table.time"))
     ang = np.column_stack([_counted(m, _continuous(tc, a, notes), notes) for a in m.axes])
     cmd = {a.name: tc.values(a.command, f"table.axes.{a.name}.command") * a.unit_si for a in m.axes
            if a.command is not None}

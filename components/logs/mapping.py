@@ -104,6 +104,21 @@ class Mapping:
     description: str = ""
     keeps_time: str = "host"    # a drift followed by regularise: the host's clock keeps time, or the sensor's
     table_clock: str | None = None  # what stamps the table file (TABLE_CLOCKS); None: not said
+    # the period [s] of a time counter that rolls over (a 32-bit microsecond count: 4294.967296 s)
+    time_rollover_s: float | None = None
+    table_time_rollover_s: float | None = None
+
+
+def _rollover(t: dict, key: str, unit_si: float, where: str) -> float | None:
+    """The period [s] of a time counter that rolls over, given as ``rollover`` in the column's
+    unit (4294967296 for a 32-bit count of microseconds), or None."""
+    if "rollover" not in t:
+        return None
+    r = _number(t["rollover"], f"{key}.rollover", where, "the counter's period in its unit (e.g. 4294967296)")
+    if not r > 0:
+        raise MappingError(f"{where}: key '{key}.rollover' = {r!r}: expected the counter's period, a positive number "
+                           f"in {key}.unit")
+    return r * unit_si
 
 
 def _get(d: dict, key: str, where: str, expected: str, required: bool = True, default=None):
@@ -244,6 +259,7 @@ def load_mapping(path: str | Path) -> Mapping:
         mx = _number(mx, "imu.time.max_interval_s", where, "the longest interval that is not a gap [s]")
         if mx * fs <= 1.0:
             raise MappingError(f"{where}: key 'imu.time.max_interval_s' = {mx!r}: expected more than 1/sample_rate_hz")
+    rollover = _rollover(t, "imu.time", tu, where)
     keeps = _unit(t.get("keeps_time", "host"), "imu.time.keeps_time", where, CLOCKS)
     if "keeps_time" in t and timing != "regularise":
         raise MappingError(f"{where}: key 'imu.time.keeps_time' = {keeps!r}: it says which clock keeps time where a "
@@ -254,6 +270,7 @@ def load_mapping(path: str | Path) -> Mapping:
                         ANGLE_UNITS),
                 _sensor(_get(imu, "acc", f"{where} [imu]", "an [imu.acc] table"), "imu.acc", where, ACC_KINDS,
                         VELOCITY_UNITS))
+    m.time_rollover_s = rollover
     if "temperature" in imu:
         td = imu["temperature"]
         if not isinstance(td, dict):
@@ -338,6 +355,7 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
         m.table_time = _channel(_get(tt, "column", f"{where} [table.time]", "the time column"), "table.time.column",
                                 where)
         m.table_time_si = TIME_UNITS[_unit(tt.get("unit", "s"), "table.time.unit", where, TIME_UNITS)]
+        m.table_time_rollover_s = _rollover(tt, "table.time", m.table_time_si, where)
         if "clock" in tt:
             m.table_clock = _unit(tt["clock"], "table.time.clock", where, TABLE_CLOCKS)
         off = tab.get("clock_offset_s", "estimate")

@@ -31,6 +31,17 @@ class Regularised:
             self.sensor_time = self.time
 
 
+def unrolled(t: np.ndarray, period: float | None) -> tuple[np.ndarray, int]:
+    """(the stamps *t* of a counter that rolls over every *period* counted on, the rollovers): a
+    step back by more than half the period is one (a clock's jitter or a late stamp is not)."""
+    if period is None or len(t) < 2:
+        return t, 0
+    back = np.diff(t) < -period / 2
+    if not back.any():
+        return t, 0
+    return t + period * np.concatenate([[0.0], np.cumsum(back)]), int(np.count_nonzero(back))
+
+
 def stamp_resolution(t: np.ndarray) -> float:
     """0 where no two stamps *t* are alike; else the resolution of a clock coarser than the
     samples it stamps (Windows' tick, a host's millisecond): the median of the intervals that

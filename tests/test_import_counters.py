@@ -1,0 +1,145 @@
+"""``calbench import`` of the time stamps real loggers write: a host clock coarser than the
+samples (Windows' tick of 15.625 ms stamping a 200 Hz sensor: two stamps in three alike), which
+``timing = "regularise"`` places on the grid fitted to all of them, and a counter that rolls
+over (a 32-bit count of microseconds: every 71.6 minutes), counted on with ``rollover``. Each
+imported log calibrates as the independent simulator's own (the conformance vector
+``example``)."""
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from components.cli import main
+from components.estimation.log_data import LogData
+from components.estimation.lsq import calibrate
+from components.logs.logfile import read_log
+from components.model.effects import DEFAULT_EFFECTS
+
+AXES = ("outer", "middle", "inner")
+TICK = 0.015625  # s
+
+
+@pytest.fixture(scope="module")
+def example(conformance):
+    log = read_log(conformance / "example")
+    return log, calibrate(LogData.from_log(log), list(DEFAULT_EFFECTS))
+
+
+def _write(tmp_path, log, stamps_ms: np.ndarray, timing: str = "regularise", time: str = 'unit = "ms"') -> None:
+    angles = [np.degrees(log.gimbal[a]) for a in AXES]
+    np.savetxt(tmp_path / "imu.csv", np.column_stack([stamps_ms, log.gyro, log.acc, *angles]), delimiter=",",
+               header="t_ms,gx,gy,gz,ax,ay,az,A,B,C", comments="", fmt="%.17g")
+    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
+                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
+    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
+                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
+    (tmp_path / "map.toml").write_text(
+        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n'
+        f'[imu.time]\ncolumn = "t_ms"\n{time}\ntiming = "{timing}"\n{sensors}'
+        f'[table]\nencoder_resolution = "exact"\n{axes}'
+        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+
+
+def test_stamps_of_a_coarse_clock_are_regularised_and_calibrate_as_the_original(example, tmp_path, capsys):
+    log, ref = example
+    stamps = np.floor((log.time + 0.0371) / TICK) * TICK  # the tick the sample was read in
+    assert np.mean(np.diff(stamps) == 0) > 0.6
+    _write(tmp_path, log, stamps * 1e3)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 0
+    out = capsys.readouterr().out
+    tick_ms = float(re.search(r"a clock of ([\d.]+) ms resolution", out).group(1))
+    assert tick_ms == pytest.approx(TICK * 1e3, rel=1e-3)
+    rate = float(re.search(r"fitted rate ([\d.]+) Hz", out).group(1))
+    # a line's slope through N stamps each off by up to a tick: σ ≈ tick / (span √N); 4 σ
+    assert abs(rate / log.sample_rate_hz - 1) < 4 * TICK / ((log.time[-1] - log.time[0]) * math.sqrt(log.n))
+    assert "warning" not in out and "gap" not in out.split("a gap is")[-1]
+    back = read_log(tmp_path / "merged")
+    assert back.n == log.n
+    np.testing.assert_allclose(np.diff(back.time), log.dt, rtol=1e-6)
+    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
+    assert fit.parameters == ref.parameters
+    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
+    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+
+
+@pytest.mark.parametrize("timing, edit, words", [
+    ("regularise", lambda s: np.concatenate([s[:100], s[100:101] - 20.0, s[101:]]),
+     r"imu.csv: imu.time: row 101: .* expected times that never go back"),
+    ("regularise", lambda s: np.full_like(s, 5.0), r"imu.csv: imu.time: every stamp is 0.005 s; expected times that advance"),
+    ("nominal", lambda s: s, r"imu.csv: imu.time: row 3: .* expected strictly increasing times"),
+])
+def test_stamps_that_go_back_or_stand_still_are_one_clear_error(example, tmp_path, capsys, timing, edit, words):
+    """Only a regularised clock may repeat stamps; none may go back, and a clock that never
+    advances is no clock."""
+    log, _ = example
+    stamps = np.floor((log.time + 0.0371) / TICK) * TICK * 1e3
+    _write(tmp_path, log, edit(stamps), timing)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
+    assert re.search(words, capsys.readouterr().err), words
+
+
+COUNT = 2**32  # a 32-bit microsecond counter
+
+
+@pytest.mark.parametrize("timing", ["nominal", "regularise"])
+def test_a_counter_that_rolls_over_is_counted_on(example, tmp_path, capsys, timing):
+    log, ref = example
+    micros = np.mod(np.round(log.time * 1e6) + COUNT - 200_000_000, COUNT)  # rolls over 200 s in
+    assert np.count_nonzero(np.diff(micros) < 0) == 1
+    _write(tmp_path, log, micros, timing, time=f'unit = "us"\nrollover = {COUNT}')
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 0
+    assert "the time counter rolled over 1 time(s)" in capsys.readouterr().out
+    back = read_log(tmp_path / "merged")
+    assert back.n == log.n
+    np.testing.assert_allclose(np.diff(back.time), log.dt, rtol=1e-6)
+    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
+    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
+    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+    # without the key: one error at the row, naming the key to give
+    _write(tmp_path, log, micros, timing, time='unit = "us"')
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(r"imu.csv: imu.time: row \d+: .* a counter that rolls over\? give 'imu.time.rollover'", err), err
+
+
+def _import_with_table(tmp_path, log, table_ms: np.ndarray, rollover: str, name: str):
+    """The IMU's increments on its own times and a table file stamped *table_ms* (given half a
+    sample behind the IMU's clock)."""
+    np.savetxt(tmp_path / "imu.csv", np.column_stack([log.time, log.gyro, log.acc]), delimiter=",",
+               header="t,gx,gy,gz,ax,ay,az", comments="", fmt="%.17g")
+    np.savetxt(tmp_path / "table.csv", np.column_stack([table_ms] + [np.degrees(log.gimbal[a]) for a in AXES]),
+               delimiter=",", header="ms,A,B,C", comments="", fmt="%.17g")
+    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
+                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
+    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
+                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
+    (tmp_path / "map.toml").write_text(
+        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "t"\n{sensors}'
+        f'[table]\nfile = "table.csv"\nclock_offset_s = {0.5 * log.dt!r}\nencoder_resolution = "exact"\n'
+        f'[table.time]\ncolumn = "ms"\nunit = "ms"\n{rollover}\n{axes}'
+        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / name)]) == 0
+    return read_log(tmp_path / name)
+
+
+def test_a_table_counter_that_rolls_over_is_counted_on(example, tmp_path, capsys):
+    """A table controller's 16-bit millisecond counter (every 65.536 s): imported as the same
+    table file stamped without the rollover."""
+    log, _ = example
+    ms = (log.time - 0.5 * log.dt) * 1e3
+    plain = _import_with_table(tmp_path, log, ms, "", "plain")
+    rolled = _import_with_table(tmp_path, log, np.mod(ms, 65536.0), "rollover = 65536", "rolled")
+    assert "the table's time counter rolled over 6 time(s)" in capsys.readouterr().out
+    np.testing.assert_array_equal(rolled.time, plain.time)
+    for a in AXES:
+        np.testing.assert_allclose(rolled.gimbal[a], plain.gimbal[a], rtol=0, atol=1e-12)
+
+
+def test_a_rollover_that_is_no_period_is_one_clear_error(example, tmp_path, capsys):
+    log, _ = example
+    _write(tmp_path, log, log.time * 1e6, "nominal", time='unit = "us"\nrollover = -5')
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
+    assert "map.toml: key 'imu.time.rollover' = -5" in capsys.readouterr().err
