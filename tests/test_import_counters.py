@@ -143,3 +143,51 @@ def test_a_rollover_that_is_no_period_is_one_clear_error(example, tmp_path, caps
     _write(tmp_path, log, log.time * 1e6, "nominal", time='unit = "us"\nrollover = -5')
     assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
     assert "map.toml: key 'imu.time.rollover' = -5" in capsys.readouterr().err
+
+
+def _write_sparse_temperature(tmp_path, log, temperature: np.ndarray, every: int, sparse: bool) -> None:
+    """imu.csv with the temperature in every *every*-th row, empty between."""
+    lines = ["t,gx,gy,gz,ax,ay,az,A,B,C,temp"]
+    for i in range(log.n):
+        cells = [log.time[i], *log.gyro[i], *log.acc[i], *(np.degrees(log.gimbal[a][i]) for a in AXES)]
+        lines.append(",".join(f"{v:.17g}" for v in cells) + "," + (f"{temperature[i]:.17g}" if i % every == 0 else ""))
+    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
+    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
+                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
+    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
+                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
+    (tmp_path / "map.toml").write_text(
+        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "t"\n{sensors}'
+        f'[imu.temperature]\ncolumn = "temp"\nunit = "degF"\nsparse = {str(sparse).lower()}\n'
+        f'[table]\nencoder_resolution = "exact"\n{axes}'
+        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+
+
+def test_a_temperature_read_once_a_second_is_linear_between_its_readings(example, tmp_path, capsys):
+    """A warm-up, 25 -> 40 °C with a 300 s time constant, read once a second (every 200th row,
+    in °F): between readings the imported temperature is within the linear interpolation's bound
+    h²/8 · max|T''| of the warm-up itself."""
+    log, _ = example
+    tau, h = 300.0, 200 * log.dt
+    warm_c = 40.0 - 15.0 * np.exp(-(log.time - log.time[0]) / tau)
+    _write_sparse_temperature(tmp_path, log, warm_c * 9 / 5 + 32, 200, sparse=True)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 0
+    assert f"temperature: {-(-log.n // 200)} reading(s) in {log.n} samples" in capsys.readouterr().out
+    back = read_log(tmp_path / "merged")
+    last = (log.n - 1) // 200 * 200  # held after the last reading
+    bound = h**2 / 8 * 15.0 / tau**2 + 1e-9
+    assert np.abs(back.temperature[:last] - warm_c[:last]).max() < bound
+    assert np.abs(back.temperature[last:] - warm_c[last]).max() < 1e-9
+
+
+def test_empty_temperature_cells_without_the_key_are_one_clear_error(example, tmp_path, capsys):
+    log, _ = example
+    _write_sparse_temperature(tmp_path, log, np.full(log.n, 68.0), 200, sparse=False)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
+    assert re.search(r"imu.csv: column 'temp': row 2: empty value; expected a number .*imu.temperature.sparse = true",
+                     capsys.readouterr().err)
+    _write_sparse_temperature(tmp_path, log, np.full(log.n, 68.0), 10 * log.n, sparse=True)
+    text = (tmp_path / "imu.csv").read_text().replace(",68\n", ",\n", 1)  # the one reading gone
+    (tmp_path / "imu.csv").write_text(text)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
+    assert "imu.temperature.column: no reading in any row" in capsys.readouterr().err

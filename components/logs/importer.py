@@ -129,7 +129,7 @@ def import_log(m: Mapping) -> Imported:
     notes.append(f"gyro: {_conversion(m.gyro, gkind, 'rad')}; accelerometer: {_conversion(m.acc, akind, 'm/s')}")
     temp = None
     if m.temperature is not None:
-        temp = cols.values(m.temperature, "imu.temperature.column")
+        temp = _temperature(m, cols, t, notes)
         temp = {"degC": temp, "K": temp - 273.15, "degF": (temp - 32.0) * 5.0 / 9.0}[m.temperature_unit]
         if m.temperature_unit != "degC":
             notes.append(f"temperature: {m.temperature_unit} converted to degC")
@@ -215,6 +215,28 @@ def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float = 0.0) ->
 
 
 SHOWN_LABELS = 60  # the data's labels an error lists, to find the intended one
+
+
+def _temperature(m: Mapping, cols: Columns, t: np.ndarray, notes: list[str]) -> np.ndarray:
+    """The temperature column at every sample; read less often than the samples
+    (imu.temperature.sparse), linear in time between its readings and held before the first and
+    after the last (a temperature moves by far less than its resolution in one reading's time)."""
+    try:
+        temp = cols.values(m.temperature, "imu.temperature.column", empty=m.temperature_sparse)
+    except MappingError as e:
+        if "empty value" in str(e) and not m.temperature_sparse:
+            raise MappingError(f"{e} (a temperature read less often than the samples, empty between its readings: "
+                               "give imu.temperature.sparse = true)") from None
+        raise
+    if not m.temperature_sparse:
+        return temp
+    read = np.flatnonzero(np.isfinite(temp))
+    if not len(read):
+        raise MappingError(f"{cols.where}: imu.temperature.column: no reading in any row; expected a temperature in "
+                           "some rows (imu.temperature.sparse)")
+    notes.append(f"temperature: {len(read)} reading(s) in {len(t)} samples (imu.temperature.sparse), linear in time "
+                 f"between them, held before the first and after the last")
+    return np.interp(t, t[read], temp[read])
 
 
 def _check_label_keys(m: Mapping, seg) -> None:

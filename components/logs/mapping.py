@@ -85,6 +85,8 @@ class Mapping:
     acc: Sensor
     temperature: Channel | None = None
     temperature_unit: str = "degC"
+    # the temperature read less often than the samples, its cells between readings empty
+    temperature_sparse: bool = False
     labels: Channel | None = None
     label_ranges: list = field(default_factory=list)   # [(t0, t1, label)] [s, IMU clock]
     segments: dict | None = None
@@ -278,6 +280,11 @@ def load_mapping(path: str | Path) -> Mapping:
         m.temperature = _channel(_get(td, "column", f"{where} [imu.temperature]", "the column"),
                                  "imu.temperature.column", where, td)
         m.temperature_unit = _unit(td.get("unit", "degC"), "imu.temperature.unit", where, TEMPERATURE_UNITS)
+        sparse = td.get("sparse", False)
+        if not isinstance(sparse, bool):
+            raise MappingError(f"{where}: key 'imu.temperature.sparse' = {sparse!r}: expected true (read less often "
+                               "than the samples: the cells between readings empty) or false")
+        m.temperature_sparse = sparse
     _labels(d, m, where)
     _table(d, m, where, base)
     if keeps == "sensor" and m.table is not None and m.table_clock is None:

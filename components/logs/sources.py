@@ -26,8 +26,9 @@ class Columns:
     def names(self) -> list[str]:
         return [str(k) for k in self.data]
 
-    def raw(self, ch: Channel, what: str) -> np.ndarray:
-        """The column of *ch* as read (before scale and sign)."""
+    def raw(self, ch: Channel, what: str, empty: bool = False) -> np.ndarray:
+        """The column of *ch* as read (before scale and sign); *empty*: its empty cells as NaN,
+        not an error."""
         col = ch.column
         key = col
         k = None
@@ -49,7 +50,7 @@ class Columns:
         if callable(a):
             # HDF5 datasets and Parquet columns are read when used, and not kept: the caller
             # converts them, and a long log's raw columns beside their conversions were twice it
-            a = a()
+            a = a(empty) if getattr(a, "takes_empty", False) else a()
         if isinstance(a, SegmentLabels) and k is None:
             return a  # text, as runs (one label a sample as an object array: 8 bytes a sample)
         a = np.asarray(a)
@@ -65,10 +66,10 @@ class Columns:
                                f"'{key}:k' for column k)")
         return a
 
-    def values(self, ch: Channel, what: str) -> np.ndarray:
+    def values(self, ch: Channel, what: str, empty: bool = False) -> np.ndarray:
         """The column as float64, (raw − offset) × scale × sign; a non-number or non-finite value is
-        an error naming its row."""
-        a = self.raw(ch, what)
+        an error naming its row. *empty*: the empty cells (and NaN) are NaN, the caller fills them."""
+        a = self.raw(ch, what, empty)
         if a.dtype.kind not in "biuf":
             try:
                 a = a.astype(float)
@@ -76,7 +77,7 @@ class Columns:
                 bad = next(i for i, x in enumerate(a) if not _is_number(x))
                 raise MappingError(f"{self.where}: {what}: row {bad + 1}: {a[bad]!r} is not a number") from None
         a = a.astype(float)
-        bad = ~np.isfinite(a)
+        bad = np.isinf(a) if empty else ~np.isfinite(a)
         if bad.any():
             i = int(np.argmax(bad))
             raise MappingError(f"{self.where}: {what}: row {i + 1}: {float(a[i])!r} is not finite")
@@ -128,13 +129,14 @@ def _csv(src: Source) -> dict:
     held = {"table": table.slice(0, rows)}
 
     def taker(name: str):
-        def take() -> np.ndarray:
+        def take(empty: bool = False) -> np.ndarray:
             table = held["table"]
             if name not in table.column_names:
-                return _array(parse([name]).column(0).slice(0, rows), f"{src.path}: column {name!r}")
+                return _array(parse([name]).column(0).slice(0, rows), f"{src.path}: column {name!r}", empty)
             col = table.column(name)
             held["table"] = table.drop_columns([name])
-            return _array(col, f"{src.path}: column {name!r}")
+            return _array(col, f"{src.path}: column {name!r}", empty)
+        take.takes_empty = True
         return take
 
     return {name.strip(): taker(name) for name in held["table"].column_names}
@@ -163,16 +165,19 @@ def _without_trailing_blank_lines(table, src: Source) -> int:
     return rows
 
 
-def _array(col, what: str) -> np.ndarray:
+def _array(col, what: str, empty: bool = False) -> np.ndarray:
     """An Arrow column as numpy; text as labels sharing one string per distinct value
     (components.logs.csv_log.labels; one per row was ~50 bytes a sample). An empty value of a
-    column of numbers is a MappingError naming *what* (file and column) and the row."""
+    column of numbers is a MappingError naming *what* (file and column) and the row; with
+    *empty*, a NaN."""
     import pyarrow as pa
 
     from components.logs.csv_log import labels
 
     if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) or pa.types.is_dictionary(col.type):
         return labels(col)  # (which encodes text as a dictionary itself)
+    if col.null_count and empty:
+        return np.asarray(col.to_numpy(zero_copy_only=False), float)  # (nulls are NaN)
     if col.null_count and not pa.types.is_null(col.type):
         i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
         raise MappingError(f"{what}: row {i + 1}: empty value; expected a number")
@@ -193,12 +198,13 @@ def _parquet(src: Source) -> dict:
         raise MappingError(f"{src.path}: not a readable Parquet file ({e})") from None
 
     def reader(name: str):
-        def read() -> np.ndarray:
+        def read(empty: bool = False) -> np.ndarray:
             try:
                 col = pf.read(columns=[name]).column(0)
             except (pa.ArrowInvalid, OSError) as e:
                 raise MappingError(f"{src.path}: column {name!r} cannot be read ({e})") from None
-            return _array(col, f"{src.path}: column {name!r}")
+            return _array(col, f"{src.path}: column {name!r}", empty)
+        read.takes_empty = True
         return read
 
     return {name: reader(name) for name in names}
