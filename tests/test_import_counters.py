@@ -191,3 +191,60 @@ def test_empty_temperature_cells_without_the_key_are_one_clear_error(example, tm
     (tmp_path / "imu.csv").write_text(text)
     assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
     assert "imu.temperature.column: no reading in any row" in capsys.readouterr().err
+
+
+def _write_clock_text(tmp_path, log, stamps: list[str], time: str = "") -> None:
+    """imu.csv with the time column as text (*stamps*), the angles beside the increments."""
+    lines = ["time,gx,gy,gz,ax,ay,az,A,B,C"]
+    for i in range(log.n):
+        cells = [*log.gyro[i], *log.acc[i], *(np.degrees(log.gimbal[a][i]) for a in AXES)]
+        lines.append(stamps[i] + "," + ",".join(f"{v:.17g}" for v in cells))
+    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
+    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
+                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
+    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
+                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
+    (tmp_path / "map.toml").write_text(
+        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "time"\n{time}\n'
+        f'{sensors}[table]\nencoder_resolution = "exact"\n{axes}'
+        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+
+
+@pytest.mark.parametrize("clock", ["dates", "dates UTC", "time of day past midnight"])
+def test_a_time_column_of_clock_readings_is_read_as_seconds(example, tmp_path, capsys, clock):
+    """ISO 8601 dates and times (naive, or with a zone) and the time of day (across midnight,
+    counted on with rollover = 86400): the intervals are the log's, and it calibrates as its own."""
+    log, ref = example
+    if clock.startswith("dates"):
+        at = np.datetime64("2026-11-29T08:00:00") + np.round(log.time * 1e6).astype("timedelta64[us]")
+        stamps = [str(x) + ("Z" if clock.endswith("UTC") else "") for x in at]
+        time = ""
+    else:
+        seconds = np.round((log.time + 86400 - 200.0) * 1e6) / 1e6  # midnight 200 s in
+        day = np.mod(seconds, 86400)
+        stamps = [f"{int(x // 3600):02d}:{int(x % 3600 // 60):02d}:{x % 60:09.6f}" for x in day]
+        time = "rollover = 86400"
+    _write_clock_text(tmp_path, log, stamps, time)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 0
+    out = capsys.readouterr().out
+    assert f"imu.time: {clock.split(' ')[0] if clock.startswith('dates') else 'time of day'} read as seconds" in out
+    back = read_log(tmp_path / "merged")
+    # epoch seconds keep their float's 0.24 us; a time of day its microseconds
+    np.testing.assert_allclose(np.diff(back.time), np.diff(log.time), rtol=0, atol=5e-7)
+    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
+    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
+    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+
+
+@pytest.mark.parametrize("edit, time, words", [
+    (lambda s: s[:5] + ["08:00:00;5"] + s[6:], "", r"imu.csv: imu.time.column: row 6: '08:00:00;5' is not a reading of "
+                                                     r"the clock like row 1's '08:00:00.005000' \(time of day\)"),
+    (lambda s: s, 'unit = "ms"', r"map.toml: key 'imu.time.unit': the column 'time' holds time of day .* expected no unit"),
+])
+def test_clock_readings_that_do_not_read_are_one_clear_error(example, tmp_path, capsys, edit, time, words):
+    log, _ = example
+    day = np.round((log.time + 8 * 3600) * 1e6) / 1e6
+    stamps = [f"{int(x // 3600):02d}:{int(x % 3600 // 60):02d}:{x % 60:09.6f}" for x in day]
+    _write_clock_text(tmp_path, log, edit(stamps), time)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
+    assert re.search(words, capsys.readouterr().err), words

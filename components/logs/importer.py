@@ -42,7 +42,7 @@ def import_log(m: Mapping) -> Imported:
     """The log the mapping *m* describes."""
     notes: list[str] = []
     cols = Columns(m.imu)
-    t, rolled = unrolled(cols.values(m.time, "imu.time.column") * m.time_si, m.time_rollover_s)
+    t, rolled = unrolled(_clock(cols, m.time, "imu.time", m.time_si, m.where, notes), m.time_rollover_s)
     if len(t) < 2:
         raise MappingError(f"{cols.where}: fewer than two samples")
     if rolled:
@@ -184,6 +184,22 @@ def _conversion(sensor, kind: str, si: str) -> str:
         cols.append(c)
     reversed_ = [a for a, ch in zip(AX, sensor.axes) if ch.sign < 0]
     return f"{what}; {', '.join(cols)}" + (f" (sign reversed: {', '.join(reversed_)})" if reversed_ else "")
+
+
+def _clock(cols: Columns, ch, key: str, unit_si: float, where: str, notes: list[str]) -> np.ndarray:
+    """A time column in seconds: numbers in *key*.unit, or clock readings (dates and times, the
+    time of day: components.logs.sources.clock_seconds), which are seconds already."""
+    t = cols.values(ch, f"{key}.column")
+    read = cols.clock_columns.get(f"{key}.column")
+    if read is None:
+        return t * unit_si
+    if unit_si != 1.0:
+        raise MappingError(f"{where}: key '{key}.unit': the column {ch.column!r} holds {read} ({cols.where}), read as "
+                           "seconds; expected no unit (or 's')")
+    notes.append(f"{cols.where}: {key}: {read} read as seconds since "
+                 + ("1970-01-01 (UTC where the file gives a zone)" if read == "dates" else
+                    f"midnight (a log past midnight: give '{key}.rollover' = 86400)"))
+    return t
 
 
 def _rollover_hint(t: np.ndarray, i: int, period: float | None, key: str) -> str:
@@ -334,7 +350,8 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
                    for a in m.axes if a.command is not None}
         return gimbal, command, names, vectors, None
     tc = Columns(m.table)
-    tt, rolled = unrolled(tc.values(m.table_time, "table.time.column") * m.table_time_si, m.table_time_rollover_s)
+    tt, rolled = unrolled(_clock(tc, m.table_time, "table.time", m.table_time_si, m.where, notes),
+                          m.table_time_rollover_s)
     if rolled:
         notes.append(f"{tc.where}: the table's time counter rolled over {rolled} time(s) (table.time.rollover: every "
                      f"{m.table_time_rollover_s:.10g} s); counted on")

@@ -5,6 +5,8 @@ dataset path, ``name:k`` for column k of a 2-D array) or, in a file without a he
 0-based index."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from components.errors import MappingError
@@ -22,6 +24,8 @@ class Columns:
             raise MappingError(f"{self.where}: the input file does not exist")
         reader = {"csv": _csv, "tsv": _csv, "parquet": _parquet, "mat": _mat, "hdf5": _hdf5}[source.format]
         self.data: dict = reader(source)
+        # what each column read as clock readings was (what: "dates" or "time of day")
+        self.clock_columns: dict[str, str] = {}
 
     def names(self) -> list[str]:
         return [str(k) for k in self.data]
@@ -70,6 +74,14 @@ class Columns:
         """The column as float64, (raw − offset) × scale × sign; a non-number or non-finite value is
         an error naming its row. *empty*: the empty cells (and NaN) are NaN, the caller fills them."""
         a = self.raw(ch, what, empty)
+        read = clock_seconds(a)
+        if read is not None:
+            unread = np.isnan(read[1])
+            if unread.any():
+                i = int(np.argmax(unread))
+                raise MappingError(f"{self.where}: {what}: row {i + 1}: {a[i]!r} is not a reading of the clock like row 1's "
+                                   f"{a[0]!r} ({read[0]})")
+            self.clock_columns[what], a = read
         if a.dtype.kind not in "biuf":
             try:
                 a = a.astype(float)
@@ -91,6 +103,31 @@ class Columns:
         if a.dtype.kind in "SO":
             return np.array([x.decode() if isinstance(x, bytes) else str(x) for x in a], dtype=object)
         return a.astype(str).astype(object)
+
+
+TIME_OF_DAY = re.compile(r"\s*(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)\s*$")
+
+
+def clock_seconds(a) -> tuple[str, np.ndarray] | None:
+    """A column of clock readings in seconds, and what they were: dates and times (a timestamp
+    column: ISO 8601 text, which the CSV reader takes as such, or Parquet's own) as seconds since
+    1970-01-01 (UTC where the file gives a zone), or the time of day ("08:00:00.005") as seconds
+    since midnight; None for any other column."""
+    if isinstance(a, np.ndarray) and a.dtype.kind == "M":
+        ns = a.astype("datetime64[ns]")
+        out = ns.view(np.int64) / 1e9
+        out[np.isnat(ns)] = np.nan
+        return "dates", out
+    if not (isinstance(a, SegmentLabels) or (isinstance(a, np.ndarray) and a.dtype.kind in "OUS")) or not len(a):
+        return None
+    first = a[0]
+    if not isinstance(first, str) or not TIME_OF_DAY.match(first):
+        return None
+    out = np.empty(len(a))
+    for i, x in enumerate(a):
+        m = TIME_OF_DAY.match(x) if isinstance(x, str) else None
+        out[i] = int(m[1]) * 3600 + int(m[2]) * 60 + float(m[3]) if m else np.nan
+    return "time of day", out
 
 
 def _is_number(x) -> bool:
