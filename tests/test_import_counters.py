@@ -248,3 +248,62 @@ def test_clock_readings_that_do_not_read_are_one_clear_error(example, tmp_path, 
     _write_clock_text(tmp_path, log, edit(stamps), time)
     assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
     assert re.search(words, capsys.readouterr().err), words
+
+
+def _write_totals(tmp_path, log, gyro_totals, acc_totals, gyro_keys: str, acc_keys: str, table: bool) -> None:
+    """imu.csv of running totals (and the angles, or a table file half a sample behind)."""
+    angles = [np.degrees(log.gimbal[a]) for a in AXES]
+    np.savetxt(tmp_path / "imu.csv", np.column_stack([log.time, gyro_totals, acc_totals] + ([] if table else angles)),
+               delimiter=",", header="t,gx,gy,gz,ax,ay,az" + ("" if table else ",A,B,C"), comments="", fmt="%.17g")
+    if table:
+        np.savetxt(tmp_path / "table.csv", np.column_stack([log.time - 0.5 * log.dt] + angles), delimiter=",",
+                   header="t,A,B,C", comments="", fmt="%.17g")
+    sensors = "".join(f'[imu.{s}]\n{keys}\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
+                      for s, keys, p in (("gyro", gyro_keys, "g"), ("acc", acc_keys, "a")))
+    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
+                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
+    (tmp_path / "map.toml").write_text(
+        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "t"\n{sensors}'
+        + (f'[table]\nfile = "table.csv"\nclock_offset_s = {0.5 * log.dt!r}\n[table.time]\ncolumn = "t"\n' if table else
+           "[table]\n") + f'encoder_resolution = "exact"\n{axes}'
+        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+
+
+@pytest.mark.parametrize("table", [False, True])
+def test_running_totals_are_the_increments_again(example, tmp_path, capsys, table):
+    """Running totals of the increments (a laser gyro's up/down counter of 1e-7 rad pulses
+    rolling over at 2^16, an accelerometer's velocity in m/s): imported, every sample after the
+    first has its own increment again (the counts to the pulse), and the log calibrates as the
+    original, with the table's angles in the same file or on their own clock."""
+    log, ref = example
+    q = 1e-7
+    pulses = np.round(np.cumsum(log.gyro, axis=0) / q)  # the counter, before it rolls over
+    assert np.abs(np.diff(pulses, axis=0)).max() < 2**15
+    counter = np.mod(pulses, 2**16)
+    velocity = np.cumsum(log.acc, axis=0)
+    _write_totals(tmp_path, log, counter, velocity,
+                  f'output = "counts"\ncount = "{q!r} rad"\naccumulated = true\nrollover = 65536',
+                  'output = "increment"\nunit = "m/s"\naccumulated = true', table)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 0
+    assert "running totals (accumulated): the first sample's increment is not known" in capsys.readouterr().out
+    back = read_log(tmp_path / "merged")
+    kept = np.searchsorted(log.time, back.time)
+    assert kept[0] == 1 and back.n == log.n - 1
+    np.testing.assert_array_equal(back.gyro, np.diff(pulses, axis=0)[kept - 1])
+    np.testing.assert_allclose(back.acc, log.acc[kept], rtol=0, atol=1e-12)
+    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
+    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
+    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+
+
+@pytest.mark.parametrize("gyro_keys, words", [
+    ('output = "rate"\nunit = "rad/s"\naccumulated = true', r"key 'imu.gyro.accumulated' = true with output = 'rate'"),
+    ('output = "increment"\nunit = "rad"\nrollover = 65536', r"key 'imu.gyro.rollover': .* expected 'imu.gyro.accumulated'"),
+    ('output = "increment"\nunit = "rad"\naccumulated = "yes"', r"key 'imu.gyro.accumulated' = 'yes': expected true"),
+])
+def test_running_total_keys_that_do_not_fit_are_one_clear_error(example, tmp_path, capsys, gyro_keys, words):
+    log, _ = example
+    _write_totals(tmp_path, log, np.cumsum(log.gyro, axis=0), np.cumsum(log.acc, axis=0), gyro_keys,
+                  'output = "increment"\nunit = "m/s"\naccumulated = true', False)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
+    assert re.search(words, capsys.readouterr().err), words

@@ -27,11 +27,19 @@ class Imported:
 
 
 def _sensor_values(cols: Columns, sensor, name: str, kind_rates: tuple) -> tuple[np.ndarray, str]:
-    """(N, 3) values in the log's unit for the sensor's output kind, and that kind's log name."""
+    """(N, 3) values in the log's unit for the sensor's output kind, and that kind's log name; of
+    running totals the increments, the first sample's NaN (nothing before it to count from)."""
     v = np.column_stack([cols.values(ch, f"imu.{name}.{a}") for ch, a in zip(sensor.axes, AX)])
+    if sensor.accumulated:
+        step = np.diff(v, axis=0)
+        if sensor.rollover is not None:
+            # a total's step is far below half its period: a larger one is the total rolling over
+            period = sensor.rollover * np.array([abs(ch.scale) for ch in sensor.axes])
+            step -= period * np.round(step / period)
+        v = np.vstack([np.full((1, 3), np.nan), step])
     if sensor.output == "counts":
-        if not np.all(v == np.round(v)):
-            i, k = np.argwhere(v != np.round(v))[0]
+        if not np.all((v == np.round(v)) | np.isnan(v)):
+            i, k = np.argwhere((v != np.round(v)) & ~np.isnan(v))[0]
             raise MappingError(f"{cols.where}: imu.{name}.{AX[k]}: row {i + 1}: {float(v[i, k])!r} is not a whole number of "
                                "counts (output = 'counts' means pulse counts per sample)")
         return v, "counts"
@@ -137,14 +145,28 @@ def import_log(m: Mapping) -> Imported:
     _check_label_keys(m, seg)
     clock: dict = {}
     matched = logged if logged is not None and m.table_clock == "controller" else t
-    gimbal, command, names, vectors, keep = _table(m, cols, matched, gyro, gkind, notes, clock, ~after_gap)
+    whole = ~after_gap
+    whole[0] &= not (m.gyro.accumulated or m.acc.accumulated)  # a running total's first increment: unknown
+    gimbal, command, names, vectors, keep = _table(m, cols, matched, np.nan_to_num(gyro), gkind, notes, clock, whole)
     if bow is not None and clock.get("estimate") is not None and clock["estimate"].stretches is not None:
         wrong = _wrong_clock(clock["estimate"], matched, bow, reg.drift.bow_s, matched is logged)
         if wrong:
             notes.append(wrong)
     if logged is not None:
         t = logged
+    if keep is None and (m.gyro.accumulated or m.acc.accumulated):
+        keep = np.ones(len(t), bool)
     if keep is not None:
+        if m.gyro.accumulated or m.acc.accumulated:
+            # running totals: the first sample's increment is not known (the table's matched
+            # angles are of the kept samples already)
+            drop_angles = bool(keep[0])
+            keep = keep.copy()
+            keep[0] = False
+            if drop_angles:
+                gimbal = {k: v[1:] for k, v in gimbal.items()}
+                command = {k: v[1:] for k, v in command.items()}
+            notes.append("running totals (accumulated): the first sample's increment is not known and it is left out")
         t, gyro, acc = t[keep], gyro[keep], acc[keep]
         temp = None if temp is None else temp[keep]
         seg = None if seg is None else seg[keep]

@@ -61,6 +61,8 @@ class Sensor:
     count_weight: float | None  # counts: one count [rad] or [m/s]
     axes: list[Channel] = field(default_factory=list)
     unit: str = ""              # the unit as the mapping names it ("" for counts)
+    accumulated: bool = False   # the columns are running totals of the increments (or counts)
+    rollover: float | None = None  # a total's period in the column's raw values (a 16-bit counter: 65536)
 
 
 @dataclass
@@ -228,6 +230,22 @@ def _sensor(d: dict, key: str, where: str, kinds: dict, weight_units: dict) -> S
     s = Sensor(out, unit_si, weight, unit=unit)
     for a in AX:
         s.axes.append(_channel(_get(d, a, f"{where} [{key}]", f"the column of the {a} axis"), f"{key}.{a}", where, d))
+    acc = d.get("accumulated", False)
+    if not isinstance(acc, bool):
+        raise MappingError(f"{where}: key '{key}.accumulated' = {acc!r}: expected true (the columns are running totals) "
+                           "or false")
+    if acc and out not in ("increment", "counts"):
+        raise MappingError(f"{where}: key '{key}.accumulated' = true with output = {out!r}: a running total is of "
+                           "increments or counts; expected output = 'increment' or 'counts'")
+    s.accumulated = acc
+    if "rollover" in d:
+        if not acc:
+            raise MappingError(f"{where}: key '{key}.rollover': a rollover is a running total's; expected "
+                               f"'{key}.accumulated' = true beside it")
+        r = _number(d["rollover"], f"{key}.rollover", where, "the total's period in the column's values (e.g. 65536)")
+        if not r > 0:
+            raise MappingError(f"{where}: key '{key}.rollover' = {r!r}: expected the total's period, a positive number")
+        s.rollover = r
     return s
 
 
