@@ -45,8 +45,12 @@ and acc.temp.z's threshold under that noise is 44 and 28 µg/K: there the ordina
 (Holm-adjusted p 0.014 on seed 23 with K2 added), and the test of effects taken for noise
 (components.diagnosis.taken_for_noise) must name it.
 
+With ``--registers`` the rig writes what its registers hold (REGISTERS: clock and pulse counters
+that roll over, angles read to one turn, a temperature read once a second), and the mapping
+says so (``rollover``, ``accumulated``, ``sparse``): the loop must end where the plain files' does.
+
     python benchmarks/foreign_rig.py [--seeds 3] [--dir DIR] [--drift-ppm 20] [--table-ppm 30] [--grade tactical]
-                                     [--thermal 20]
+                                     [--thermal 20] [--registers]
 """
 from __future__ import annotations
 
@@ -93,6 +97,11 @@ GRADE_SCALE = {"navigation": 1.0, "tactical": 100.0}
 MOST_ADDED = 3
 # --thermal: the IMU's temperature (°C at s), piecewise linear: a warm-up, then a soak
 WARM_UP = [[0, 25.0], [900, 40.0], [2400, 40.0]]
+# --registers: what a rig's registers hold, written as they are: the host's stamps as a 32-bit
+# microsecond counter rolling over 1000 s in, the gyro's pulses as 16-bit up/down counters (their
+# running totals, rolling over), the table's angles read to one turn (±180°), the temperature
+# once a second (the cells between empty); the mapping says each (rollover, accumulated, sparse)
+REGISTERS = "a 32-bit us clock and 16-bit gyro pulse counters rolling over, angles to one turn, a 1 Hz temperature"
 THERMAL = ("acc.temp", "acc.temp.z", "ug/K")
 
 MAPPING = """description = "foreign rig: pulse-count IMU, host-stamped, table controller on its own clock"
@@ -162,7 +171,7 @@ def _toml(d: dict, prefix: str = "") -> str:
 
 
 def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0, table_ppm: float = 0.0,
-              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0) -> float:
+              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, registers: bool = False) -> float:
     """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*.
     ``drift_ppm``: the IMU's clock rate soaks by that much (towards it with a time constant of a
     quarter of the log, a crystal warming) against the host's and the table's, which keep time.
@@ -173,7 +182,8 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     by that much (as the IMU's above) against the IMU's and the table controller's, which keep
     time; the mapping then says so (keeps_time = "sensor", table.time.clock = "controller"), and
     the increments are as simulated. ``table_soak_ppm``: the table controller's clock rate soaks by
-    that much on top (its crystal warming after power-on, as the IMU's above). Returns the true
+    that much on top (its crystal warming after power-on, as the IMU's above). ``registers``: the
+    rig writes what its registers hold (REGISTERS). Returns the true
     clock offset (IMU time - table time at the
     table's first sample; with the host drifting, the host's, which the import does not use)."""
     log = read_log(sim)
@@ -186,16 +196,33 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     counts = {s: PulseLogger(w, rng.random(3) * w).counts(v) for (s, w), v in zip(COUNTS.items(), (log.gyro, acc))}
     stamps = np.round((host + rng.uniform(-JITTER, JITTER, log.n)) * 1e6)
     g, a = counts["gyro"], counts["acc"]
-    cols = [stamps, g[:, 2], g[:, 1], -g[:, 0], a[:, 0], a[:, 1], a[:, 2], log.temperature * 9 / 5 + 32]
+    gyro_columns = np.column_stack([g[:, 2], g[:, 1], -g[:, 0]])
+    origin = 0.0  # the IMU's time less the host's
+    if registers:
+        # a total keeps the counts of the packets lost: summed over every sample
+        origin = (2**32 - 1e9 - stamps[0]) * 1e-6
+        stamps = np.mod(stamps - stamps[0] + (2**32 - 1e9), 2**32)  # rolls over 1000 s in
+        gyro_columns = np.mod(np.cumsum(gyro_columns, axis=0), 2**16)
+    cols = [stamps, *gyro_columns.T, a[:, 0], a[:, 1], a[:, 2], log.temperature * 9 / 5 + 32]
     kept = rng.random(log.n) >= LOST
     kept[[0, -1]] = True
-    np.savetxt(out / "imu.csv", np.column_stack(cols)[kept], fmt=["%d"] * 7 + ["%.4f"], delimiter=",", comments="",
-               header="stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F")
+    header = "stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F"
+    if registers:
+        rows = np.column_stack(cols)[kept]
+        with open(out / "imu.csv", "w") as f:  # the temperature once a second, empty between
+            f.write(header + "\n" + "".join(",".join("%d" % x for x in r[:7]) + "," + ("%.4f" % r[7] if i % 200 == 0 else "")
+                                             + "\n" for i, r in enumerate(rows)))
+    else:
+        np.savetxt(out / "imu.csv", np.column_stack(cols)[kept], fmt=["%d"] * 7 + ["%.4f"], delimiter=",",
+                   comments="", header=header)
     table_time = ((log.time if host_drift_ppm else host) - CLOCK) * (1 + table_ppm * 1e-6)
     if table_soak_ppm:
         soak = table_soak_ppm * 1e-6 * (1 - np.exp(-tau / (tau[-1] / 4)))
         table_time = table_time + np.concatenate([[0.0], np.cumsum(np.diff(tau) * 0.5 * (soak[1:] + soak[:-1]))])
-    rows = np.column_stack([table_time] + [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")])
+    degrees = [np.degrees(log.gimbal[n]) for n in ("outer", "middle", "inner")]
+    if registers:
+        degrees = [np.mod(x + 180.0, 360.0) - 180.0 for x in degrees]  # read to one turn
+    rows = np.column_stack([table_time] + degrees)
     with open(out / "table.csv", "w") as f:
         f.write("# turntable controller export\n# firmware 3.1\nt;A0;A1;A2\n")
         for r in rows:
@@ -204,8 +231,12 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     if host_drift_ppm:
         mapping = mapping.replace('timing = "regularise"', 'timing = "regularise"\nkeeps_time = "sensor"') \
             .replace('[table.time]\ncolumn = "t"', '[table.time]\ncolumn = "t"\nclock = "controller"')
+    if registers:
+        mapping = mapping.replace('unit = "us"', 'unit = "us"\nrollover = 4294967296') \
+            .replace('count = "1e-6 rad"', 'count = "1e-6 rad"\naccumulated = true\nrollover = 65536') \
+            .replace('unit = "degF"', 'unit = "degF"\nsparse = true')
     (out / "map.toml").write_text(mapping)
-    return float(host[0] - table_time[0])
+    return float(host[0] + origin - table_time[0])
 
 
 def calbench(*args: str, cwd: Path) -> str:
@@ -219,14 +250,15 @@ def calbench(*args: str, cwd: Path) -> str:
 
 
 def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0, grade: str = "navigation",
-             host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, thermal: float = 0.0) -> dict:
+             host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, thermal: float = 0.0,
+             registers: bool = False) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed, grade, thermal))
     calbench("simulate", "scenario.toml", "--out", "sim", cwd=d)
     rig = d / "rig"
     rig.mkdir(exist_ok=True)
     true_offset = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm, host_drift_ppm,
-                            table_soak_ppm)
+                            table_soak_ppm, registers)
     truth = json.loads((d / "sim.truth.json").read_text())
     said = calbench("import", "rig/map.toml", "--out", "imp", cwd=d)
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
@@ -314,6 +346,8 @@ def main() -> int:
     ap.add_argument("--thermal", type=float, default=0.0, metavar="UG_PER_K",
                     help="the IMU warming up (25 to 40 degC in 15 minutes, then a soak) with acc.temp.z of this "
                          "many ug/K hidden besides (times the grade's scale; default 0: no warm-up)")
+    ap.add_argument("--registers", action="store_true",
+                    help=f"the rig writes what its registers hold: {REGISTERS} (the mapping says each)")
     a = ap.parse_args()
     if a.drift_ppm and a.host_drift_ppm:
         ap.error("--drift-ppm and --host-drift-ppm: one clock drifts against the host's, the IMU's or the host's own")
@@ -331,13 +365,14 @@ def main() -> int:
              + ("IMU's" if a.host_drift_ppm else "host's") if a.table_ppm else "")
           + (f"; the table's clock rate soaking by {a.table_soak_ppm:g} ppm" if a.table_soak_ppm else "")
           + (f"; the IMU warming up 25 -> 40 degC with {THERMAL[1]} {a.thermal * GRADE_SCALE[a.grade]:g} "
-             f"{THERMAL[2]} hidden besides" if a.thermal else ""))
+             f"{THERMAL[2]} hidden besides" if a.thermal else "")
+          + (f"; the rig's registers as they are: {REGISTERS}" if a.registers else ""))
     hidden = {HIDDEN[0]} | ({THERMAL[0]} if a.thermal else set())
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
         r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm, a.table_ppm, a.grade,
-                     a.host_drift_ppm, a.table_soak_ppm, a.thermal)
+                     a.host_drift_ppm, a.table_soak_ppm, a.thermal, a.registers)
         rows.append(r)
         lo, hi = band99(r["dof"])
         fl = ", ".join(f"{f:.2f}" for f in r["floors"])
