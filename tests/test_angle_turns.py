@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from rig_files import AXES, imported, imu_columns, mapping, write_csv
 
 from components.cli import main
 from components.estimation.log_data import LogData
@@ -18,7 +19,6 @@ from components.logs.logfile import read_log, write_log
 from components.model.effects import DEFAULT_EFFECTS
 
 TURN = 2 * math.pi
-AXES = ("outer", "middle", "inner")
 
 
 def _one_turn(angle: np.ndarray, lowest: float) -> np.ndarray:
@@ -100,21 +100,10 @@ def test_a_log_read_to_one_turn_calibrates_as_the_continuous_one(example, tmp_pa
 def _import(tmp_path, log, table_deg: dict, offset: float, name: str):
     """``calbench import`` of the IMU's increments and a table file of *table_deg* on a clock
     *offset* behind the IMU's (given); the imported log."""
-    np.savetxt(tmp_path / "table.csv", np.column_stack([log.time - offset] + [table_deg[a] for a in AXES]),
-               delimiter=",", header="t,A,B,C", comments="", fmt="%.17g")
-    np.savetxt(tmp_path / "imu.csv", np.column_stack([log.time, log.gyro, log.acc]), delimiter=",",
-               header="t,gx,gy,gz,ax,ay,az", comments="", fmt="%.17g")
-    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
-                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
-    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
-                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
-    (tmp_path / "map.toml").write_text(
-        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "t"\n{sensors}'
-        f'[table]\nfile = "table.csv"\nclock_offset_s = {offset!r}\nencoder_resolution = "exact"\n'
-        f'[table.time]\ncolumn = "t"\n{axes}'
-        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
-    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / name)]) == 0
-    return read_log(tmp_path / name)
+    write_csv(tmp_path / "imu.csv", imu_columns(log, log.time, angles=False))
+    write_csv(tmp_path / "table.csv", {"t": log.time - offset, **{c: table_deg[a] for c, a in zip("ABC", AXES)}})
+    (tmp_path / "map.toml").write_text(mapping(log, table=f"clock_offset_s = {offset!r}", table_time=""))
+    return imported(tmp_path, name)
 
 
 def test_an_import_of_a_table_file_read_to_one_turn(example, tmp_path, capsys):

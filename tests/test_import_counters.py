@@ -11,6 +11,7 @@ import re
 
 import numpy as np
 import pytest
+from rig_files import AXES, imported, imu_columns, mapping, table_columns, write_csv
 
 from components.cli import main
 from components.estimation.log_data import LogData
@@ -18,7 +19,6 @@ from components.estimation.lsq import calibrate
 from components.logs.logfile import read_log
 from components.model.effects import DEFAULT_EFFECTS
 
-AXES = ("outer", "middle", "inner")
 TICK = 0.015625  # s
 
 
@@ -29,18 +29,16 @@ def example(conformance):
 
 
 def _write(tmp_path, log, stamps_ms: np.ndarray, timing: str = "regularise", time: str = 'unit = "ms"') -> None:
-    angles = [np.degrees(log.gimbal[a]) for a in AXES]
-    np.savetxt(tmp_path / "imu.csv", np.column_stack([stamps_ms, log.gyro, log.acc, *angles]), delimiter=",",
-               header="t_ms,gx,gy,gz,ax,ay,az,A,B,C", comments="", fmt="%.17g")
-    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
-                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
-    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
-                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
-    (tmp_path / "map.toml").write_text(
-        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n'
-        f'[imu.time]\ncolumn = "t_ms"\n{time}\ntiming = "{timing}"\n{sensors}'
-        f'[table]\nencoder_resolution = "exact"\n{axes}'
-        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+    write_csv(tmp_path / "imu.csv", imu_columns(log, stamps_ms))
+    (tmp_path / "map.toml").write_text(mapping(log, f'{time}\ntiming = "{timing}"'))
+
+
+def _same_as(back, ref, tol: float = 0.1) -> None:
+    """The log *back* calibrates as the reference fit *ref*: every parameter within *tol* of its σ."""
+    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
+    assert fit.parameters == ref.parameters
+    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
+    assert z.max() < tol, (fit.parameters[int(np.argmax(z))], z.max())
 
 
 def test_stamps_of_a_coarse_clock_are_regularised_and_calibrate_as_the_original(example, tmp_path, capsys):
@@ -59,10 +57,7 @@ def test_stamps_of_a_coarse_clock_are_regularised_and_calibrate_as_the_original(
     back = read_log(tmp_path / "merged")
     assert back.n == log.n
     np.testing.assert_allclose(np.diff(back.time), log.dt, rtol=1e-6)
-    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
-    assert fit.parameters == ref.parameters
-    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
-    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+    _same_as(back, ref)
 
 
 @pytest.mark.parametrize("timing, edit, words", [
@@ -95,9 +90,7 @@ def test_a_counter_that_rolls_over_is_counted_on(example, tmp_path, capsys, timi
     back = read_log(tmp_path / "merged")
     assert back.n == log.n
     np.testing.assert_allclose(np.diff(back.time), log.dt, rtol=1e-6)
-    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
-    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
-    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+    _same_as(back, ref)
     # without the key: one error at the row, naming the key to give
     _write(tmp_path, log, micros, timing, time='unit = "us"')
     assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
@@ -108,21 +101,11 @@ def test_a_counter_that_rolls_over_is_counted_on(example, tmp_path, capsys, timi
 def _import_with_table(tmp_path, log, table_ms: np.ndarray, rollover: str, name: str):
     """The IMU's increments on its own times and a table file stamped *table_ms* (given half a
     sample behind the IMU's clock)."""
-    np.savetxt(tmp_path / "imu.csv", np.column_stack([log.time, log.gyro, log.acc]), delimiter=",",
-               header="t,gx,gy,gz,ax,ay,az", comments="", fmt="%.17g")
-    np.savetxt(tmp_path / "table.csv", np.column_stack([table_ms] + [np.degrees(log.gimbal[a]) for a in AXES]),
-               delimiter=",", header="ms,A,B,C", comments="", fmt="%.17g")
-    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
-                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
-    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
-                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
-    (tmp_path / "map.toml").write_text(
-        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "t"\n{sensors}'
-        f'[table]\nfile = "table.csv"\nclock_offset_s = {0.5 * log.dt!r}\nencoder_resolution = "exact"\n'
-        f'[table.time]\ncolumn = "ms"\nunit = "ms"\n{rollover}\n{axes}'
-        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
-    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / name)]) == 0
-    return read_log(tmp_path / name)
+    write_csv(tmp_path / "imu.csv", imu_columns(log, log.time, angles=False))
+    write_csv(tmp_path / "table.csv", table_columns(log, table_ms))
+    (tmp_path / "map.toml").write_text(mapping(log, table=f"clock_offset_s = {0.5 * log.dt!r}",
+                                               table_time=f'unit = "ms"\n{rollover}'))
+    return imported(tmp_path, name)
 
 
 def test_a_table_counter_that_rolls_over_is_counted_on(example, tmp_path, capsys):
@@ -146,21 +129,10 @@ def test_a_rollover_that_is_no_period_is_one_clear_error(example, tmp_path, caps
 
 
 def _write_sparse_temperature(tmp_path, log, temperature: np.ndarray, every: int, sparse: bool) -> None:
-    """imu.csv with the temperature in every *every*-th row, empty between."""
-    lines = ["t,gx,gy,gz,ax,ay,az,A,B,C,temp"]
-    for i in range(log.n):
-        cells = [log.time[i], *log.gyro[i], *log.acc[i], *(np.degrees(log.gimbal[a][i]) for a in AXES)]
-        lines.append(",".join(f"{v:.17g}" for v in cells) + "," + (f"{temperature[i]:.17g}" if i % every == 0 else ""))
-    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
-    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
-                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
-    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
-                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
-    (tmp_path / "map.toml").write_text(
-        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "t"\n{sensors}'
-        f'[imu.temperature]\ncolumn = "temp"\nunit = "degF"\nsparse = {str(sparse).lower()}\n'
-        f'[table]\nencoder_resolution = "exact"\n{axes}'
-        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+    """imu.csv with the temperature (°F) in every *every*-th row, empty between."""
+    cells = [f"{v:.17g}" if i % every == 0 else "" for i, v in enumerate(temperature)]
+    write_csv(tmp_path / "imu.csv", {**imu_columns(log, log.time), "temp": cells})
+    (tmp_path / "map.toml").write_text(mapping(log, temperature=f'unit = "degF"\nsparse = {str(sparse).lower()}'))
 
 
 def test_a_temperature_read_once_a_second_is_linear_between_its_readings(example, tmp_path, capsys):
@@ -195,19 +167,8 @@ def test_empty_temperature_cells_without_the_key_are_one_clear_error(example, tm
 
 def _write_clock_text(tmp_path, log, stamps: list[str], time: str = "") -> None:
     """imu.csv with the time column as text (*stamps*), the angles beside the increments."""
-    lines = ["time,gx,gy,gz,ax,ay,az,A,B,C"]
-    for i in range(log.n):
-        cells = [*log.gyro[i], *log.acc[i], *(np.degrees(log.gimbal[a][i]) for a in AXES)]
-        lines.append(stamps[i] + "," + ",".join(f"{v:.17g}" for v in cells))
-    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
-    sensors = "".join(f'[imu.{s}]\noutput = "increment"\nunit = "{u}"\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
-                      for s, u, p in (("gyro", "rad", "g"), ("acc", "m/s", "a")))
-    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
-                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
-    (tmp_path / "map.toml").write_text(
-        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "time"\n{time}\n'
-        f'{sensors}[table]\nencoder_resolution = "exact"\n{axes}'
-        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+    write_csv(tmp_path / "imu.csv", imu_columns(log, stamps))
+    (tmp_path / "map.toml").write_text(mapping(log, time))
 
 
 @pytest.mark.parametrize("clock", ["dates", "dates UTC", "time of day past midnight"])
@@ -231,15 +192,13 @@ def test_a_time_column_of_clock_readings_is_read_as_seconds(example, tmp_path, c
     back = read_log(tmp_path / "merged")
     # epoch seconds keep their float's 0.24 us; a time of day its microseconds
     np.testing.assert_allclose(np.diff(back.time), np.diff(log.time), rtol=0, atol=5e-7)
-    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
-    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
-    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+    _same_as(back, ref)
 
 
 @pytest.mark.parametrize("edit, time, words", [
     (lambda s: s[:5] + ["08:00:00;5"] + s[6:], "", r"imu.csv: imu.time.column: row 6: '08:00:00;5' is not a reading of "
                                                      r"the clock like row 1's '08:00:00.005000' \(time of day\)"),
-    (lambda s: s, 'unit = "ms"', r"map.toml: key 'imu.time.unit': the column 'time' holds time of day .* expected no unit"),
+    (lambda s: s, 'unit = "ms"', r"map.toml: key 'imu.time.unit': the column 't' holds time of day .* expected no unit"),
 ])
 def test_clock_readings_that_do_not_read_are_one_clear_error(example, tmp_path, capsys, edit, time, words):
     log, _ = example
@@ -252,21 +211,12 @@ def test_clock_readings_that_do_not_read_are_one_clear_error(example, tmp_path, 
 
 def _write_totals(tmp_path, log, gyro_totals, acc_totals, gyro_keys: str, acc_keys: str, table: bool) -> None:
     """imu.csv of running totals (and the angles, or a table file half a sample behind)."""
-    angles = [np.degrees(log.gimbal[a]) for a in AXES]
-    np.savetxt(tmp_path / "imu.csv", np.column_stack([log.time, gyro_totals, acc_totals] + ([] if table else angles)),
-               delimiter=",", header="t,gx,gy,gz,ax,ay,az" + ("" if table else ",A,B,C"), comments="", fmt="%.17g")
+    write_csv(tmp_path / "imu.csv", imu_columns(log, log.time, gyro_totals, acc_totals, angles=not table))
     if table:
-        np.savetxt(tmp_path / "table.csv", np.column_stack([log.time - 0.5 * log.dt] + angles), delimiter=",",
-                   header="t,A,B,C", comments="", fmt="%.17g")
-    sensors = "".join(f'[imu.{s}]\n{keys}\n' + "".join(f'{k} = "{p}{k}"\n' for k in "xyz")
-                      for s, keys, p in (("gyro", gyro_keys, "g"), ("acc", acc_keys, "a")))
-    axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {list(map(int, v))}\ncolumn = "{c}"\nunit = "deg"\n'
-                   for n, v, c in zip(AXES, log.axis_vectors, "ABC"))
-    (tmp_path / "map.toml").write_text(
-        f'[imu]\nfile = "imu.csv"\nsample_rate_hz = {log.sample_rate_hz!r}\n[imu.time]\ncolumn = "t"\n{sensors}'
-        + (f'[table]\nfile = "table.csv"\nclock_offset_s = {0.5 * log.dt!r}\n[table.time]\ncolumn = "t"\n' if table else
-           "[table]\n") + f'encoder_resolution = "exact"\n{axes}'
-        f'[site]\nlatitude_deg = {log.latitude_deg!r}\nheight_m = {log.height_m!r}\n')
+        write_csv(tmp_path / "table.csv", table_columns(log, log.time - 0.5 * log.dt))
+    (tmp_path / "map.toml").write_text(mapping(log, gyro=gyro_keys, acc=acc_keys,
+                                               **({"table": f"clock_offset_s = {0.5 * log.dt!r}", "table_time": ""}
+                                                  if table else {})))
 
 
 @pytest.mark.parametrize("table", [False, True])
@@ -291,9 +241,7 @@ def test_running_totals_are_the_increments_again(example, tmp_path, capsys, tabl
     assert kept[0] == 1 and back.n == log.n - 1
     np.testing.assert_array_equal(back.gyro, np.diff(pulses, axis=0)[kept - 1])
     np.testing.assert_allclose(back.acc, log.acc[kept], rtol=0, atol=1e-12)
-    fit = calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS))
-    z = np.abs((np.asarray(fit.value) - ref.value) / ref.sigma)
-    assert z.max() < 0.1, (fit.parameters[int(np.argmax(z))], z.max())
+    _same_as(back, ref)
 
 
 @pytest.mark.parametrize("gyro_keys, words", [
