@@ -15,8 +15,9 @@ from components.logs.clock_curve import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
 from components.logs.sources import Columns
+from components.logs.stamps import imu_stamps, table_stamps
 from components.logs.table_clock import angles_at, estimate_clock_offset, table_to_imu
-from components.logs.timebase import gaps, regularise, stamp_resolution, unrolled
+from components.logs.timebase import gaps, regularise
 
 
 @dataclass
@@ -50,34 +51,8 @@ def import_log(m: Mapping) -> Imported:
     """The log the mapping *m* describes."""
     notes: list[str] = []
     cols = Columns(m.imu)
-    t, rolled = unrolled(_clock(cols, m.time, "imu.time", m.time_si, m.where, notes), m.time_rollover_s)
-    if len(t) < 2:
-        raise MappingError(f"{cols.where}: fewer than two samples")
-    if rolled:
-        notes.append(f"the time counter rolled over {rolled} time(s) (imu.time.rollover: every "
-                     f"{m.time_rollover_s:.10g} s); counted on")
-    # a host's clock coarser than the samples stamps several alike (Windows' tick of 15.6 ms):
-    # a regular grid fitted to all of them places the samples as well, so only the stamps a
-    # grid replaces may repeat
-    repeats = m.timing == "regularise"
-    back = np.diff(t) < 0 if repeats else np.diff(t) <= 0
-    if np.any(back):
-        i = int(np.argmax(back)) + 1
-        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected "
-                           + ("times that never go back" if repeats else "strictly increasing times")
-                           + _rollover_hint(t, i, m.time_rollover_s, "imu.time"))
-    if t[-1] == t[0]:
-        raise MappingError(f"{cols.where}: imu.time: every stamp is {float(t[0])!r} s; expected times that advance")
+    t, tick, max_int = imu_stamps(m, cols, notes)
     nominal = 1.0 / m.sample_rate_hz
-    tick = stamp_resolution(t)
-    _check_rate(m, t, nominal, tick)
-    max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
-    if tick:
-        shared = float(np.mean(np.diff(t) == 0))
-        # an interval between two ticks is up to a tick longer than the samples' own
-        max_int += tick
-        notes.append(f"time stamps repeat ({shared:.0%} of the intervals zero): a clock of {tick * 1e3:.4g} ms resolution; "
-                     f"a gap is an interval beyond {max_int * 1e3:.4g} ms (a sample lost inside a tick is not seen)")
     timing, fs = "nominal", m.sample_rate_hz
     logged = None  # the log's time where it is not the host's (a drift, the sensor keeping time)
     bow = None  # with a drift: the host's stamps less the sensor's grid at each sample
@@ -154,19 +129,9 @@ def import_log(m: Mapping) -> Imported:
             notes.append(wrong)
     if logged is not None:
         t = logged
-    if keep is None and (m.gyro.accumulated or m.acc.accumulated):
-        keep = np.ones(len(t), bool)
+    if m.gyro.accumulated or m.acc.accumulated:
+        keep, gimbal, command = _first_total_left_out(keep, len(t), gimbal, command, notes)
     if keep is not None:
-        if m.gyro.accumulated or m.acc.accumulated:
-            # running totals: the first sample's increment is not known (the table's matched
-            # angles are of the kept samples already)
-            drop_angles = bool(keep[0])
-            keep = keep.copy()
-            keep[0] = False
-            if drop_angles:
-                gimbal = {k: v[1:] for k, v in gimbal.items()}
-                command = {k: v[1:] for k, v in command.items()}
-            notes.append("running totals (accumulated): the first sample's increment is not known and it is left out")
         t, gyro, acc = t[keep], gyro[keep], acc[keep]
         temp = None if temp is None else temp[keep]
         seg = None if seg is None else seg[keep]
@@ -186,9 +151,16 @@ def import_log(m: Mapping) -> Imported:
     return Imported(log, notes, clock.get("estimate"))
 
 
-# stamps whose median interval is this far from 1/sample_rate_hz (either way) are in another unit
-# than the mapping says, or the rate is wrong: not a clock's drift (ppm) nor a jitter
-RATE_MISMATCH = 1.25
+def _first_total_left_out(keep, n: int, gimbal: dict, command: dict, notes: list[str]):
+    """Running totals: the first sample's increment is not known. (*keep*, or all *n* samples,
+    without it; the table's angles and commands, which are of the kept samples, without theirs.)"""
+    keep = np.ones(n, bool) if keep is None else keep.copy()
+    if keep[0]:
+        gimbal = {k: v[1:] for k, v in gimbal.items()}
+        command = {k: v[1:] for k, v in command.items()}
+    keep[0] = False
+    notes.append("running totals (accumulated): the first sample's increment is not known and it is left out")
+    return keep, gimbal, command
 
 
 def _conversion(sensor, kind: str, si: str) -> str:
@@ -206,50 +178,6 @@ def _conversion(sensor, kind: str, si: str) -> str:
         cols.append(c)
     reversed_ = [a for a, ch in zip(AX, sensor.axes) if ch.sign < 0]
     return f"{what}; {', '.join(cols)}" + (f" (sign reversed: {', '.join(reversed_)})" if reversed_ else "")
-
-
-def _clock(cols: Columns, ch, key: str, unit_si: float, where: str, notes: list[str]) -> np.ndarray:
-    """A time column in seconds: numbers in *key*.unit, or clock readings (dates and times, the
-    time of day: components.logs.sources.clock_seconds), which are seconds already."""
-    t = cols.values(ch, f"{key}.column")
-    read = cols.clock_columns.get(f"{key}.column")
-    if read is None:
-        return t * unit_si
-    if unit_si != 1.0:
-        raise MappingError(f"{where}: key '{key}.unit': the column {ch.column!r} holds {read} ({cols.where}), read as "
-                           "seconds; expected no unit (or 's')")
-    notes.append(f"{cols.where}: {key}: {read} read as seconds since "
-                 + ("1970-01-01 (UTC where the file gives a zone)" if read == "dates" else
-                    f"midnight (a log past midnight: give '{key}.rollover' = 86400)"))
-    return t
-
-
-def _rollover_hint(t: np.ndarray, i: int, period: float | None, key: str) -> str:
-    """What to give where time steps back at row *i* by more than a few samples' worth: a
-    counter that rolls over, unless its period is given already."""
-    if period is not None:
-        return ""
-    back = float(t[i - 1] - t[i])
-    usual = float(np.median(np.diff(t[max(0, i - 1000):i]))) if i > 1 else 0.0
-    if not back > (100 * usual if usual > 0 else 1.0):
-        return ""
-    return (f" (back by {back:.10g} s: a counter that rolls over? give '{key}.rollover', its period in '{key}.unit', "
-            "e.g. 4294967296 for a 32-bit count of microseconds)")
-
-
-def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float = 0.0) -> None:
-    """The time stamps against the stated sample rate: a unit or a rate off by a factor (ms read
-    as s: every interval a gap) is named here, with the mapping's keys, not by what it breaks later.
-    Stamps of a clock with a *tick* coarser than the samples: the median interval over enough
-    samples to span eight ticks (one tick off in eight is within the factor looked for)."""
-    k = max(1, math.ceil(8 * tick / nominal))
-    d = (t[k:] - t[:-k]) / k if len(t) > k else np.diff(t)
-    med = float(np.median(d[::max(1, len(d) // (1 << 20))]))  # a factor is all it looks for: 1 M intervals do
-    ratio = med / nominal
-    if not 1 / RATE_MISMATCH < ratio < RATE_MISMATCH:
-        raise MappingError(f"{m.where}: the time stamps' median interval is {med:.6g} s (imu.time.unit: "
-                           f"{m.time_si:g} s a unit), {ratio:.4g} x 1/imu.sample_rate_hz = {nominal:.6g} s; expected the "
-                           "same within 25 %: check imu.time.unit and imu.sample_rate_hz")
 
 
 SHOWN_LABELS = 60  # the data's labels an error lists, to find the intended one
@@ -372,15 +300,7 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
                    for a in m.axes if a.command is not None}
         return gimbal, command, names, vectors, None
     tc = Columns(m.table)
-    tt, rolled = unrolled(_clock(tc, m.table_time, "table.time", m.table_time_si, m.where, notes),
-                          m.table_time_rollover_s)
-    if rolled:
-        notes.append(f"{tc.where}: the table's time counter rolled over {rolled} time(s) (table.time.rollover: every "
-                     f"{m.table_time_rollover_s:.10g} s); counted on")
-    if np.any(np.diff(tt) <= 0):
-        i = int(np.argmax(np.diff(tt) <= 0)) + 1
-        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected strictly "
-                           "increasing times" + _rollover_hint(tt, i, m.table_time_rollover_s, "table.time"))
+    tt = table_stamps(m, tc, notes)
     ang = np.column_stack([_counted(m, _continuous(tc, a, notes), notes) for a in m.axes])
     cmd = {a.name: tc.values(a.command, f"table.axes.{a.name}.command") * a.unit_si for a in m.axes
            if a.command is not None}

@@ -1,0 +1,112 @@
+"""The time columns of a rig's files as the samples' times [s]: numbers in the mapping's unit or
+clock readings (ISO 8601 dates, the time of day: components.logs.sources.clock_seconds), counted
+on where a counter rolls over (``rollover``), and checked before anything uses them: never back,
+strictly increasing unless a regular grid will replace them (a host clock coarser than the
+samples stamps several alike), the stated sample rate within a factor."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from components.errors import MappingError
+from components.logs.mapping import Mapping
+from components.logs.sources import Columns
+from components.logs.timebase import stamp_resolution, unrolled
+
+# stamps whose median interval is this far from 1/sample_rate_hz (either way) are in another unit
+# than the mapping says, or the rate is wrong: not a clock's drift (ppm) nor a jitter
+RATE_MISMATCH = 1.25
+
+
+
+def imu_stamps(m: Mapping, cols: Columns, notes: list[str]) -> tuple[np.ndarray, float, float]:
+    """(the IMU file's stamps [s], the resolution of a clock coarser than the samples or 0, the
+    longest interval that is not a gap [s])."""
+    t, rolled = unrolled(_clock(cols, m.time, "imu.time", m.time_si, m.where, notes), m.time_rollover_s)
+    if len(t) < 2:
+        raise MappingError(f"{cols.where}: fewer than two samples")
+    if rolled:
+        notes.append(f"the time counter rolled over {rolled} time(s) (imu.time.rollover: every "
+                     f"{m.time_rollover_s:.10g} s); counted on")
+    # a host's clock coarser than the samples stamps several alike (Windows' tick of 15.6 ms):
+    # a regular grid fitted to all of them places the samples as well, so only the stamps a
+    # grid replaces may repeat
+    repeats = m.timing == "regularise"
+    back = np.diff(t) < 0 if repeats else np.diff(t) <= 0
+    if np.any(back):
+        i = int(np.argmax(back)) + 1
+        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected "
+                           + ("times that never go back" if repeats else "strictly increasing times")
+                           + _rollover_hint(t, i, m.time_rollover_s, "imu.time"))
+    if t[-1] == t[0]:
+        raise MappingError(f"{cols.where}: imu.time: every stamp is {float(t[0])!r} s; expected times that advance")
+    nominal = 1.0 / m.sample_rate_hz
+    tick = stamp_resolution(t)
+    _check_rate(m, t, nominal, tick)
+    max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
+    if tick:
+        shared = float(np.mean(np.diff(t) == 0))
+        # an interval between two ticks is up to a tick longer than the samples' own
+        max_int += tick
+        notes.append(f"time stamps repeat ({shared:.0%} of the intervals zero): a clock of {tick * 1e3:.4g} ms resolution; "
+                     f"a gap is an interval beyond {max_int * 1e3:.4g} ms (a sample lost inside a tick is not seen)")
+    return t, tick, max_int
+
+
+def table_stamps(m: Mapping, tc: Columns, notes: list[str]) -> np.ndarray:
+    """The table file's stamps [s] (strictly increasing: its angles are interpolated between them)."""
+    tt, rolled = unrolled(_clock(tc, m.table_time, "table.time", m.table_time_si, m.where, notes),
+                          m.table_time_rollover_s)
+    if rolled:
+        notes.append(f"{tc.where}: the table's time counter rolled over {rolled} time(s) (table.time.rollover: every "
+                     f"{m.table_time_rollover_s:.10g} s); counted on")
+    if np.any(np.diff(tt) <= 0):
+        i = int(np.argmax(np.diff(tt) <= 0)) + 1
+        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected strictly "
+                           "increasing times" + _rollover_hint(tt, i, m.table_time_rollover_s, "table.time"))
+    return tt
+
+
+def _clock(cols: Columns, ch, key: str, unit_si: float, where: str, notes: list[str]) -> np.ndarray:
+    """A time column in seconds: numbers in *key*.unit, or clock readings (dates and times, the
+    time of day: components.logs.sources.clock_seconds), which are seconds already."""
+    t = cols.values(ch, f"{key}.column")
+    read = cols.clock_columns.get(f"{key}.column")
+    if read is None:
+        return t * unit_si
+    if unit_si != 1.0:
+        raise MappingError(f"{where}: key '{key}.unit': the column {ch.column!r} holds {read} ({cols.where}), read as "
+                           "seconds; expected no unit (or 's')")
+    notes.append(f"{cols.where}: {key}: {read} read as seconds since "
+                 + ("1970-01-01 (UTC where the file gives a zone)" if read == "dates" else
+                    f"midnight (a log past midnight: give '{key}.rollover' = 86400)"))
+    return t
+
+
+def _rollover_hint(t: np.ndarray, i: int, period: float | None, key: str) -> str:
+    """What to give where time steps back at row *i* by more than a few samples' worth: a
+    counter that rolls over, unless its period is given already."""
+    if period is not None:
+        return ""
+    back = float(t[i - 1] - t[i])
+    usual = float(np.median(np.diff(t[max(0, i - 1000):i]))) if i > 1 else 0.0
+    if not back > (100 * usual if usual > 0 else 1.0):
+        return ""
+    return (f" (back by {back:.10g} s: a counter that rolls over? give '{key}.rollover', its period in '{key}.unit', "
+            "e.g. 4294967296 for a 32-bit count of microseconds)")
+
+
+def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float = 0.0) -> None:
+    """The time stamps against the stated sample rate: a unit or a rate off by a factor (ms read
+    as s: every interval a gap) is named here, with the mapping's keys, not by what it breaks later.
+    Stamps of a clock with a *tick* coarser than the samples: the median interval over enough
+    samples to span eight ticks (one tick off in eight is within the factor looked for)."""
+    k = max(1, math.ceil(8 * tick / nominal))
+    d = (t[k:] - t[:-k]) / k if len(t) > k else np.diff(t)
+    med = float(np.median(d[::max(1, len(d) // (1 << 20))]))  # a factor is all it looks for: 1 M intervals do
+    ratio = med / nominal
+    if not 1 / RATE_MISMATCH < ratio < RATE_MISMATCH:
+        raise MappingError(f"{m.where}: the time stamps' median interval is {med:.6g} s (imu.time.unit: "
+                           f"{m.time_si:g} s a unit), {ratio:.4g} x 1/imu.sample_rate_hz = {nominal:.6g} s; expected the "
+                           "same within 25 %: check imu.time.unit and imu.sample_rate_hz")
