@@ -241,15 +241,19 @@ def _labels(m: Mapping, cols: Columns, t: np.ndarray):
     return None
 
 
-def _continuous(cols: Columns, axis, notes: list[str]) -> np.ndarray:
-    """The *axis*'s angle readings [rad], made continuous where a controller read them to one
-    turn (components.logs.angle_turns; the note names the axis), before anything interpolates
+def _continuous(cols: Columns, axes: list, notes: list[str]) -> list[np.ndarray]:
+    """The *axes*' angle readings [rad], made continuous where a controller read them to one
+    turn (components.logs.angle_turns; one note names the axes), before anything interpolates
     them or takes their steps as the table's travel."""
-    angle = np.array(cols.values(axis.channel, f"table.axes.{axis.name}") * axis.unit_si, float)
-    line = said({axis.name: unwrap_turns(angle) if wraps(angle) else 0})
+    out, mended = [], {}
+    for axis in axes:
+        angle = np.array(cols.values(axis.channel, f"table.axes.{axis.name}") * axis.unit_si, float)
+        mended[axis.name] = unwrap_turns(angle) if wraps(angle) else 0
+        out.append(angle)
+    line = said(mended)
     if line:
         notes.append(f"{cols.where}: {line}")
-    return angle
+    return out
 
 
 def _counted(m: Mapping, angle: np.ndarray, notes: list[str]) -> np.ndarray:
@@ -295,13 +299,13 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
     names = [a.name for a in m.axes]
     vectors = [a.vector for a in m.axes]
     if m.table is None:
-        gimbal = {a.name: _counted(m, _continuous(cols, a, notes), notes) for a in m.axes}
+        gimbal = {a.name: _counted(m, x, notes) for a, x in zip(m.axes, _continuous(cols, m.axes, notes))}
         command = {a.name: cols.values(a.command, f"table.axes.{a.name}.command") * a.unit_si
                    for a in m.axes if a.command is not None}
         return gimbal, command, names, vectors, None
     tc = Columns(m.table)
     tt = table_stamps(m, tc, notes)
-    ang = np.column_stack([_counted(m, _continuous(tc, a, notes), notes) for a in m.axes])
+    ang = np.column_stack([_counted(m, x, notes) for x in _continuous(tc, m.axes, notes)])
     cmd = {a.name: tc.values(a.command, f"table.axes.{a.name}.command") * a.unit_si for a in m.axes
            if a.command is not None}
     if m.clock_offset == "estimate":
