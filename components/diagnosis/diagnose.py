@@ -49,6 +49,7 @@ from components.estimation.log_data import LogData
 from components.model.effects import EFFECTS, effect_of, parameters_of
 from components.model.noise import NoiseModel
 from components.model.result import CalibrationResult
+from components.model.table_parameters import table_stage
 
 # the significant effects, best first, tried against the noise terms before the verdict is a noise
 # term (each costs a fit of the terms and a ranking)
@@ -109,8 +110,8 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     params = list(dict.fromkeys(parameters_of(base_effects) + parameters_of(cands)))
     # table-effect parameters for stages this table does not have contribute nothing
     stage_names = set(data.geometry.names)
-    params = [p for p in params if not (effect_of(p).target == "table" and p.split(".")[2] not in
-                                        stage_names and not p.startswith("table.base_tilt"))]
+    params = [p for p in params if not (effect_of(p).target == "table" and table_stage(p) is not None
+                                        and table_stage(p) not in stage_names)]
     if data.has_table:
         design = CandidateDesign.on_table_log(data, model, params, chunk_s, rest_angle_sigma, noise, chunk_samples)
     else:

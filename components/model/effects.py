@@ -244,6 +244,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in [
     Effect("table.base_tilt", ("x", "y"), "rad", 10 * ARCSEC, "table",
            "base rotation about east (x) / north (y) from level",
            "gravity leaks into horizontal axes; attitude-dependent offsets", ("arcsec", ARCSEC)),
+    Effect("table.base_azimuth", ("",), "rad", 60 * ARCSEC, "table",
+           "base rotation about up from the log's frame (x east): where the outer axis's zero points",
+           "the Earth's rate turned in the horizontal: gyro residuals that turn with the outer angle, "
+           "none in the accelerometers", ("arcmin", 60 * ARCSEC)),
     Effect("table.nonorth", tuple(f"{a}.{c}" for a in ("middle", "inner") for c in "uv"), "rad",
            5 * ARCSEC, "table", "non-orthogonality: rotation of a stage axis about its u / v",
            "cross terms a model attributes to IMU misalignment", ("arcsec", ARCSEC)),

@@ -30,6 +30,7 @@ _NEEDS = {
     "imu.time_offset": "fast indexing moves (rate and specific force changing)",
     "acc.time_offset": "fast indexing moves (specific force changing)",
     "table.base_tilt": "indexing the outer axis through 0, 90, 180 and 270°",
+    "table.base_azimuth": "gyros that sense the Earth's rate, rests at several outer angles",
     "table.nonorth": "rotations of each stage with the others at several angles",
     "table.wobble": "rotations of each stage through full turns, the IMU in two mountings",
     "table.encoder": "rests at many angles of each stage over a full turn",

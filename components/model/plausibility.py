@@ -34,7 +34,7 @@ PLAUSIBLE = {
     "acc.k2": 0.02 / G0, "acc.k3": 0.01 / G0**2, "acc.cross": 0.02 / G0,
     "acc.lever": 0.2, "acc.temp": 5e-3 * G0, "acc.sf_temp": 1e-3, "acc.drift": 0.01 * G0 / 3600,
     "imu.time_offset": 0.1, "acc.time_offset": 0.05,
-    "table.base_tilt": math.radians(2.0), "table.nonorth": math.radians(0.5),
+    "table.base_tilt": math.radians(2.0), "table.base_azimuth": math.radians(10.0), "table.nonorth": math.radians(0.5),
     "table.wobble": math.radians(0.5), "table.encoder": math.radians(0.5),
     "table.reversal": math.radians(0.5),
 }

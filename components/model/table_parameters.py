@@ -1,4 +1,4 @@
-"""Table effects of the vocabulary (``table.base_tilt``, ``table.nonorth``, ``table.wobble``,
+"""Table effects of the vocabulary (``table.base_tilt``, ``table.base_azimuth``, ``table.nonorth``, ``table.wobble``,
 ``table.encoder``, ``table.reversal``) as fields of a
 :class:`~components.model.geometry.TableGeometry`: a parameter name of the vocabulary set on, or
 read from, the geometry."""
@@ -16,12 +16,19 @@ _STAGE_FIELD = {"table.nonorth": "nonorth_{c}", "table.wobble": "wobble_{c}", "t
 def _field(name: str) -> tuple[str | None, str]:
     """(the stage a parameter belongs to, or None for the base; the field that holds it):
     ``table.base_tilt.x`` -> (None, "tilt_x"), ``table.encoder.outer.s1`` -> ("outer", "enc_s1"),
-    ``table.reversal.middle`` -> ("middle", "reversal")."""
+    ``table.reversal.middle`` -> ("middle", "reversal"), ``table.base_azimuth`` -> (None, "azimuth")."""
     parts = name.split(".")
     effect = ".".join(parts[:2])
     if effect == "table.base_tilt":
         return None, f"tilt_{parts[2]}"
+    if effect == "table.base_azimuth":
+        return None, "azimuth"
     return parts[2], _STAGE_FIELD[effect].format(c=parts[-1])
+
+
+def table_stage(name: str) -> str | None:
+    """The stage a table-effect parameter belongs to, or None for the base's (tilt, azimuth)."""
+    return _field(name)[0]
 
 
 def apply_table_parameter(geo: TableGeometry, name: str, value: float) -> TableGeometry:

@@ -57,6 +57,9 @@ def table_fmu_parameters(sc: Scenario, fmu_axis: dict) -> dict:
         if parts[1] == "base_tilt":
             out[f"base.tilt.{parts[2]}"] = v
             continue
+        if parts[1] == "base_azimuth":
+            out["base.azimuth"] = v
+            continue
         if parts[1] == "reversal":
             out[f"{fmu_axis[parts[2]]}.encoder.reversal"] = v
             continue

@@ -200,12 +200,13 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
     table_effects = {}
     for k, v in _table(tt, "effects", w).items():
         if not k.startswith("table."):
-            raise ScenarioError(f"{w}.effects: {k!r}: expected a table effect (table.base_tilt, table.nonorth, "
-                                "table.wobble, table.encoder, table.reversal); IMU effects go in [imu.effects]")
+            raise ScenarioError(f"{w}.effects: {k!r}: expected a table effect (table.base_tilt, table.base_azimuth, "
+                                "table.nonorth, table.wobble, table.encoder, table.reversal); IMU effects go in "
+                                "[imu.effects]")
         table_effects[k] = _effect_value(k, v, f"{w}.effects")
     for k in table_effects:
         parts = k.split(".")
-        if parts[1] != "base_tilt" and parts[2] not in axes:  # every other table effect names a stage
+        if parts[1] not in ("base_tilt", "base_azimuth") and parts[2] not in axes:  # the others name a stage
             raise ScenarioError(f"{w}.effects: {k!r}: the table has no axis {parts[2]!r} (axes: {axes})")
     table_params = {k: _param(v, k, f"{w}.parameters") for k, v in _table(tt, "parameters", w).items()}
 
