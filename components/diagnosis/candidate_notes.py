@@ -42,6 +42,7 @@ SEPARATE = {
     frozenset({"acc.time_offset", "acc.lever"}): "index with different accelerations: the time offset follows df/dt, the tangential lever term ω̇",
     frozenset({"imu.time_offset", "acc.time_offset"}): "the gyro rows here are rest-to-rest sums, which no time shift changes, so both move only the accelerometer rows: the system-level filter (calbench kf) separates them — a late accelerometer against the gyros shows in the navigation velocity, the whole IMU late against the table does not",
     frozenset({"table.encoder", "table.reversal"}): "reach the same rests from both sides (index back and forth): a reversal error changes with the side of approach, an encoder error only with the angle",
+    frozenset({"table.base_azimuth", "table.nonorth"}): "no schedule separates them while the IMU's misalignments are fitted (a heading is the middle stage's axis turned about up together with a turn of the IMU the misalignments take up): survey the table's heading (or give it in the outer angles' zero), or hold the misalignments known from another calibration",
     frozenset({"table.nonorth", "table.wobble"}): "mount the IMU a second way on the plate (turned 90° about the inner axis) and turn each stage through full turns: a wobble is a tilt that turns with its stage and changes with the mounting, a non-orthogonality is fixed between the axes",
 }
 
