@@ -24,8 +24,6 @@ class Columns:
             raise MappingError(f"{self.where}: the input file does not exist")
         reader = {"csv": _csv, "tsv": _csv, "parquet": _parquet, "mat": _mat, "hdf5": _hdf5}[source.format]
         self.data: dict = reader(source)
-        # what each column read as clock readings was (what: "dates" or "time of day")
-        self.clock_columns: dict[str, str] = {}
 
     def names(self) -> list[str]:
         return [str(k) for k in self.data]
@@ -54,7 +52,7 @@ class Columns:
         if callable(a):
             # HDF5 datasets and Parquet columns are read when used, and not kept: the caller
             # converts them, and a long log's raw columns beside their conversions were twice it
-            a = a(empty) if getattr(a, "takes_empty", False) else a()
+            a = a(empty)
         if isinstance(a, SegmentLabels) and k is None:
             return a  # text, as runs (one label a sample as an object array: 8 bytes a sample)
         a = np.asarray(a)
@@ -73,15 +71,25 @@ class Columns:
     def values(self, ch: Channel, what: str, empty: bool = False) -> np.ndarray:
         """The column as float64, (raw − offset) × scale × sign; a non-number or non-finite value is
         an error naming its row. *empty*: the empty cells (and NaN) are NaN, the caller fills them."""
-        a = self.raw(ch, what, empty)
+        return self._numbers(self.raw(ch, what, empty), ch, what, empty)
+
+    def times(self, ch: Channel, what: str) -> tuple[np.ndarray, str | None]:
+        """A time column: (its clock readings in seconds, what they were: :func:`clock_seconds`),
+        or (its numbers as :meth:`values` gives them, None)."""
+        a = self.raw(ch, what)
         read = clock_seconds(a)
-        if read is not None:
-            unread = np.isnan(read[1])
-            if unread.any():
-                i = int(np.argmax(unread))
-                raise MappingError(f"{self.where}: {what}: row {i + 1}: {a[i]!r} is not a reading of the clock like row 1's "
-                                   f"{a[0]!r} ({read[0]})")
-            self.clock_columns[what], a = read
+        if read is None:
+            return self._numbers(a, ch, what), None
+        kind, seconds = read
+        unread = np.isnan(seconds)
+        if unread.any():
+            i = int(np.argmax(unread))
+            raise MappingError(f"{self.where}: {what}: row {i + 1}: {a[i]!r} is not a reading of the clock like row 1's "
+                               f"{a[0]!r} ({kind})")
+        return seconds, kind
+
+    def _numbers(self, a, ch: Channel, what: str, empty: bool = False) -> np.ndarray:
+        """The raw column *a* as :meth:`values` gives it."""
         if a.dtype.kind not in "biuf":
             try:
                 a = a.astype(float)
@@ -173,7 +181,6 @@ def _csv(src: Source) -> dict:
             col = table.column(name)
             held["table"] = table.drop_columns([name])
             return _array(col, f"{src.path}: column {name!r}", empty)
-        take.takes_empty = True
         return take
 
     return {name.strip(): taker(name) for name in held["table"].column_names}
@@ -241,7 +248,6 @@ def _parquet(src: Source) -> dict:
             except (pa.ArrowInvalid, OSError) as e:
                 raise MappingError(f"{src.path}: column {name!r} cannot be read ({e})") from None
             return _array(col, f"{src.path}: column {name!r}", empty)
-        read.takes_empty = True
         return read
 
     return {name: reader(name) for name in names}
@@ -271,6 +277,6 @@ def _hdf5(src: Source) -> dict:
 
     def visit(name, obj):
         if isinstance(obj, h5py.Dataset):
-            out[name] = (lambda o=obj: o[()])
+            out[name] = (lambda empty=False, o=obj: o[()])  # (NaN is a dataset's own empty value)
     f.visititems(visit)
     return out

@@ -71,8 +71,7 @@ def table_stamps(m: Mapping, tc: Columns, notes: list[str]) -> np.ndarray:
 def _clock(cols: Columns, ch, key: str, unit_si: float, where: str, notes: list[str]) -> np.ndarray:
     """A time column in seconds: numbers in *key*.unit, or clock readings (dates and times, the
     time of day: components.logs.sources.clock_seconds), which are seconds already."""
-    t = cols.values(ch, f"{key}.column")
-    read = cols.clock_columns.get(f"{key}.column")
+    t, read = cols.times(ch, f"{key}.column")
     if read is None:
         return t * unit_si
     if unit_si != 1.0:
