@@ -52,7 +52,7 @@ def read(args, *, say: bool = True, commands: bool = False):
     if say:
         from components.logs.angle_turns import said
 
-        for line in describe(data) + [x for x in [said(log.turns_mended)] if x]:
+        for line in describe(data) + ([said(log.turns_mended)] if log.turns_mended else []):
             print(line)
         if log.has_table:
             print(resolution_note(data.angles, data.encoder_resolution))

@@ -68,6 +68,17 @@ def unwrap_turns(angle: np.ndarray) -> int:
     return mended
 
 
+def made_continuous(angle: np.ndarray) -> tuple[np.ndarray, int]:
+    """(the readings *angle* made continuous where they wrap — in place, or in a copy of a
+    read-only array —, the wraps mended)."""
+    n = wraps(angle)
+    if n:
+        if not angle.flags.writeable:
+            angle = angle.copy()
+        unwrap_turns(angle)
+    return angle, n
+
+
 def said(mended: dict[str, int]) -> str | None:
     """One line naming the axes whose readings were made continuous, or None."""
     axes = {k: n for k, n in mended.items() if n}

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from components.errors import MappingError
-from components.logs.angle_turns import said, unwrap_turns, wraps
+from components.logs.angle_turns import made_continuous, said
 from components.logs.clock_curve import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
@@ -247,8 +247,7 @@ def _continuous(cols: Columns, axes: list, notes: list[str]) -> list[np.ndarray]
     them or takes their steps as the table's travel."""
     out, mended = [], {}
     for axis in axes:
-        angle = np.array(cols.values(axis.channel, f"table.axes.{axis.name}") * axis.unit_si, float)
-        mended[axis.name] = unwrap_turns(angle) if wraps(angle) else 0
+        angle, mended[axis.name] = made_continuous(cols.values(axis.channel, f"table.axes.{axis.name}") * axis.unit_si)
         out.append(angle)
     line = said(mended)
     if line:

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import LogFormatError
-from components.logs.angle_turns import unwrap_turns, wraps
+from components.logs.angle_turns import made_continuous
 from components.logs.csv_log import csv_row, float_values, labels, not_utf8, read_csv, sensor_groups, wanted_columns
 from components.logs.labels import SegmentLabels
 from components.logs.measurement import MeasurementLog
@@ -272,12 +272,10 @@ def _continuous_angles(cols: dict, axes: list[str]) -> dict[str, int]:
     Arrow lent read-only is copied first; the commands stay as read): axis -> wraps mended
     (components.logs.angle_turns)."""
     mended = {}
-    for a in axes:
-        name = f"gimbal_{a}"
-        if name in cols and wraps(cols[name]):
-            if not cols[name].flags.writeable:
-                cols[name] = cols[name].copy()
-            mended[a] = unwrap_turns(cols[name])
+    for a in (a for a in axes if f"gimbal_{a}" in cols):
+        cols[f"gimbal_{a}"], n = made_continuous(cols[f"gimbal_{a}"])
+        if n:
+            mended[a] = n
     return mended
 
 
