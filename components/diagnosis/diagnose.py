@@ -110,8 +110,7 @@ def diagnose(data: LogData, model: CalibrationResult, *, candidates: list[str] |
     params = list(dict.fromkeys(parameters_of(base_effects) + parameters_of(cands)))
     # table-effect parameters for stages this table does not have contribute nothing
     stage_names = set(data.geometry.names)
-    params = [p for p in params if not (effect_of(p).target == "table" and table_stage(p) is not None
-                                        and table_stage(p) not in stage_names)]
+    params = [p for p in params if effect_of(p).target != "table" or table_stage(p) in stage_names | {None}]
     if data.has_table:
         design = CandidateDesign.on_table_log(data, model, params, chunk_s, rest_angle_sigma, noise, chunk_samples)
     else:

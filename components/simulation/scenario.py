@@ -66,6 +66,7 @@ from pathlib import Path
 from components.control.schedule import DEG, Schedule, load_schedule
 from components.errors import ScenarioError, ScheduleError
 from components.model.quantities import NOISE_TERM_UNITS, UNITS, QuantityError, effect_value, noise_value, quantity
+from components.model.table_parameters import table_stage
 from components.simulation.temperature import profile_from_table
 from orchestrator.tomlfile import read_toml
 
@@ -205,9 +206,9 @@ def scenario_from_dict(data: dict, source: str = "scenario", base_dir: Path | No
                                 "[imu.effects]")
         table_effects[k] = _effect_value(k, v, f"{w}.effects")
     for k in table_effects:
-        parts = k.split(".")
-        if parts[1] not in ("base_tilt", "base_azimuth") and parts[2] not in axes:  # the others name a stage
-            raise ScenarioError(f"{w}.effects: {k!r}: the table has no axis {parts[2]!r} (axes: {axes})")
+        stage = table_stage(k)  # (None: the base's)
+        if stage is not None and stage not in axes:
+            raise ScenarioError(f"{w}.effects: {k!r}: the table has no axis {stage!r} (axes: {axes})")
     table_params = {k: _param(v, k, f"{w}.parameters") for k, v in _table(tt, "parameters", w).items()}
 
     im = _table(data, "imu", source)
