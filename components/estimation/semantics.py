@@ -79,8 +79,73 @@ def check_semantics(data, log) -> list[str]:
                                    f"the table angles give (the angles span {span:.4g} rad = {math.degrees(span):.4g}° "
                                    f"as declared): {what}?")
                         break
+        out += _clipped(data, log, use, ideal, moving)
     elif static.any():
         out += _handedness(data, log)
+    return out
+
+
+# a clipped output: a gyro channel whose extreme reading recurs to the last digit in this many
+# moving samples (noise never repeats a maximum; a constant rate without noise, as a simulator
+# writes, does: the table tells the two apart) ...
+PLATEAU = 10
+# ... and reads less than CLIP_SHORT of the table's rotation about its axis there than in the
+# channel's other moves (its own scale factor, whatever it is, cancels); one way to tell: a
+# declared range leaves the clipped samples out, and the check finds no plateau left
+CLIP_SHORT = 0.01
+ENOUGH_PLATEAU = 2000  # plateau samples the ratio is read from, at most (spread over them)
+
+
+def _clipped(data, log, use: np.ndarray, ideal: np.ndarray, moving: np.ndarray) -> list[str]:
+    """A finding per gyro channel and sign whose output stops at a value while the table turns
+    faster about it: a sensor driven beyond its range reads its full scale (its increments repeat
+    to the bit), and every estimate takes that for a scale factor or a misalignment."""
+    out = []
+    raw = log.gyro  # as in the file: a rate output's clipped value repeats even where intervals jitter
+    turning = ~data.static & use
+    hi, lo = np.full(3, -np.inf), np.full(3, np.inf)
+    for s in pieces(len(raw), raw, step=piece_rows(raw)):
+        x = np.asarray(raw[s], float)[turning[s]]
+        if len(x):
+            hi, lo = np.maximum(hi, x.max(axis=0)), np.minimum(lo, x.min(axis=0))
+    found: dict = {(c, e): [] for c in range(3) for e in (hi[c], lo[c])}
+    for s in pieces(len(raw), raw, step=piece_rows(raw)):
+        x = np.asarray(raw[s], float)
+        for c, e in found:
+            found[c, e].append(np.flatnonzero((x[:, c] == e) & turning[s]) + s.start)
+    measured_else = np.asarray(data.gyro[:len(moving)], float)[moving] if len(ideal) else np.zeros((0, 3))
+    for c, axis in enumerate("xyz"):
+        sides = []
+        for extreme in (hi[c], lo[c]):
+            if not np.isfinite(extreme) or extreme == 0:
+                continue
+            at = np.concatenate(found[c, extreme])
+            at = at[at > 0]  # nothing before the first sample to take a chord from
+            if len(at) < PLATEAU:
+                continue
+            k = at[np.linspace(0, len(at) - 1, min(len(at), ENOUGH_PLATEAU)).astype(int)]
+            chord = _chords(data, k)[:, c]
+            got = np.asarray(data.gyro[k, c], float)
+            if not np.all(chord * got > 0):
+                continue
+            plateau = float(np.median(got / chord))
+            # the channel's reading of the table elsewhere: moves turning it at least a fifth as fast
+            far = np.abs(ideal[:, c]) > 0.2 * float(np.median(np.abs(chord)))
+            far &= ~np.isin(np.flatnonzero(moving), at)
+            elsewhere = float(np.median(measured_else[far, c] / ideal[far, c])) if far.sum() >= PLATEAU else 1.0
+            if not plateau < elsewhere * (1 - CLIP_SHORT):
+                continue
+            rate = float(np.median(got / (data.times_at(k) - data.times_at(k - 1))))
+            t = data.times_at(at[[0, -1]])
+            sides.append(f"{rate:+.6g} rad/s ({math.degrees(rate):+.5g}°/s) in {len(at)} moving samples "
+                         f"(t = {t[0]:.6g}-{t[1]:.6g} s), {100 * (1 - plateau / elsewhere):.3g} % short of the "
+                         "table's rotation about it there against its other moves")
+        if sides:
+            out.append(f"{log.source or 'log'}: gyro_{axis} reads to the last digit {' and '.join(sides)}: its "
+                       "output is clipped at its range? Give the range (imu.gyro_range_radps in a calbench-log/2 "
+                       "file's metadata, range in an import mapping's [imu.gyro]) and the samples at it are left "
+                       "out, or --exclude those times; as it is, the estimates take the clipped samples for the "
+                       "gyro's own error")
     return out
 
 
@@ -177,7 +242,13 @@ def _ideal_gyro_moving(data, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         moving[0] = False
     if not len(k):
         return np.zeros((0, 3)), moving
+    return _chords(data, k), moving
+
+
+def _chords(data, k: np.ndarray) -> np.ndarray:
+    """(len(k), 3) the ideal gyro increments of samples *k* (each ≥ 1) as their intervals' chords
+    (:func:`_ideal_gyro_moving`)."""
     before, after = data.angles[k - 1], data.angles[k]
     step = (data.times_at(k) - data.times_at(k - 1))[:, None]
     omega, _, _ = data.geometry.motion((before + after) / 2, (after - before) / step)
-    return omega * step, moving
+    return omega * step

@@ -145,7 +145,9 @@ def import_log(m: Mapping) -> Imported:
         max_interval_s=m.max_interval_s if timing == "measured" and m.max_interval_s is not None else None,
         segments=m.segments, exclude=list(m.exclude),
         encoder_resolution=None if m.encoder_resolution is None or not names else
-        ("exact" if m.encoder_resolution == "exact" else np.full(len(names), float(m.encoder_resolution))))
+        ("exact" if m.encoder_resolution == "exact" else np.full(len(names), float(m.encoder_resolution))),
+        gyro_range=None if m.gyro.full_scale is None else np.array(m.gyro.full_scale),
+        acc_range=None if m.acc.full_scale is None else np.array(m.acc.full_scale))
     log.extra_metadata = {"import": {"mapping": m.where, "notes": notes}}
     log.validate(f"the log imported by {m.where}")
     return Imported(log, notes, clock.get("estimate"))

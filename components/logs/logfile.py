@@ -261,7 +261,7 @@ def read_log(path: str | Path, *, lean: bool = False) -> MeasurementLog:
         **{k: meta[k] for k in ("axis_names", "axis_vectors", "sample_rate_hz", "gyro_output", "acc_output",
                                 "gyro_count_rad", "acc_count_mps", "latitude_deg", "height_m", "gravity_mps2",
                                 "description", "extra_metadata", "encoder_resolution", "timing", "max_interval_s",
-                                "segments", "exclude", "noise")},
+                                "segments", "exclude", "noise", "gyro_range", "acc_range")},
     )
     log.reasons_left_out()  # an 'exclude' label the log does not hold is refused here, naming the file
     return log

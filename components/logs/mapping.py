@@ -63,6 +63,7 @@ class Sensor:
     unit: str = ""              # the unit as the mapping names it ("" for counts)
     accumulated: bool = False   # the columns are running totals of the increments (or counts)
     rollover: float | None = None  # a total's period in the column's raw values (a 16-bit counter: 65536)
+    full_scale: list | None = None  # the output's range per axis, SI (rad/s; m/s²), if given
 
 
 @dataclass
@@ -212,7 +213,7 @@ def _source(d: dict, key: str, where: str, base: Path) -> Source:
     return src
 
 
-def _sensor(d: dict, key: str, where: str, kinds: dict, weight_units: dict) -> Sensor:
+def _sensor(d: dict, key: str, where: str, kinds: dict, weight_units: dict, range_units: dict) -> Sensor:
     if not isinstance(d, dict):
         raise MappingError(f"{where}: key {key!r}: expected a table with output, unit, x, y, z")
     out = _unit(_get(d, "output", f"{where} [{key}]", f"one of {', '.join(kinds)}"), f"{key}.output", where, kinds)
@@ -246,6 +247,14 @@ def _sensor(d: dict, key: str, where: str, kinds: dict, weight_units: dict) -> S
         if not r > 0:
             raise MappingError(f"{where}: key '{key}.rollover' = {r!r}: expected the total's period, a positive number")
         s.rollover = r
+    if "range" in d:
+        given = d["range"] if isinstance(d["range"], list) else [d["range"]] * 3
+        if len(given) != 3:
+            raise MappingError(f"{where}: key '{key}.range' has {len(given)} value(s); expected the output's full "
+                               f"scale, one for all axes or a list of three, each '<number> <unit>' ({', '.join(range_units)})")
+        s.full_scale = [_quantity(v, f"{key}.range", where, range_units) for v in given]
+        if not all(v > 0 for v in s.full_scale):
+            raise MappingError(f"{where}: key '{key}.range' = {d['range']!r}: expected a positive full scale")
     return s
 
 
@@ -287,9 +296,9 @@ def load_mapping(path: str | Path) -> Mapping:
                            f"{timing!r})")
     m = Mapping(where, src, time, tu, fs, timing, mx,
                 _sensor(_get(imu, "gyro", f"{where} [imu]", "an [imu.gyro] table"), "imu.gyro", where, GYRO_KINDS,
-                        ANGLE_UNITS),
+                        ANGLE_UNITS, RATE_UNITS),
                 _sensor(_get(imu, "acc", f"{where} [imu]", "an [imu.acc] table"), "imu.acc", where, ACC_KINDS,
-                        VELOCITY_UNITS))
+                        VELOCITY_UNITS, FORCE_UNITS))
     m.time_rollover_s = rollover
     if "temperature" in imu:
         td = imu["temperature"]

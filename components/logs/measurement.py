@@ -20,8 +20,12 @@ import numpy as np
 
 from components.errors import LogFormatError
 from components.logs.labels import SegmentLabels
-from components.logs.rules import FORMAT, FORMAT_V2, XYZ, check_columns, check_samples, parse_metadata
+from components.logs.rules import FORMAT, FORMAT_V2, RANGE_KEYS, XYZ, check_columns, check_samples, parse_metadata
 from components.logs.spill import scaled
+
+# a sample within this fraction of a declared output range counts as at it: a clipped output
+# reads its full scale to the last bit, and a range written to four figures still finds it
+RANGE_MARGIN = 1e-3
 
 
 @dataclass
@@ -55,6 +59,8 @@ class MeasurementLog:
     exclude: list = field(default_factory=list)  # time ranges [t0, t1] and labels to leave out
     noise: dict | None = None              # the noise model if known (calbench-noise/1 form)
     mask: np.ndarray | None = None         # (N,) bool, False: leave the sample out
+    gyro_range: np.ndarray | None = None   # (3,) the gyros' output range (full scale) [rad/s], if known
+    acc_range: np.ndarray | None = None    # (3,) the accelerometers' [m/s²]
     # (N, n_axes) the gimbal angles as one array when the reader filled them so (``gimbal``'s
     # arrays are then its columns): ``angles`` returns it instead of stacking a copy
     angle_matrix: np.ndarray | None = field(default=None, repr=False)
@@ -112,7 +118,8 @@ class MeasurementLog:
     def version(self) -> str:
         """The format this log needs: version 2 only when it uses a key of version 2."""
         v2 = (not self.axis_names or self.encoder_resolution is not None or self.timing != "nominal"
-              or self.segments is not None or bool(self.exclude) or self.noise is not None or self.mask is not None)
+              or self.segments is not None or bool(self.exclude) or self.noise is not None or self.mask is not None
+              or self.gyro_range is not None or self.acc_range is not None)
         return FORMAT_V2 if v2 else FORMAT
 
     def intervals(self, rows: slice = slice(None)) -> np.ndarray:
@@ -165,7 +172,32 @@ class MeasurementLog:
         for lab, d in (self.segments or {}).items():
             if isinstance(d, dict) and d.get("kind") == "excluded" and self.segment is not None:
                 out.append((f"segment {lab!r} (kind excluded)", lambda s, lab=lab: self.segment[s] == lab))
+        for sensor, _, unit in RANGE_KEYS:
+            full = getattr(self, f"{sensor}_range")
+            if full is not None:
+                said = f"±{full[0]:.6g}" if np.all(full == full[0]) else ", ".join(f"±{x:.6g}" for x in full)
+                out.append((f"{sensor} at its output range ({said} {unit})",
+                            lambda s, sensor=sensor, full=full: self._at_range(s, sensor, full)))
         return out
+
+    def _at_range(self, rows: slice, sensor: str, full: np.ndarray) -> np.ndarray:
+        """(rows,) bool: a sample whose mean rate or specific force reaches *full* on any axis
+        (within RANGE_MARGIN), and the sample either side of it: a clipped output reads the range
+        whatever the input beyond it, and the samples whose interval the input crossed the range
+        in read a mix."""
+        a, b, _ = rows.indices(self.n)
+        lo, hi = max(a - 1, 0), min(b + 1, self.n)
+        kind = getattr(self, f"{sensor}_output")
+        x = np.abs(np.asarray(getattr(self, sensor)[lo:hi], float))
+        if kind != "rate" and kind != "specific_force":
+            weight = getattr(self, "gyro_count_rad" if sensor == "gyro" else "acc_count_mps") if kind == "counts" else 1.0
+            dt = self.intervals(slice(lo, hi))[:, None] if self.timing == "measured" else self.dt
+            x = x * (weight / dt)
+        hit = np.any(x >= full * (1 - RANGE_MARGIN), axis=1)
+        near = hit.copy()
+        near[1:] |= hit[:-1]
+        near[:-1] |= hit[1:]
+        return near[a - lo:a - lo + (b - a)]
 
     def left_out(self, more: list | None = None) -> dict[str, np.ndarray]:
         """Why samples are left out: {reason: (N,) bool} for the reasons of :meth:`reasons_left_out`
@@ -250,6 +282,10 @@ class MeasurementLog:
                 meta["segments"] = self.segments
             if self.exclude:
                 meta["exclude"] = self.exclude
+            for sensor, key, _ in RANGE_KEYS:
+                full = getattr(self, f"{sensor}_range")
+                if full is not None:
+                    meta["imu"][key] = [float(x) for x in full]
         for k, v in self.extra_metadata.items():
             meta.setdefault(k, v)
         return meta

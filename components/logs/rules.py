@@ -24,7 +24,10 @@ TIMINGS = ("nominal", "measured")
 # keys only version 2 gives a meaning to: (path, what it is)
 V2_KEYS = (("table.encoder_resolution_rad", "the encoder resolution"), ("imu.timing", "the timing rule"),
            ("imu.max_interval_s", "the longest interval that is not a gap"), ("imu.noise", "the noise model"),
-           ("segments", "what each segment label is"), ("exclude", "what to leave out"))
+           ("segments", "what each segment label is"), ("exclude", "what to leave out"),
+           ("imu.gyro_range_radps", "the gyros' output range"), ("imu.acc_range_mps2", "the accelerometers' output range"))
+# the output range keys: (sensor, key, its unit)
+RANGE_KEYS = (("gyro", "gyro_range_radps", "rad/s"), ("acc", "acc_range_mps2", "m/s²"))
 MAX_METADATA_DEPTH = 32
 GYRO_OUTPUTS = {"rate": "rad/s", "increment": "rad", "counts": "counts of gyro_count_rad"}
 ACC_OUTPUTS = {"specific_force": "m/s²", "increment": "m/s", "counts": "counts of acc_count_mps"}
@@ -148,7 +151,7 @@ def parse_metadata(meta, where: str) -> dict:
     out["description"] = d
     out.update(_parse_v2(meta, out, where) if v2 else
                {"encoder_resolution": None, "timing": "nominal", "max_interval_s": None, "segments": None,
-                "segment_kinds": None, "exclude": [], "noise": None})
+                "segment_kinds": None, "exclude": [], "noise": None, "gyro_range": None, "acc_range": None})
     out["extra_metadata"] = {k: v for k, v in meta.items()
                              if k not in ("format", "site", "table", "imu", "description", "segments", "exclude")}
     return out
@@ -229,7 +232,25 @@ def _parse_v2(meta: dict, out: dict, where: str) -> dict:
             raise LogFormatError(f"{where}: key 'imu.noise': {e}; expected a calbench-noise/1 model (its "
                                  "'channels' block, as `calbench noise --out` writes)") from None
     v2["noise"] = noise
+    for sensor, key, unit in RANGE_KEYS:
+        v2[f"{sensor}_range"] = _output_range(_key(meta, f"imu.{key}", where, "", required=False), f"imu.{key}",
+                                              where, unit)
     return v2
+
+
+def _output_range(v, key: str, where: str, unit: str) -> np.ndarray | None:
+    """A sensor's output range (full scale) per axis [*unit*], from a number for all three axes
+    or a list of three; None when not given."""
+    if v is None:
+        return None
+    expected = f"the output's full scale [{unit}]: a positive number, or a list of three (x, y, z)"
+    vals = v if isinstance(v, list) else [v] * 3
+    if len(vals) != 3:
+        raise LogFormatError(f"{where}: key {key!r} has {len(vals)} value(s); expected {expected}")
+    out = np.array([_number(x, key, where, expected) for x in vals])
+    if np.any(out <= 0):
+        raise LogFormatError(f"{where}: key {key!r} = {v!r}: expected {expected}")
+    return out
 
 
 def parse_exclude(items, where: str) -> list:
