@@ -192,7 +192,10 @@ unit = "s"
     assert "accelerometer: specific_force in g (x 9.80665 to SI)" in out
     back = read_log(tmp_path / "merged")
     assert back.version == "calbench-log/2" and back.encoder_resolution == "exact"
-    _same(_fit(back), ref)
+    # the same files imported with the true offset given calibrate 0.21 σ from the reference (the
+    # 1 kHz angles interpolated at the regularised times), and ±1 µs of offset (2 of its σ) moves
+    # that by 0.1 σ: 0.1 σ held only where the offset's error happened to offset the merge's
+    _same(_fit(back), ref, tol=0.35)
 
 
 def _regularised_rig(tmp_path: Path, table_time: np.ndarray, fast, time_column: str, time_unit: str, gyro: str,
@@ -597,7 +600,7 @@ TABLE_FILE = ('\n[table]\nfile = "rec.csv"\n[table.time]\ncolumn = "t"\n'
      r"give a column or ranges, not both"),
     # found later, by what they break, before these were checked at the import
     (lambda s: s.replace('[imu.time]\ncolumn = "t"', '[imu.time]\ncolumn = "t"\nunit = "ms"'),
-     r"map.toml: the time stamps' median interval is 5e-06 s .* 0.001 x 1/imu.sample_rate_hz .*imu.time.unit"),
+     r"map.toml: the imu file's time stamps' median interval is 5e-06 s .* 0.001 x 1/imu.sample_rate_hz .*imu.time.unit"),
     (lambda s: s.replace('sample_rate_hz = 200.0', 'sample_rate_hz = 100.0'), r"0.5 x 1/imu.sample_rate_hz"),
     (lambda s: s + LABELS + '[segments]\na = { kind = "static" }\nb = { kind = "static" }\n',
      r"map.toml: key 'segments' names label\(s\) 'b' that no sample carries; expected labels of the data \(a\)"),

@@ -40,8 +40,9 @@ KEYS = {
     "imu.temperature": ("column", "unit", "sparse", "scale", "offset"),
     "labels": ("column", "ranges"),
     "labels.ranges": ("from", "to", "label"),
-    "table": SOURCE_KEYS + ("time", "clock_offset_s", "clock_rate_ppm", "axes", "encoder_resolution", "round_to_count"),
-    "table.time": ("column", "unit", "rollover", "clock"),
+    "table": SOURCE_KEYS + ("sample_rate_hz", "time", "clock_offset_s", "clock_rate_ppm", "axes", "encoder_resolution",
+                            "round_to_count"),
+    "table.time": ("column", "unit", "timing", "rollover", "clock"),
     "table.axes": ("name", "axis", "column", "unit", "command", "scale", "offset"),
     "site": ("latitude_deg", "height_m", "gravity_mps2"),
 }
@@ -129,6 +130,10 @@ class Mapping:
     # the period [s] of a time counter that rolls over (a 32-bit microsecond count: 4294.967296 s)
     time_rollover_s: float | None = None
     table_time_rollover_s: float | None = None
+    # "measured": the table file's stamps are its samples' times; "regularise": a clock coarser
+    # than its samples stamped them, and a grid at table_rate_hz fitted to them replaces them
+    table_timing: str = "measured"
+    table_rate_hz: float | None = None
 
 
 def _rollover(t: dict, key: str, unit_si: float, where: str) -> float | None:
@@ -432,6 +437,15 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
                                 where)
         m.table_time_si = TIME_UNITS[_unit(tt.get("unit", "s"), "table.time.unit", where, TIME_UNITS)]
         m.table_time_rollover_s = _rollover(tt, "table.time", m.table_time_si, where)
+        m.table_timing = _unit(tt.get("timing", "measured"), "table.time.timing", where, ("measured", "regularise"))
+        if "sample_rate_hz" in tab:
+            m.table_rate_hz = _number(tab["sample_rate_hz"], "table.sample_rate_hz", where, "a positive sample rate [Hz]")
+            if not m.table_rate_hz > 0:
+                raise MappingError(f"{where}: key 'table.sample_rate_hz' = {m.table_rate_hz!r}: expected a positive "
+                                   "sample rate [Hz]")
+        if m.table_timing == "regularise" and m.table_rate_hz is None:
+            raise MappingError(f"{where}: key 'table.time.timing' = 'regularise' needs 'table.sample_rate_hz': the "
+                               "rate the table file's samples were taken at (the grid replacing its stamps)")
         if "clock" in tt:
             m.table_clock = _unit(tt["clock"], "table.time.clock", where, TABLE_CLOCKS)
         off = tab.get("clock_offset_s", "estimate")

@@ -12,7 +12,7 @@ import numpy as np
 from components.errors import MappingError
 from components.logs.mapping import Mapping
 from components.logs.sources import Columns
-from components.logs.timebase import stamp_resolution, unrolled
+from components.logs.timebase import regularise, stamp_resolution, unrolled
 
 # stamps whose median interval is this far from 1/sample_rate_hz (either way) are in another unit
 # than the mapping says, or the rate is wrong: not a clock's drift (ppm) nor a jitter
@@ -43,7 +43,7 @@ def imu_stamps(m: Mapping, cols: Columns, notes: list[str]) -> tuple[np.ndarray,
         raise MappingError(f"{cols.where}: imu.time: every stamp is {float(t[0])!r} s; expected times that advance")
     nominal = 1.0 / m.sample_rate_hz
     tick = stamp_resolution(t)
-    _check_rate(m, t, nominal, tick)
+    _check_rate(m, t, nominal, tick, "imu", m.time_si)
     max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
     if tick:
         shared = float(np.mean(np.diff(t) == 0))
@@ -55,17 +55,36 @@ def imu_stamps(m: Mapping, cols: Columns, notes: list[str]) -> tuple[np.ndarray,
 
 
 def table_stamps(m: Mapping, tc: Columns, notes: list[str]) -> np.ndarray:
-    """The table file's stamps [s] (strictly increasing: its angles are interpolated between them)."""
+    """The table file's times [s], strictly increasing (its angles are interpolated between
+    them): its stamps, or with ``table.time.timing = "regularise"`` the grid fitted to stamps that
+    may repeat (a host polling the controller, stamping with a clock coarser than its polls)."""
     tt, rolled = unrolled(_clock(tc, m.table_time, "table.time", m.table_time_si, m.where, notes),
                           m.table_time_rollover_s)
     if rolled:
         notes.append(f"{tc.where}: the table's time counter rolled over {rolled} time(s) (table.time.rollover: every "
                      f"{m.table_time_rollover_s:.10g} s); counted on")
-    if np.any(np.diff(tt) <= 0):
-        i = int(np.argmax(np.diff(tt) <= 0)) + 1
-        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected strictly "
-                           "increasing times" + _rollover_hint(tt, i, m.table_time_rollover_s, "table.time"))
-    return tt
+    repeats = m.table_timing == "regularise"
+    back = np.diff(tt) < 0 if repeats else np.diff(tt) <= 0
+    if np.any(back):
+        i = int(np.argmax(back)) + 1
+        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected "
+                           + ("times that never go back" if repeats else "strictly increasing times (stamps that "
+                              "repeat, a clock coarser than the table's samples: give table.time.timing = "
+                              "'regularise' and table.sample_rate_hz)" if tt[i] == tt[i - 1] else "strictly increasing times")
+                           + _rollover_hint(tt, i, m.table_time_rollover_s, "table.time"))
+    if not repeats:
+        return tt
+    if tt[-1] == tt[0]:
+        raise MappingError(f"{tc.where}: table.time: every stamp is {float(tt[0])!r} s; expected times that advance")
+    nominal = 1.0 / m.table_rate_hz
+    tick = stamp_resolution(tt)
+    _check_rate(m, tt, nominal, tick, "table", m.table_time_si)
+    reg = regularise(tt, nominal, 1.5 * nominal + tick)
+    notes.append(f"{tc.where}: table stamps regularised"
+                 + (f" (a clock of {tick * 1e3:.4g} ms resolution, {float(np.mean(np.diff(tt) == 0)):.0%} of the "
+                    "intervals zero)" if tick else "")
+                 + f": {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz, stamps' RMS scatter {reg.jitter_rms_s * 1e3:.3g} ms")
+    return reg.time
 
 
 def _clock(cols: Columns, ch, key: str, unit_si: float, where: str, notes: list[str]) -> np.ndarray:
@@ -96,7 +115,7 @@ def _rollover_hint(t: np.ndarray, i: int, period: float | None, key: str) -> str
             "e.g. 4294967296 for a 32-bit count of microseconds)")
 
 
-def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float = 0.0) -> None:
+def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float, file: str, unit_si: float) -> None:
     """The time stamps against the stated sample rate: a unit or a rate off by a factor (ms read
     as s: every interval a gap) is named here, with the mapping's keys, not by what it breaks later.
     Stamps of a clock with a *tick* coarser than the samples: the median interval over enough
@@ -106,6 +125,6 @@ def _check_rate(m: Mapping, t: np.ndarray, nominal: float, tick: float = 0.0) ->
     med = float(np.median(d[::max(1, len(d) // (1 << 20))]))  # a factor is all it looks for: 1 M intervals do
     ratio = med / nominal
     if not 1 / RATE_MISMATCH < ratio < RATE_MISMATCH:
-        raise MappingError(f"{m.where}: the time stamps' median interval is {med:.6g} s (imu.time.unit: "
-                           f"{m.time_si:g} s a unit), {ratio:.4g} x 1/imu.sample_rate_hz = {nominal:.6g} s; expected the "
-                           "same within 25 %: check imu.time.unit and imu.sample_rate_hz")
+        raise MappingError(f"{m.where}: the {file} file's time stamps' median interval is {med:.6g} s ({file}.time.unit: "
+                           f"{unit_si:g} s a unit), {ratio:.4g} x 1/{file}.sample_rate_hz = {nominal:.6g} s; expected "
+                           f"the same within 25 %: check {file}.time.unit and {file}.sample_rate_hz")
