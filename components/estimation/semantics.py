@@ -90,36 +90,22 @@ def check_semantics(data, log) -> list[str]:
 # writes, does: the table tells the two apart) ...
 PLATEAU = 10
 # ... and reads less than CLIP_SHORT of the table's rotation about its axis there than in the
-# channel's other moves (its own scale factor, whatever it is, cancels); one way to tell: a
-# declared range leaves the clipped samples out, and the check finds no plateau left
+# channel's other moves (its own scale factor, whatever it is, cancels out of the comparison)
 CLIP_SHORT = 0.01
 ENOUGH_PLATEAU = 2000  # plateau samples the ratio is read from, at most (spread over them)
 
 
 def _clipped(data, log, use: np.ndarray, ideal: np.ndarray, moving: np.ndarray) -> list[str]:
-    """A finding per gyro channel and sign whose output stops at a value while the table turns
-    faster about it: a sensor driven beyond its range reads its full scale (its increments repeat
-    to the bit), and every estimate takes that for a scale factor or a misalignment."""
+    """A finding per gyro channel whose output stops at a value while the table turns faster
+    about it: a sensor driven beyond its range reads its full scale (its increments repeat to the
+    bit), and every estimate takes that for a scale factor or a misalignment. *ideal*, *moving*:
+    the unit check's moving samples (:func:`_ideal_gyro_moving`), the channel's other moves."""
     out = []
-    raw = log.gyro  # as in the file: a rate output's clipped value repeats even where intervals jitter
-    turning = ~data.static & use
-    hi, lo = np.full(3, -np.inf), np.full(3, np.inf)
-    for s in pieces(len(raw), raw, step=piece_rows(raw)):
-        x = np.asarray(raw[s], float)[turning[s]]
-        if len(x):
-            hi, lo = np.maximum(hi, x.max(axis=0)), np.minimum(lo, x.min(axis=0))
-    found: dict = {(c, e): [] for c in range(3) for e in (hi[c], lo[c])}
-    for s in pieces(len(raw), raw, step=piece_rows(raw)):
-        x = np.asarray(raw[s], float)
-        for c, e in found:
-            found[c, e].append(np.flatnonzero((x[:, c] == e) & turning[s]) + s.start)
     measured_else = np.asarray(data.gyro[:len(moving)], float)[moving] if len(ideal) else np.zeros((0, 3))
+    extremes = _extreme_readings(log.gyro, ~data.static & use)
     for c, axis in enumerate("xyz"):
         sides = []
-        for extreme in (hi[c], lo[c]):
-            if not np.isfinite(extreme) or extreme == 0:
-                continue
-            at = np.concatenate(found[c, extreme])
+        for at in extremes[c]:
             at = at[at > 0]  # nothing before the first sample to take a chord from
             if len(at) < PLATEAU:
                 continue
@@ -147,6 +133,25 @@ def _clipped(data, log, use: np.ndarray, ideal: np.ndarray, moving: np.ndarray) 
                        "out, or --exclude those times; as it is, the estimates take the clipped samples for the "
                        "gyro's own error")
     return out
+
+
+def _extreme_readings(raw, turning: np.ndarray) -> list[list[np.ndarray]]:
+    """Per channel of *raw* (N, 3), as in the file (a rate output's clipped value repeats to the
+    bit even where the intervals jitter), the samples of *turning* that read its largest value and
+    those that read its smallest: two passes a piece of the log at a time."""
+    hi, lo = np.full(3, -np.inf), np.full(3, np.inf)
+    for s in pieces(len(raw), raw, step=piece_rows(raw)):
+        x = np.asarray(raw[s], float)[turning[s]]
+        if len(x):
+            hi, lo = np.maximum(hi, x.max(axis=0)), np.minimum(lo, x.min(axis=0))
+    found = [[[], []] for _ in range(3)]
+    for s in pieces(len(raw), raw, step=piece_rows(raw)):
+        x = np.asarray(raw[s], float)
+        for c in range(3):
+            for side, e in enumerate((hi[c], lo[c])):
+                if np.isfinite(e) and e != 0:
+                    found[c][side].append(np.flatnonzero((x[:, c] == e) & turning[s]) + s.start)
+    return [[np.concatenate(f) if f else np.zeros(0, np.intp) for f in sides] for sides in found]
 
 
 # the handedness check (a log without table angles): a reversed axis is named when the rests'
