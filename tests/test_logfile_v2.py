@@ -180,6 +180,20 @@ def test_version_2_rules(tmp_path, changes, match):
         read_log(_write(tmp_path, _meta(**changes)))
 
 
+@pytest.mark.parametrize("changes, match", [
+    ({"imu__timming": "measured"}, r"m.json: key 'imu.timming' is not one of the format's: did you mean 'imu.timing'"),
+    ({"imu__gyro_range_rad_s": 1.0}, r"key 'imu.gyro_range_rad_s' .* did you mean 'imu.gyro_range_radps'"),
+    ({"descripton": "x"}, r"key 'descripton' .* did you mean 'description'"),
+])
+def test_a_key_a_letter_or_two_from_one_of_the_format_is_refused(tmp_path, changes, match):
+    """Other software's keys are kept (a simulator's 'model', calbench's own 'import'); a key within
+    a letter or two of one the format defines is a typing mistake that would drop the key meant
+    without a word (a misspelt 'timing': the samples taken at their nominal times)."""
+    read_log(_write(tmp_path, _meta(imu__model="ACME-9", vendor={"serial": 7})))
+    with pytest.raises(LogFormatError, match=match):
+        read_log(_write(tmp_path, _meta(**changes)))
+
+
 def test_mask_and_segment_columns_are_checked(tmp_path):
     meta = _meta()
     (tmp_path / "m.json").write_text(json.dumps(meta))

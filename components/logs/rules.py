@@ -28,6 +28,16 @@ V2_KEYS = (("table.encoder_resolution_rad", "the encoder resolution"), ("imu.tim
            ("imu.gyro_range_radps", "the gyros' output range"), ("imu.acc_range_mps2", "the accelerometers' output range"))
 # the output range keys: (sensor, key, its unit)
 RANGE_KEYS = (("gyro", "gyro_range_radps", "rad/s"), ("acc", "acc_range_mps2", "m/s²"))
+# the metadata's keys per block: another key is kept and ignored (other software's own), unless
+# it is within a letter or two of one of these, a typing mistake that would silently drop the
+# key meant ('timming': the samples taken at their nominal times)
+KNOWN_KEYS = {
+    "": ("format", "site", "table", "imu", "description", "segments", "exclude"),
+    "site": ("latitude_deg", "height_m", "gravity_mps2"),
+    "table": ("axes", "encoder_resolution_rad"),
+    "imu": ("sample_rate_hz", "gyro_output", "acc_output", "gyro_count_rad", "acc_count_mps", "timing",
+            "max_interval_s", "noise", "gyro_range_radps", "acc_range_mps2"),
+}
 MAX_METADATA_DEPTH = 32
 GYRO_OUTPUTS = {"rate": "rad/s", "increment": "rad", "counts": "counts of gyro_count_rad"}
 ACC_OUTPUTS = {"specific_force": "m/s²", "increment": "m/s", "counts": "counts of acc_count_mps"}
@@ -74,6 +84,7 @@ def parse_metadata(meta, where: str) -> dict:
             if _key(meta, path, where, "", required=False) is not None:
                 raise LogFormatError(f"{where}: key {path!r} ({what}) belongs to {FORMAT_V2!r}, but 'format' is "
                                      f"{FORMAT!r}; set 'format' to {FORMAT_V2!r}")
+    _misspelt_keys(meta, where)
     out: dict = {"format": fmt}
     lat = _number(_key(meta, "site.latitude_deg", where, "a latitude in degrees"), "site.latitude_deg",
                   where, "a latitude in degrees")
@@ -155,6 +166,24 @@ def parse_metadata(meta, where: str) -> dict:
     out["extra_metadata"] = {k: v for k, v in meta.items()
                              if k not in ("format", "site", "table", "imu", "description", "segments", "exclude")}
     return out
+
+
+def _misspelt_keys(meta: dict, where: str) -> None:
+    """A key near one the format defines (KNOWN_KEYS; difflib's ratio 0.85 and up) but not it is
+    one error naming both."""
+    import difflib
+
+    for block, known in KNOWN_KEYS.items():
+        node = meta.get(block) if block else meta
+        if not isinstance(node, dict):
+            continue
+        for k in node:
+            near = difflib.get_close_matches(str(k), known, n=1, cutoff=0.85) if k not in known else []
+            if near:
+                at = f"{block}.{k}" if block else k
+                raise LogFormatError(f"{where}: key {at!r} is not one of the format's: did you mean "
+                                     f"'{f'{block}.' if block else ''}{near[0]}'? (other software's keys are kept and "
+                                     "ignored, but not one a letter or two from the format's own)")
 
 
 def _check_depth(meta, where: str) -> None:
