@@ -105,6 +105,13 @@ def curved(refine, moving: np.ndarray, line: np.ndarray, rss: float, t_ref: floa
         best, cov, rss, curve = got, got_cov, got_rss, candidate
     if curve is not None and not _seen_in_stretches(curve, stretches):
         return line, None, None
+    if curve is not None:
+        # σ at least what the stretches' scatter about the line and the curve says, as the line's
+        # is about the line (every moving sample's residual is not white: a 1 ppm soak's rate came
+        # out 4 of its σ off its truth with the σ of the samples alone)
+        fit = _line_and(stretches, curve(np.asarray(stretches[0], float)))
+        if fit is not None and fit[4] > 0:
+            cov = cov * max(1.0, fit[3] / fit[4])
     return best, cov, curve
 
 
