@@ -14,6 +14,7 @@ from components.logs.angle_turns import made_continuous, said
 from components.logs.clock_curve import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
 from components.logs.mapping import AX, Mapping
+from components.logs.measurement import at_output_range
 from components.logs.sources import Columns
 from components.logs.stamps import imu_stamps, table_stamps
 from components.logs.table_clock import angles_at, estimate_clock_offset, table_to_imu
@@ -317,6 +318,9 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
             inc = gyro * dt[:, None]
         else:
             inc = gyro
+        if m.gyro.full_scale is not None:
+            # a clipped increment is not the table's turn: the samples at the gyros' range left out
+            whole = whole & ~at_output_range(np.abs(inc) / dt[:, None], np.array(m.gyro.full_scale))
         co = estimate_clock_offset(t, dt, inc, tt, ang, np.array(vectors), use=whole)
         clock["estimate"] = co
         offset, rate, curve = co.offset_s, co.rate, co.curve

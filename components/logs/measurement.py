@@ -181,10 +181,7 @@ class MeasurementLog:
         return out
 
     def _at_range(self, rows: slice, sensor: str, full: np.ndarray) -> np.ndarray:
-        """(rows,) bool: a sample whose mean rate or specific force reaches *full* on any axis
-        (within RANGE_MARGIN), and the sample either side of it: a clipped output reads the range
-        whatever the input beyond it, and the samples whose interval the input crossed the range
-        in read a mix."""
+        """(rows,) bool: :func:`at_output_range` of the *sensor*'s mean rates or specific forces."""
         a, b, _ = rows.indices(self.n)
         lo, hi = max(a - 1, 0), min(b + 1, self.n)
         kind = getattr(self, f"{sensor}_output")
@@ -193,11 +190,7 @@ class MeasurementLog:
             weight = getattr(self, "gyro_count_rad" if sensor == "gyro" else "acc_count_mps") if kind == "counts" else 1.0
             dt = self.intervals(slice(lo, hi))[:, None] if self.timing == "measured" else self.dt
             x = x * (weight / dt)
-        hit = np.any(x >= full * (1 - RANGE_MARGIN), axis=1)
-        near = hit.copy()
-        near[1:] |= hit[:-1]
-        near[:-1] |= hit[1:]
-        return near[a - lo:a - lo + (b - a)]
+        return at_output_range(x, full)[a - lo:a - lo + (b - a)]
 
     def left_out(self, more: list | None = None) -> dict[str, np.ndarray]:
         """Why samples are left out: {reason: (N,) bool} for the reasons of :meth:`reasons_left_out`
@@ -317,6 +310,18 @@ class MeasurementLog:
         cols = self.columns()
         check_columns(list(cols), meta, where)
         check_samples(cols, meta, where, lambda i: f"sample {i + 1}")
+
+
+def at_output_range(magnitude: np.ndarray, full: np.ndarray) -> np.ndarray:
+    """(n,) bool: a sample whose mean rate or specific force *magnitude* (n, 3), each axis's
+    absolute value, reaches the output range *full* (3,) on any axis (within RANGE_MARGIN), and
+    the sample either side of it: a clipped output reads the range whatever the input beyond it,
+    and the samples whose interval the input crossed the range in read a mix."""
+    hit = np.any(magnitude >= np.asarray(full) * (1 - RANGE_MARGIN), axis=1)
+    near = hit.copy()
+    near[1:] |= hit[:-1]
+    near[:-1] |= hit[1:]
+    return near
 
 
 def _to_increment(x: np.ndarray, kind: str, dt, weight: float | None) -> np.ndarray:
