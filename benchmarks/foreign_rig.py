@@ -49,8 +49,14 @@ With ``--registers`` the rig writes what its registers hold (REGISTERS: clock an
 that roll over, angles read to one turn, a temperature read once a second), and the mapping
 says so (``rollover``, ``accumulated``, ``sparse``): the loop must end where the plain files' does.
 
+With ``--clip R`` the gyros' output range is ±R °/s: each sample's rate is clipped there before
+it is counted into pulses (the schedule turns each axis at 20 and 60 °/s; R = 50 clips the 60 °/s
+turns). The log is first imported with a mapping that does not say so and calibrated: calbench
+must name the clipped channels (components.estimation.semantics); then the mapping gives
+``range = "R deg/s"`` and the loop must end where the plain files' does.
+
     python benchmarks/foreign_rig.py [--seeds 3] [--dir DIR] [--drift-ppm 20] [--table-ppm 30] [--grade tactical]
-                                     [--thermal 20] [--registers]
+                                     [--thermal 20] [--registers] [--clip 50]
 """
 from __future__ import annotations
 
@@ -171,7 +177,8 @@ def _toml(d: dict, prefix: str = "") -> str:
 
 
 def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0, table_ppm: float = 0.0,
-              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, registers: bool = False) -> float:
+              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, registers: bool = False,
+              clip_dps: float = 0.0) -> float:
     """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*.
     ``drift_ppm``: the IMU's clock rate soaks by that much (towards it with a time constant of a
     quarter of the log, a crystal warming) against the host's and the table's, which keep time.
@@ -183,7 +190,8 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     time; the mapping then says so (keeps_time = "sensor", table.time.clock = "controller"), and
     the increments are as simulated. ``table_soak_ppm``: the table controller's clock rate soaks by
     that much on top (its crystal warming after power-on, as the IMU's above). ``registers``: the
-    rig writes what its registers hold (REGISTERS). Returns the true
+    rig writes what its registers hold (REGISTERS). ``clip_dps``: the gyros' output range [°/s]
+    (0: none); the mapping map.toml gives it, map_unranged.toml is the same without. Returns the true
     clock offset (IMU time - table time at the
     table's first sample; with the host drifting, the host's, which the import does not use)."""
     log = read_log(sim)
@@ -193,7 +201,11 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     host = log.time[0] + np.concatenate([[0.0], np.cumsum(np.diff(tau) * 0.5 * (rate[1:] + rate[:-1]))]) \
         if soak else log.time
     acc = log.acc * rate[:, None] if drift_ppm else log.acc
-    counts = {s: PulseLogger(w, rng.random(3) * w).counts(v) for (s, w), v in zip(COUNTS.items(), (log.gyro, acc))}
+    gyro = log.gyro
+    if clip_dps:  # the rate over each (nominal) interval stops at the range, before it is counted
+        limit = math.radians(clip_dps) * log.dt
+        gyro = np.clip(gyro, -limit, limit)
+    counts = {s: PulseLogger(w, rng.random(3) * w).counts(v) for (s, w), v in zip(COUNTS.items(), (gyro, acc))}
     stamps = np.round((host + rng.uniform(-JITTER, JITTER, log.n)) * 1e6)
     g, a = counts["gyro"], counts["acc"]
     gyro_columns = np.column_stack([g[:, 2], g[:, 1], -g[:, 0]])
@@ -235,6 +247,9 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
         mapping = mapping.replace('unit = "us"', 'unit = "us"\nrollover = 4294967296') \
             .replace('count = "1e-6 rad"', 'count = "1e-6 rad"\naccumulated = true\nrollover = 65536') \
             .replace('unit = "degF"', 'unit = "degF"\nsparse = true')
+    if clip_dps:
+        (out / "map_unranged.toml").write_text(mapping)
+        mapping = mapping.replace('count = "1e-6 rad"', f'count = "1e-6 rad"\nrange = "{clip_dps:g} deg/s"')
     (out / "map.toml").write_text(mapping)
     return float(host[0] + origin - table_time[0])
 
@@ -251,15 +266,23 @@ def calbench(*args: str, cwd: Path) -> str:
 
 def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0, grade: str = "navigation",
              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, thermal: float = 0.0,
-             registers: bool = False) -> dict:
+             registers: bool = False, clip_dps: float = 0.0) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed, grade, thermal))
     calbench("simulate", "scenario.toml", "--out", "sim", cwd=d)
     rig = d / "rig"
     rig.mkdir(exist_ok=True)
     true_offset = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm, host_drift_ppm,
-                            table_soak_ppm, registers)
+                            table_soak_ppm, registers, clip_dps)
     truth = json.loads((d / "sim.truth.json").read_text())
+    clipped = None
+    if clip_dps:
+        # as the user first does: the mapping without the range, calibrated
+        calbench("import", "rig/map_unranged.toml", "--out", "unranged", cwd=d)
+        said = calbench("calibrate", "unranged.csv", "--out", "unranged.json", cwd=d)
+        errors = errors_against_truth(CalibrationResult.load(d / "unranged.json"), truth)
+        clipped = {"named": re.findall(r"gyro_([xyz]) reads to the last digit", said),
+                   "worst": max(((r["parameter"], r["error"] / r["sigma"]) for r in errors), key=lambda x: abs(x[1]))}
     said = calbench("import", "rig/map.toml", "--out", "imp", cwd=d)
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
     offset, offset_sigma = float(m.group(1)) * 1e-3, float(m.group(2)) * 1e-3
@@ -269,7 +292,11 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
                       r"([\d.e+-]+) ms off its line \(followed: degree (\d+)", said)
     # with a soak, at the record's middle (where the import says the rate of a curved offset)
     true_rate = (1 / (1 + table_ppm * 1e-6 + table_soak_ppm * 1e-6 * (1 - math.exp(-2))) - 1) * 1e6
-    calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
+    said = calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
+    if clipped is not None:
+        left = re.search(r"gyro at its output range \(([^)]*)\): (\d+)", said)
+        clipped.update(left_out=int(left.group(2)) if left else 0,
+                       named_after=re.findall(r"gyro_([xyz]) reads to the last digit", said))
     # the user's loop: the noise identified around the model, the diagnosis under it, the verdict
     # added, until nothing is missing (at most MOST_ADDED effects)
     verdicts, taken, k = [], [], 0
@@ -311,7 +338,7 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
             "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0) / scale for a in "xyz"],
             "floor_unit": unit, "floor_truth": truth["noise"]["acc.noise.bi"] / scale, "chi2": diag["base_chi2_per_dof"],
             "dof": json.loads((d / f"model{k}.json").read_text())["fit"]["dof"],
-            "rms_z": math.sqrt(sum(v * v for v in z.values()) / len(z)),
+            "rms_z": math.sqrt(sum(v * v for v in z.values()) / len(z)), "clipped": clipped,
             "worst": max(z.items(), key=lambda kv: abs(kv[1])), "n_params": len(z)}
 
 
@@ -348,6 +375,8 @@ def main() -> int:
                          "many ug/K hidden besides (times the grade's scale; default 0: no warm-up)")
     ap.add_argument("--registers", action="store_true",
                     help=f"the rig writes what its registers hold: {REGISTERS} (the mapping says each)")
+    ap.add_argument("--clip", type=float, default=0.0, metavar="DEG_S",
+                    help="the gyros' output range: their rate clipped at ±DEG_S before it is counted (module docstring)")
     a = ap.parse_args()
     if a.drift_ppm and a.host_drift_ppm:
         ap.error("--drift-ppm and --host-drift-ppm: one clock drifts against the host's, the IMU's or the host's own")
@@ -366,20 +395,25 @@ def main() -> int:
           + (f"; the table's clock rate soaking by {a.table_soak_ppm:g} ppm" if a.table_soak_ppm else "")
           + (f"; the IMU warming up 25 -> 40 degC with {THERMAL[1]} {a.thermal * GRADE_SCALE[a.grade]:g} "
              f"{THERMAL[2]} hidden besides" if a.thermal else "")
-          + (f"; the rig's registers as they are: {REGISTERS}" if a.registers else ""))
+          + (f"; the rig's registers as they are: {REGISTERS}" if a.registers else "")
+          + (f"; the gyros clipped at ±{a.clip:g} deg/s" if a.clip else ""))
     hidden = {HIDDEN[0]} | ({THERMAL[0]} if a.thermal else set())
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
         r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm, a.table_ppm, a.grade,
-                     a.host_drift_ppm, a.table_soak_ppm, a.thermal, a.registers)
+                     a.host_drift_ppm, a.table_soak_ppm, a.thermal, a.registers, a.clip)
         rows.append(r)
         lo, hi = band99(r["dof"])
         fl = ", ".join(f"{f:.2f}" for f in r["floors"])
         temp = f"{THERMAL[1]} {_estimate(r['temp'])}; " if a.thermal else ""
         offset = (f"clock offset error {r['offset_z']:+.2f} σ" if r["offset_z"] is not None else
                   "clock offset against the sensor's grid (not scored)")
-        line = (f"seed {r['seed']}: {r['clocks_said'] or ''}{r['rate_said'] or ''}{offset} (σ {r['offset_sigma_us']:.1f} us); "
+        c = r["clipped"]
+        clip = (f"clipped: named without the range {', '.join(c['named']) or 'none'} (largest error there "
+                f"{c['worst'][0]} {c['worst'][1]:+.3g} σ), with it {c['left_out']} samples left out and "
+                f"{', '.join(c['named_after']) or 'none'} named; " if c else "")
+        line = (f"seed {r['seed']}: {clip}{r['clocks_said'] or ''}{r['rate_said'] or ''}{offset} (σ {r['offset_sigma_us']:.1f} us); "
                 f"verdicts {' then '.join(_verdicts(r)) or 'none'}, then {r['last_verdict'] or 'none'}; "
                 f"{HIDDEN[1]} {_estimate(r['k2'])}; {temp}acc floors {fl} {r['floor_unit']} (injected {r['floor_truth']:.3g}); final "
                 f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "
