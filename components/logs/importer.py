@@ -329,7 +329,7 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
         drift += f"; {co.curve.said()}" if co.curve is not None else ""
         notes.append(f"clock offset table -> IMU estimated {co.offset_s * 1e3:+.4f} ± {co.sigma_s * 1e3:.2g} ms at the "
                      f"table's first sample{drift} (each half on its own: {co.first_half_s * 1e3:+.4f}, "
-                     f"{co.second_half_s * 1e3:+.4f} ms at its middle; rate magnitudes correlate {co.correlation:.4f})")
+                     f"{co.second_half_s * 1e3:+.4f} ms at its middle; the gyros' and the table's turns over its intervals correlate {co.correlation:.4f})")
     else:
         offset, rate, curve = float(m.clock_offset or 0.0), m.clock_rate, m.clock_curve
         notes.append(f"clock offset table -> IMU {offset * 1e3:+.4f} ms (given)"

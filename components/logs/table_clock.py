@@ -36,7 +36,7 @@ class ClockOffset:
     sigma_s: float
     first_half_s: float      # the offset on each half of the overlap, at that half's middle, with
     second_half_s: float     # the rate below: what they differ by is what the line misses
-    correlation: float       # of the two rate magnitudes at the offset
+    correlation: float       # of the gyros' and the table's turns over its moving intervals, at the offset
     rate: float = 0.0        # the IMU's clock gains rate · (table time since its first sample)
     rate_sigma: float = 0.0
     # the offsets of the record's equal stretches about the line alone (at their centres on the
