@@ -42,7 +42,7 @@ def imu_stamps(m: Mapping, cols: Columns, notes: list[str]) -> tuple[np.ndarray,
     if t[-1] == t[0]:
         raise MappingError(f"{cols.where}: imu.time: every stamp is {float(t[0])!r} s; expected times that advance")
     nominal = 1.0 / m.sample_rate_hz
-    tick = stamp_resolution(t)
+    tick = stamp_resolution(t, nominal if m.timing == "regularise" else None)
     _check_rate(m, t, nominal, tick, "imu", m.time_si)
     max_int = m.max_interval_s if m.max_interval_s is not None else 1.5 * nominal
     if tick:
@@ -77,7 +77,7 @@ def table_stamps(m: Mapping, tc: Columns, notes: list[str]) -> np.ndarray:
     if tt[-1] == tt[0]:
         raise MappingError(f"{tc.where}: table.time: every stamp is {float(tt[0])!r} s; expected times that advance")
     nominal = 1.0 / m.table_rate_hz
-    tick = stamp_resolution(tt)
+    tick = stamp_resolution(tt, nominal)
     _check_rate(m, tt, nominal, tick, "table", m.table_time_si)
     reg = regularise(tt, nominal, 1.5 * nominal + tick)
     notes.append(f"{tc.where}: table stamps regularised"

@@ -42,15 +42,20 @@ def unrolled(t: np.ndarray, period: float | None) -> tuple[np.ndarray, int]:
     return t + period * np.concatenate([[0.0], np.cumsum(back)]), int(np.count_nonzero(back))
 
 
-def stamp_resolution(t: np.ndarray) -> float:
-    """0 where no two stamps *t* are alike; else the resolution of a clock coarser than the
-    samples it stamps (Windows' tick, a host's millisecond): the median of the intervals that
-    advance, each a tick or a few."""
+def stamp_resolution(t: np.ndarray, nominal: float | None = None) -> float:
+    """The resolution of a clock coarser than the samples it stamps (Windows' tick, a host's
+    millisecond): the median of the intervals that advance, each a tick or a few, where two stamps
+    are alike or (given the *nominal* interval) where that median is shorter than the samples'
+    interval by a tenth (a tick near the interval steps by one tick or two without repeating:
+    50 Hz on a 15.625 ms tick); else 0."""
     d = np.diff(t)
-    if not len(d) or np.all(d != 0):
-        return 0.0
     moved = d[d > 0]
-    return float(np.median(moved)) if len(moved) else 0.0
+    if not len(moved):
+        return 0.0
+    step = float(np.median(moved))
+    if np.any(d == 0) or (nominal is not None and step < 0.9 * nominal):
+        return step
+    return 0.0
 
 
 def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
