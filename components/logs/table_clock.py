@@ -102,7 +102,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     Two crystals run tens of ppm apart: 20 ppm over 36 minutes is 43 ms, which one offset set
     against the table's motion leaves as misfit (χ²/dof 10,000 on a 26-position log). The rate
     comes from a line through the offsets of stretches of the record (:func:`_rate_from_windows`),
-    refined with the offset on every moving sample, and is kept where it stands
+    refined with the offset on every moving table interval, and is kept where it stands
     RATE_SIGNIFICANT of its σ from none."""
     w_imu = np.linalg.norm(gyro_inc, axis=1) / dt_imu
     t_mid = t_imu - dt_imu / 2
@@ -145,16 +145,11 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     def tail(t, line):
         return (legendre_tail((t - t_ref) / scale, len(line) - 2) @ np.asarray(line[2:])).reshape(np.shape(t))
 
-    def on_table(t, line):
-        # the IMU's times *t* on the table's clock for the line (δ at t_ref, rate) and the curve
-        # beyond it (coefficients of the Legendre polynomials P_2(x), P_3(x), ...)
-        d, r = line[0], line[1]
-        out = t - d - r * (t - t_ref)
-        return out - tail(t, line) if len(line) > 2 else out
-
     def on_imu(tau, line):
-        # the table's times *tau* on the IMU's clock: on_table inverted (the rate and the curve's
-        # slope are parts per million: each round gains six digits)
+        # the table's times *tau* on the IMU's clock for the line (δ at t_ref, rate) and the curve
+        # beyond it (coefficients of the Legendre polynomials P_2(x), P_3(x), ...): the IMU's time t
+        # reads tau = t - δ - rate (t - t_ref) - curve(t) on the table's clock, solved for t by
+        # rounds (the rate and the curve's slope are parts per million: each round gains six digits)
         t = tau + line[0]
         for _ in range(3):
             t = tau + line[0] + line[1] * (t - t_ref) + (tail(t, line) if len(line) > 2 else 0.0)
