@@ -49,7 +49,7 @@ def imu_stamps(m: Mapping, cols: Columns, notes: list[str]) -> tuple[np.ndarray,
         shared = float(np.mean(np.diff(t) == 0))
         # an interval between two ticks is up to a tick longer than the samples' own
         max_int += tick
-        notes.append(f"time stamps repeat ({shared:.0%} of the intervals zero): a clock of {tick * 1e3:.4g} ms resolution; "
+        notes.append(f"time stamps of a clock of {tick * 1e3:.4g} ms resolution ({shared:.0%} of the intervals zero); "
                      f"a gap is an interval beyond {max_int * 1e3:.4g} ms (a sample lost inside a tick is not seen)")
     return t, tick, max_int
 
