@@ -6,6 +6,7 @@ imported log calibrates as the independent simulator's own (the conformance vect
 ``example``)."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -255,3 +256,29 @@ def test_running_total_keys_that_do_not_fit_are_one_clear_error(example, tmp_pat
                   'output = "increment"\nunit = "m/s"\naccumulated = true', False)
     assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 2
     assert re.search(words, capsys.readouterr().err), words
+
+
+def test_a_50_hz_sensor_on_the_coarse_clock_never_repeating_a_stamp(example, tmp_path, capsys):
+    """At 50 Hz the 15.625 ms tick steps by one tick or two and never repeats a stamp: the clock
+    is told by its advancing intervals being shorter than the samples' (no tick seen, every
+    two-tick interval was a gap and the grid 64 Hz). The conformance log summed to 50 Hz, stamped
+    so, calibrates as the same samples at their true times."""
+    log, _ = example
+    n = log.n // 4 * 4
+    end = np.arange(3, n, 4)
+    slow = dataclasses.replace(
+        log, time=log.time[end], gimbal={a: v[end] for a, v in log.gimbal.items()}, command={},
+        gyro=log.gyro[:n].reshape(-1, 4, 3).sum(axis=1), acc=log.acc[:n].reshape(-1, 4, 3).sum(axis=1),
+        temperature=None if log.temperature is None else log.temperature[end],
+        segment=None, sample_rate_hz=50.0)
+    ref = calibrate(LogData.from_log(slow), list(DEFAULT_EFFECTS))
+    stamps = np.floor((slow.time + 0.0371) / TICK) * TICK
+    assert not np.any(np.diff(stamps) == 0)
+    _write(tmp_path, slow, stamps * 1e3)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "merged")]) == 0
+    out = capsys.readouterr().out
+    assert "a clock of 15.62 ms resolution (0% of the intervals zero)" in out, out
+    assert "1 run(s), fitted rate 50.0000" in out, out
+    back = read_log(tmp_path / "merged")
+    assert back.n == slow.n
+    _same_as(back, ref, tol=0.05)
