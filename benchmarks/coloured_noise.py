@@ -341,6 +341,9 @@ def main(argv=None) -> int:
         chi = np.array([r["chi2"] for r in rs])
         print(f"  {name:6s} n={len(rs):3d}: an effect named {eff / len(rs):.3f}, a noise term {noi / len(rs):.3f}, "
               f"a drift {drift / len(rs):.3f}; chi2/dof mean {chi.mean():.3f}")
+        if eff:  # which, so that a false alarm can be looked at again (its place among the seeds)
+            print("         the effects named: " + ", ".join(f"seed index {i} {r['verdict']}" for i, r in enumerate(rs)
+                                                        if r["verdict"] is not None and r["kind"] == "effect"))
         report[f"false_alarm_{name}"] = {"effect": eff / len(rs), "noise": noi / len(rs), "drift": drift / len(rs),
                                          "n": len(rs), "chi2_mean": float(chi.mean()),
                                          "verdicts": [r["verdict"] for r in rs]}

@@ -84,6 +84,9 @@ def test_a_table_file_stamped_by_a_coarse_clock_is_regularised(example, tmp_path
                          r"table.sample_rate_hz", err), err
     assert _import(tmp_path, log, every, stamps, table_time='timing = "regularise"') == 2
     assert "table.time.timing' = 'regularise' needs 'table.sample_rate_hz'" in capsys.readouterr().err
+    assert _import(tmp_path, log, every, polled, table=f"sample_rate_hz = {200.0 / every}") == 2
+    assert "key 'table.sample_rate_hz': only the grid of table.time.timing = 'regularise' uses it" \
+        in capsys.readouterr().err
     assert _import(tmp_path, log, every, polled) == 0
     capsys.readouterr()
     true_times = calibrate(LogData.from_log(read_log(tmp_path / "merged")), list(DEFAULT_EFFECTS))

@@ -443,6 +443,9 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
             if not m.table_rate_hz > 0:
                 raise MappingError(f"{where}: key 'table.sample_rate_hz' = {m.table_rate_hz!r}: expected a positive "
                                    "sample rate [Hz]")
+        if m.table_rate_hz is not None and m.table_timing != "regularise":
+            raise MappingError(f"{where}: key 'table.sample_rate_hz': only the grid of table.time.timing = 'regularise' "
+                               "uses it (the table's stamps are its readings' times); give both or neither")
         if m.table_timing == "regularise" and m.table_rate_hz is None:
             raise MappingError(f"{where}: key 'table.time.timing' = 'regularise' needs 'table.sample_rate_hz': the "
                                "rate the table file's samples were taken at (the grid replacing its stamps)")
