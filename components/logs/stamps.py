@@ -29,18 +29,7 @@ def imu_stamps(m: Mapping, cols: Columns, notes: list[str]) -> tuple[np.ndarray,
     if rolled:
         notes.append(f"the time counter rolled over {rolled} time(s) (imu.time.rollover: every "
                      f"{m.time_rollover_s:.10g} s); counted on")
-    # a host's clock coarser than the samples stamps several alike (Windows' tick of 15.6 ms):
-    # a regular grid fitted to all of them places the samples as well, so only the stamps a
-    # grid replaces may repeat
-    repeats = m.timing == "regularise"
-    back = np.diff(t) < 0 if repeats else np.diff(t) <= 0
-    if np.any(back):
-        i = int(np.argmax(back)) + 1
-        raise MappingError(f"{cols.where}: imu.time: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected "
-                           + ("times that never go back" if repeats else "strictly increasing times")
-                           + _rollover_hint(t, i, m.time_rollover_s, "imu.time"))
-    if t[-1] == t[0]:
-        raise MappingError(f"{cols.where}: imu.time: every stamp is {float(t[0])!r} s; expected times that advance")
+    _in_order(t, m.timing == "regularise", cols.where, "imu.time", m.time_rollover_s)
     nominal = 1.0 / m.sample_rate_hz
     tick = stamp_resolution(t, nominal if m.timing == "regularise" else None)
     _check_rate(m, t, nominal, tick, "imu", m.time_si)
@@ -64,18 +53,11 @@ def table_stamps(m: Mapping, tc: Columns, notes: list[str]) -> np.ndarray:
         notes.append(f"{tc.where}: the table's time counter rolled over {rolled} time(s) (table.time.rollover: every "
                      f"{m.table_time_rollover_s:.10g} s); counted on")
     repeats = m.table_timing == "regularise"
-    back = np.diff(tt) < 0 if repeats else np.diff(tt) <= 0
-    if np.any(back):
-        i = int(np.argmax(back)) + 1
-        raise MappingError(f"{tc.where}: table.time: row {i + 1}: {float(tt[i])!r} s after {float(tt[i - 1])!r} s; expected "
-                           + ("times that never go back" if repeats else "strictly increasing times (stamps that "
-                              "repeat, a clock coarser than the table's samples: give table.time.timing = "
-                              "'regularise' and table.sample_rate_hz)" if tt[i] == tt[i - 1] else "strictly increasing times")
-                           + _rollover_hint(tt, i, m.table_time_rollover_s, "table.time"))
+    _in_order(tt, repeats, tc.where, "table.time", m.table_time_rollover_s,
+              " (stamps that repeat, a clock coarser than the table's samples: give table.time.timing = 'regularise' "
+              "and table.sample_rate_hz)")
     if not repeats:
         return tt
-    if tt[-1] == tt[0]:
-        raise MappingError(f"{tc.where}: table.time: every stamp is {float(tt[0])!r} s; expected times that advance")
     nominal = 1.0 / m.table_rate_hz
     tick = stamp_resolution(tt, nominal)
     _check_rate(m, tt, nominal, tick, "table", m.table_time_si)
@@ -85,6 +67,23 @@ def table_stamps(m: Mapping, tc: Columns, notes: list[str]) -> np.ndarray:
                     "intervals zero)" if tick else "")
                  + f": {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz, stamps' RMS scatter {reg.jitter_rms_s * 1e3:.3g} ms")
     return reg.time
+
+
+def _in_order(t: np.ndarray, repeats: bool, where: str, key: str, rollover_s: float | None,
+              repeat_hint: str = "") -> None:
+    """Stamps *t* of the time column *key* that never go back and, unless a regular grid will
+    replace them (*repeats*: a host's clock coarser than the samples stamps several alike, and a
+    grid fitted to all of them places the samples as well), strictly increase; one error at the
+    first row that breaks it (*repeat_hint*: what to give where a stamp merely repeats)."""
+    back = np.diff(t) < 0 if repeats else np.diff(t) <= 0
+    if np.any(back):
+        i = int(np.argmax(back)) + 1
+        raise MappingError(f"{where}: {key}: row {i + 1}: {float(t[i])!r} s after {float(t[i - 1])!r} s; expected "
+                           + ("times that never go back" if repeats else "strictly increasing times"
+                              + (repeat_hint if t[i] == t[i - 1] else ""))
+                           + _rollover_hint(t, i, rollover_s, key))
+    if repeats and t[-1] == t[0]:
+        raise MappingError(f"{where}: {key}: every stamp is {float(t[0])!r} s; expected times that advance")
 
 
 def _clock(cols: Columns, ch, key: str, unit_si: float, where: str, notes: list[str]) -> np.ndarray:

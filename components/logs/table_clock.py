@@ -107,7 +107,8 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     w_imu = np.linalg.norm(gyro_inc, axis=1) / dt_imu
     t_mid = t_imu - dt_imu / 2
     w_tab = rate_magnitude_from_angles(t_tab, angles, axis_vectors)
-    delta = _coarse(t_mid, w_imu, t_tab, w_tab, float(np.median(dt_imu)), max_offset)
+    dt_med = float(np.median(dt_imu))
+    delta = _coarse(t_mid, w_imu, t_tab, w_tab, dt_med, max_offset)
     # The residual is taken over the table's intervals, between its readings as they are: the
     # gyros' turn there, from their running sum interpolated at the readings' times on the IMU's
     # clock, less the plate's turn between the readings. Interpolated the other way (the table's
@@ -116,7 +117,6 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     # the least squares then preferred the offsets half a sample off the readings (the
     # conformance log at 1.2" counts: 0.8 ms off, and a false curve of 1,400 ppm); the gyros'
     # running sum carries white noise a thousand times smaller.
-    dt_med = float(np.median(dt_imu))
     # from each reading to the k-th after it, at least an IMU interval apart (a table read faster
     # than the IMU: every reading still starts one)
     k = max(1, math.ceil(dt_med / float(np.median(np.diff(t_tab))) - 1e-6))
