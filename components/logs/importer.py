@@ -13,6 +13,7 @@ from components.errors import MappingError
 from components.logs.angle_turns import made_continuous, said
 from components.logs.clock_curve import WRONG_CLOCK_SIGMAS, bow_followed
 from components.logs.logfile import MeasurementLog
+from components.logs.lost_rows import leave_out_lost_rows
 from components.logs.mapping import AX, Mapping
 from components.logs.measurement import at_output_range
 from components.logs.sources import Columns
@@ -52,9 +53,13 @@ def import_log(m: Mapping) -> Imported:
     """The log the mapping *m* describes."""
     notes: list[str] = []
     cols = Columns(m.imu)
+    lost = leave_out_lost_rows(cols, _imu_file_channels(m), notes)
     t, tick, max_int = imu_stamps(m, cols, notes)
     nominal = 1.0 / m.sample_rate_hz
     timing, fs = "nominal", m.sample_rate_hz
+    # a sensor on a regular clock with rows lost: its stamps are regular but for the gaps, which
+    # only measured timing has (the rates stay per the nominal interval: below)
+    holed = m.timing == "nominal" and lost is not None and bool(lost.any())
     logged = None  # the log's time where it is not the host's (a drift, the sensor keeping time)
     bow = None  # with a drift: the host's stamps less the sensor's grid at each sample
     if m.timing == "regularise":
@@ -103,6 +108,10 @@ def import_log(m: Mapping) -> Imported:
         d = np.diff(t)
         notes.append(f"measured timing: intervals {d.min() * 1e3:.4g}-{d.max() * 1e3:.4g} ms, RMS deviation from "
                      f"{nominal * 1e3:g} ms {np.sqrt(np.mean((d - nominal) ** 2)) * 1e6:.3g} us")
+    elif holed:
+        timing = "measured"
+        notes.append("nominal timing with lost rows: the log's timing is measured (the stamps say where the gaps "
+                     f"are), the rates increments over the nominal {nominal * 1e3:g} ms as on a nominal clock")
     # the samples after a gap: left out of the log and of the clock offset's match
     after_gap = gaps(t, max_int) if timing == "measured" else np.zeros(len(t), bool)
     n_gaps = int(after_gap.sum())
@@ -132,6 +141,13 @@ def import_log(m: Mapping) -> Imported:
         t = logged
     if m.gyro.accumulated or m.acc.accumulated:
         keep, gimbal, command = _first_total_left_out(keep, len(t), gimbal, command, notes)
+    if holed:
+        # per the nominal interval, as a nominal log's reader takes them (measured timing would
+        # take each over its stamps' interval, which nominal timing lets differ by up to 1 %)
+        if gkind == "rate":
+            gyro, gkind = gyro * nominal, "increment"
+        if akind == "specific_force":
+            acc, akind = acc * nominal, "increment"
     if keep is not None:
         t, gyro, acc = t[keep], gyro[keep], acc[keep]
         temp = None if temp is None else temp[keep]
@@ -152,6 +168,25 @@ def import_log(m: Mapping) -> Imported:
     log.extra_metadata = {"import": {"mapping": m.where, "notes": notes}}
     log.validate(f"the log imported by {m.where}")
     return Imported(log, notes, clock.get("estimate"))
+
+
+def _imu_file_channels(m: Mapping) -> list:
+    """(channel, mapping key) of the number columns of the IMU's file whose empty cell makes its
+    row a lost packet: not the temperature, whose empty cells are more likely a temperature read
+    less often than the samples (imu.temperature.sparse; without it such a cell is an error)."""
+    out = [(m.time, "imu.time.column")]
+    out += [(ch, f"imu.{name}.{a}") for name, sensor in (("gyro", m.gyro), ("acc", m.acc))
+            for ch, a in zip(sensor.axes, AX)]
+    if m.table is None:
+        out += [(a.channel, f"table.axes.{a.name}") for a in m.axes]
+        out += [(a.command, f"table.axes.{a.name}.command") for a in m.axes if a.command is not None]
+    return out
+
+
+def _table_file_channels(m: Mapping) -> list:
+    """(channel, mapping key) of every number column the import reads from the table's file."""
+    return ([(m.table_time, "table.time.column")] + [(a.channel, f"table.axes.{a.name}") for a in m.axes]
+            + [(a.command, f"table.axes.{a.name}.command") for a in m.axes if a.command is not None])
 
 
 def _first_total_left_out(keep, n: int, gimbal: dict, command: dict, notes: list[str]):
@@ -306,6 +341,7 @@ def _table(m: Mapping, cols: Columns, t, gyro, gkind, notes, clock: dict, whole:
                    for a in m.axes if a.command is not None}
         return gimbal, command, names, vectors, None
     tc = Columns(m.table)
+    leave_out_lost_rows(tc, _table_file_channels(m), notes)
     tt = table_stamps(m, tc, notes)
     ang = np.column_stack([_counted(m, x, notes) for x in _continuous(tc, m.axes, notes)])
     cmd = {a.name: tc.values(a.command, f"table.axes.{a.name}.command") * a.unit_si for a in m.axes

@@ -31,7 +31,7 @@ CLOCKS = ("host", "sensor")  # imu.time.keeps_time: which clock keeps time where
 TABLE_CLOCKS = ("host", "controller")
 # the keys each table of a mapping takes: any other is a typing mistake, refused (a misspelt
 # 'rollover' or 'accumulated' read as absent would import wrong numbers without a word)
-SOURCE_KEYS = ("file", "format", "delimiter", "decimal", "skip_rows", "header")
+SOURCE_KEYS = ("file", "format", "delimiter", "decimal", "skip_rows", "header", "lost_rows")
 KEYS = {
     "": ("description", "exclude", "imu", "labels", "segments", "table", "site"),
     "imu": SOURCE_KEYS + ("sample_rate_hz", "time", "gyro", "acc", "temperature"),
@@ -59,6 +59,8 @@ class Source:
     skip_rows: int = 0          # lines before the header row
     decimal: str = "."
     header: bool = True         # False: columns are referred to by index (0-based)
+    key: str = "imu"            # the mapping's table that names this file ("imu", "table"), for messages
+    lost_rows: bool = False     # a row with an empty or NaN number is a lost packet, left out
 
 
 @dataclass
@@ -227,7 +229,7 @@ def _source(d: dict, key: str, where: str, base: Path) -> Source:
     if fmt not in FORMATS:
         raise MappingError(f"{where}: key '{key}.format' = {fmt!r} (file {path.name}): expected one of "
                            f"{', '.join(FORMATS)}")
-    src = Source(path, fmt, delimiter="\t" if fmt == "tsv" else ",")
+    src = Source(path, fmt, delimiter="\t" if fmt == "tsv" else ",", key=key)
     if "delimiter" in d:
         if not isinstance(d["delimiter"], str) or len(d["delimiter"]) != 1:
             raise MappingError(f"{where}: key '{key}.delimiter' = {d['delimiter']!r}: expected one character")
@@ -247,6 +249,10 @@ def _source(d: dict, key: str, where: str, base: Path) -> Source:
         if not isinstance(d["header"], bool):
             raise MappingError(f"{where}: key '{key}.header' = {d['header']!r}: expected true or false")
         src.header = d["header"]
+    if "lost_rows" in d:
+        if not isinstance(d["lost_rows"], bool):
+            raise MappingError(f"{where}: key '{key}.lost_rows' = {d['lost_rows']!r}: expected true or false")
+        src.lost_rows = d["lost_rows"]
     return src
 
 
@@ -427,6 +433,11 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
     if not isinstance(tab, dict):
         raise MappingError(f"{where}: key 'table': expected a table")
     _only(tab, "table", where)
+    unused = [k for k in SOURCE_KEYS if k in tab and k != "file"] if "file" not in tab else []
+    if unused:
+        raise MappingError(f"{where}: key 'table.{unused[0]}' describes a table file, but [table] names none (no "
+                           "'table.file'): the table's columns are in the IMU's file, read as [imu] says"
+                           + (" (give imu.lost_rows)" if unused[0] == "lost_rows" else ""))
     m.table = _source(tab, "table", where, base) if "file" in tab else None
     if m.table is not None:
         tt = _get(tab, "time", f"{where} [table]", "a [table.time] table: the table file's time column and unit")

@@ -24,6 +24,22 @@ class Columns:
             raise MappingError(f"{self.where}: the input file does not exist")
         reader = {"csv": _csv, "tsv": _csv, "parquet": _parquet, "mat": _mat, "hdf5": _hdf5}[source.format]
         self.data: dict = reader(source)
+        # the file's rows read (components.logs.lost_rows leaves a lost packet's out); None: all
+        self.kept: np.ndarray | None = None
+
+    def leave_out(self, rows: np.ndarray) -> None:
+        """Every column from now on without the rows where *rows* (a bool per row of the file) is
+        True; messages still name the file's own rows."""
+        self.kept = ~np.asarray(rows, bool)
+
+    def file_row(self, i: int) -> int:
+        """The file's row number (1-based) of row *i* of the columns as they are given."""
+        return int(np.flatnonzero(self.kept)[i]) + 1 if self.kept is not None else int(i) + 1
+
+    def _lost_hint(self) -> str:
+        return ("" if self.source.lost_rows else
+                f" (a logger that writes a lost packet as a row with empty or NaN cells: give "
+                f"{self.source.key}.lost_rows = true)")
 
     def names(self) -> list[str]:
         return [str(k) for k in self.data]
@@ -52,7 +68,11 @@ class Columns:
         if callable(a):
             # HDF5 datasets and Parquet columns are read when used, and not kept: the caller
             # converts them, and a long log's raw columns beside their conversions were twice it
-            a = a(empty)
+            # (a lost packet's empty cells read as NaN, its row left out below)
+            try:
+                a = a(empty or self.kept is not None)
+            except EmptyCell as e:
+                raise MappingError(f"{e}{'' if empty else self._lost_hint()}") from None
         if isinstance(a, SegmentLabels) and k is None:
             return a  # text, as runs (one label a sample as an object array: 8 bytes a sample)
         a = np.asarray(a)
@@ -66,6 +86,11 @@ class Columns:
         if a.ndim != 1:
             raise MappingError(f"{self.where}: {what}: {key!r} has shape {a.shape}; expected one column (write "
                                f"'{key}:k' for column k)")
+        if self.kept is not None:
+            if len(a) != len(self.kept):
+                raise MappingError(f"{self.where}: {what}: {key!r} has {len(a)} rows; expected {len(self.kept)} as "
+                                   "the file's other columns")
+            a = a[self.kept]
         return a
 
     def values(self, ch: Channel, what: str, empty: bool = False) -> np.ndarray:
@@ -84,8 +109,8 @@ class Columns:
         unread = np.isnan(seconds)
         if unread.any():
             i = int(np.argmax(unread))
-            raise MappingError(f"{self.where}: {what}: row {i + 1}: {a[i]!r} is not a reading of the clock like row 1's "
-                               f"{a[0]!r} ({kind})")
+            raise MappingError(f"{self.where}: {what}: row {self.file_row(i)}: {a[i]!r} is not a reading of the clock "
+                               f"like row {self.file_row(0)}'s {a[0]!r} ({kind})")
         return seconds, kind
 
     def _numbers(self, a, ch: Channel, what: str, empty: bool = False) -> np.ndarray:
@@ -95,12 +120,15 @@ class Columns:
                 a = a.astype(float)
             except (TypeError, ValueError):
                 bad = next(i for i, x in enumerate(a) if not _is_number(x))
-                raise MappingError(f"{self.where}: {what}: row {bad + 1}: {a[bad]!r} is not a number") from None
+                raise MappingError(f"{self.where}: {what}: row {self.file_row(bad)}: {a[bad]!r} is not a number") from None
         a = a.astype(float)
         bad = np.isinf(a) if empty else ~np.isfinite(a)
         if bad.any():
             i = int(np.argmax(bad))
-            raise MappingError(f"{self.where}: {what}: row {i + 1}: {float(a[i])!r} is not finite")
+            if self.kept is not None and np.isnan(a[i]):  # (read with the lost rows' empty cells as NaN)
+                raise MappingError(f"{self.where}: {what}: row {self.file_row(i)}: empty value or NaN; expected a number")
+            raise MappingError(f"{self.where}: {what}: row {self.file_row(i)}: {float(a[i])!r} is not finite"
+                               + (self._lost_hint() if np.isnan(a[i]) else ""))
         return (a - ch.offset) * ch.scale * ch.sign
 
     def text(self, ch: Channel, what: str) -> np.ndarray:
@@ -188,7 +216,8 @@ def _csv(src: Source) -> dict:
 
 def _without_trailing_blank_lines(table, src: Source) -> int:
     """The data rows of a parsed CSV *table* without the blank lines at its end (an editor's extra
-    newline); a blank line between samples is a MappingError naming its row and line."""
+    newline); a blank line between samples is a MappingError naming its row and line, unless
+    the mapping says a logger writes a lost packet so (``lost_rows``: its empty cells make it one)."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -202,10 +231,11 @@ def _without_trailing_blank_lines(table, src: Source) -> int:
         return table.num_rows
     blank = blank.to_numpy(zero_copy_only=False)
     rows = len(blank) - int(np.argmin(blank[::-1])) if not blank.all() else 0
-    if blank[:rows].any():
+    if blank[:rows].any() and not src.lost_rows:
         i = int(np.argmax(blank[:rows]))
         raise MappingError(f"{src.path}: data row {i + 1} (line {i + 1 + src.skip_rows + bool(src.header)}): blank "
-                           "line; expected a sample on every line")
+                           "line; expected a sample on every line (a logger that writes a lost packet as a blank line: "
+                           f"give {src.key}.lost_rows = true)")
     return rows
 
 
@@ -221,11 +251,17 @@ def _array(col, what: str, empty: bool = False) -> np.ndarray:
     if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) or pa.types.is_dictionary(col.type):
         return labels(col)  # (which encodes text as a dictionary itself)
     if col.null_count and empty:
-        return np.asarray(col.to_numpy(zero_copy_only=False), float)  # (nulls are NaN)
+        a = col.to_numpy(zero_copy_only=False)  # (a timestamp's nulls are NaT)
+        return a if a.dtype.kind == "M" else np.asarray(a, float)  # (a number's are NaN)
     if col.null_count and not pa.types.is_null(col.type):
         i = int(np.argmax(col.is_null().to_numpy(zero_copy_only=False)))
-        raise MappingError(f"{what}: row {i + 1}: empty value; expected a number")
+        raise EmptyCell(f"{what}: row {i + 1}: empty value; expected a number")
     return col.to_numpy(zero_copy_only=False)
+
+
+class EmptyCell(MappingError):
+    """A number column's empty cell (:meth:`Columns.raw` says what to give where it is a lost
+    packet)."""
 
 
 def _parquet(src: Source) -> dict:
