@@ -216,3 +216,34 @@ def test_lost_rows_of_a_table_file_are_interpolated_across(example, tmp_path, ca
     assert back.n == log.n and back.timing == "nominal"
     reference = calibrate(LogData.from_log(log), list(DEFAULT_EFFECTS))
     _assert_same(calibrate(LogData.from_log(back), list(DEFAULT_EFFECTS)), reference, tol=0.1)
+
+
+@pytest.mark.parametrize("layout", ["parquet", "mat"])
+def test_lost_rows_in_parquet_nulls_and_mat_nans(example, tmp_path, layout):
+    """A Parquet file's lost packets as nulls (or NaN), a MATLAB file's as NaN: the kept rows
+    imported as written."""
+    log = example
+    lost = _lost_pattern(log.n, seed=3)
+    gyro, acc = np.degrees(log.gyro / log.dt), log.acc / log.dt / G0
+    angles = [np.degrees(log.gimbal[a]) for a in ("outer", "middle", "inner")]
+    columns = dict(zip(HEADER, [log.time, *gyro.T, *acc.T, *angles]))
+    if layout == "parquet":
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = {k: pa.array(v, pa.float64()) for k, v in columns.items()}
+        table["gy"] = pa.array(np.where(lost, np.nan, columns["gy"]), pa.float64())
+        table["az"] = pa.array([None if x else v for x, v in zip(lost, columns["az"])], pa.float64())
+        pq.write_table(pa.table(table), tmp_path / "rec.parquet")
+    else:
+        import scipy.io
+
+        scipy.io.savemat(tmp_path / "rec.mat", {k: np.where(lost, np.nan, v) if k == "ax" else v
+                                                  for k, v in columns.items()})
+    name = "rec.parquet" if layout == "parquet" else "rec.mat"
+    (tmp_path / "map.toml").write_text(_mapping(RATES, "").replace('file = "rec.csv"', f'file = "{name}"'))
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "imported")]) == 0
+    back = read_log(tmp_path / "imported")
+    np.testing.assert_array_equal(back.time, log.time[~lost])
+    np.testing.assert_allclose(back.gyro, log.gyro[~lost], rtol=1e-13, atol=1e-18)
+    np.testing.assert_allclose(back.acc, log.acc[~lost], rtol=1e-13, atol=1e-15)
