@@ -55,8 +55,12 @@ turns). The log is first imported with a mapping that does not say so and calibr
 must name the clipped channels (components.estimation.semantics); then the mapping gives
 ``range = "R deg/s"`` and the loop must end where the plain files' does.
 
+With ``--lost-rows`` the logger writes each lost packet's row, its stamp and empty or NaN counts,
+and the mapping says so (``lost_rows = true``): the import leaves them out, and everything after
+it must be the plain files' to the digit (the same samples, the same gaps).
+
     python benchmarks/foreign_rig.py [--seeds 3] [--dir DIR] [--drift-ppm 20] [--table-ppm 30] [--grade tactical]
-                                     [--thermal 20] [--registers] [--clip 50]
+                                     [--thermal 20] [--registers] [--clip 50] [--lost-rows]
 """
 from __future__ import annotations
 
@@ -178,7 +182,7 @@ def _toml(d: dict, prefix: str = "") -> str:
 
 def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0, table_ppm: float = 0.0,
               host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, registers: bool = False,
-              clip_dps: float = 0.0) -> float:
+              clip_dps: float = 0.0, lost_rows: bool = False) -> float:
     """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*.
     ``drift_ppm``: the IMU's clock rate soaks by that much (towards it with a time constant of a
     quarter of the log, a crystal warming) against the host's and the table's, which keep time.
@@ -191,7 +195,9 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     the increments are as simulated. ``table_soak_ppm``: the table controller's clock rate soaks by
     that much on top (its crystal warming after power-on, as the IMU's above). ``registers``: the
     rig writes what its registers hold (REGISTERS). ``clip_dps``: the gyros' output range [°/s]
-    (0: none); the mapping map.toml gives it, map_unranged.toml is the same without. Returns the true
+    (0: none); the mapping map.toml gives it, map_unranged.toml is the same without. ``lost_rows``:
+    the lost packets' rows are written, their stamps with empty or NaN counts (the mapping says
+    ``lost_rows = true``), instead of left out. Returns the true
     clock offset (IMU time - table time at the
     table's first sample; with the host drifting, the host's, which the import does not use)."""
     log = read_log(sim)
@@ -219,14 +225,14 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     kept = rng.random(log.n) >= LOST
     kept[[0, -1]] = True
     header = "stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F"
-    if registers:
-        rows = np.column_stack(cols)[kept]
-        with open(out / "imu.csv", "w") as f:  # the temperature once a second, empty between
-            f.write(header + "\n" + "".join(",".join("%d" % x for x in r[:7]) + "," + ("%.4f" % r[7] if i % 200 == 0 else "")
-                                             + "\n" for i, r in enumerate(rows)))
-    else:
-        np.savetxt(out / "imu.csv", np.column_stack(cols)[kept], fmt=["%d"] * 7 + ["%.4f"], delimiter=",",
-                   comments="", header=header)
+    rows = np.column_stack(cols)[kept]
+    # the temperature once a second, empty between, in the registers' file
+    lines = [",".join("%d" % x for x in r[:7]) + "," + ("%.4f" % r[7] if not registers or i % 200 == 0 else "")
+             for i, r in enumerate(rows)]
+    if lost_rows:  # each lost packet's row: its stamp and empty cells, or NaN counts, in turn
+        for k, i in enumerate(np.flatnonzero(~kept)):  # (in order: row i has every row before it placed)
+            lines.insert(i, "%d" % stamps[i] + ("," * 7 if k % 2 else ",nan" * 6 + ","))
+    (out / "imu.csv").write_text(header + "\n" + "\n".join(lines) + "\n")
     table_time = ((log.time if host_drift_ppm else host) - CLOCK) * (1 + table_ppm * 1e-6)
     if table_soak_ppm:
         soak = table_soak_ppm * 1e-6 * (1 - np.exp(-tau / (tau[-1] / 4)))
@@ -247,6 +253,8 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
         mapping = mapping.replace('unit = "us"', 'unit = "us"\nrollover = 4294967296') \
             .replace('count = "1e-6 rad"', 'count = "1e-6 rad"\naccumulated = true\nrollover = 65536') \
             .replace('unit = "degF"', 'unit = "degF"\nsparse = true')
+    if lost_rows:
+        mapping = mapping.replace('file = "imu.csv"', 'file = "imu.csv"\nlost_rows = true')
     if clip_dps:
         (out / "map_unranged.toml").write_text(mapping)
         mapping = mapping.replace('count = "1e-6 rad"', f'count = "1e-6 rad"\nrange = "{clip_dps:g} deg/s"')
@@ -266,14 +274,14 @@ def calbench(*args: str, cwd: Path) -> str:
 
 def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0, grade: str = "navigation",
              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, thermal: float = 0.0,
-             registers: bool = False, clip_dps: float = 0.0) -> dict:
+             registers: bool = False, clip_dps: float = 0.0, lost_rows: bool = False) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed, grade, thermal))
     calbench("simulate", "scenario.toml", "--out", "sim", cwd=d)
     rig = d / "rig"
     rig.mkdir(exist_ok=True)
     true_offset = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm, host_drift_ppm,
-                            table_soak_ppm, registers, clip_dps)
+                            table_soak_ppm, registers, clip_dps, lost_rows)
     truth = json.loads((d / "sim.truth.json").read_text())
     clipped = None
     if clip_dps:
@@ -375,6 +383,8 @@ def main() -> int:
                          "many ug/K hidden besides (times the grade's scale; default 0: no warm-up)")
     ap.add_argument("--registers", action="store_true",
                     help=f"the rig writes what its registers hold: {REGISTERS} (the mapping says each)")
+    ap.add_argument("--lost-rows", action="store_true",
+                    help="the lost packets written as rows of their stamps and empty or NaN counts (module docstring)")
     ap.add_argument("--clip", type=float, default=0.0, metavar="DEG_S",
                     help="the gyros' output range: their rate clipped at ±DEG_S before it is counted (module docstring)")
     a = ap.parse_args()
@@ -396,13 +406,14 @@ def main() -> int:
           + (f"; the IMU warming up 25 -> 40 degC with {THERMAL[1]} {a.thermal * GRADE_SCALE[a.grade]:g} "
              f"{THERMAL[2]} hidden besides" if a.thermal else "")
           + (f"; the rig's registers as they are: {REGISTERS}" if a.registers else "")
-          + (f"; the gyros clipped at ±{a.clip:g} deg/s" if a.clip else ""))
+          + (f"; the gyros clipped at ±{a.clip:g} deg/s" if a.clip else "")
+          + ("; the lost packets written as rows of empty or NaN counts" if a.lost_rows else ""))
     hidden = {HIDDEN[0]} | ({THERMAL[0]} if a.thermal else set())
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
         r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm, a.table_ppm, a.grade,
-                     a.host_drift_ppm, a.table_soak_ppm, a.thermal, a.registers, a.clip)
+                     a.host_drift_ppm, a.table_soak_ppm, a.thermal, a.registers, a.clip, a.lost_rows)
         rows.append(r)
         lo, hi = band99(r["dof"])
         fl = ", ".join(f"{f:.2f}" for f in r["floors"])
