@@ -12,7 +12,8 @@ from rig_files import mapping
 
 from components.errors import MappingError
 from components.logs.logfile import read_log
-from components.logs.mapping import KEYS, load_mapping
+from components.logs.mapping import load_mapping
+from components.logs.mapping_keys import KEYS
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "import.md"
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from components.errors import MappingError
+from components.logs.mapping_keys import SOURCE_KEYS, check_keys
 from components.model.effects import DEG, G0
 
 AX = "xyz"
@@ -29,24 +30,6 @@ CLOCKS = ("host", "sensor")  # imu.time.keeps_time: which clock keeps time where
 # table.time.clock: what stamps a table file, the host that stamps the IMU's samples or the table
 # controller's own clock (it tells where the angles are matched when the host's clock drifts)
 TABLE_CLOCKS = ("host", "controller")
-# the keys each table of a mapping takes: any other is a typing mistake, refused (a misspelt
-# 'rollover' or 'accumulated' read as absent would import wrong numbers without a word)
-SOURCE_KEYS = ("file", "format", "delimiter", "decimal", "skip_rows", "header", "lost_rows")
-KEYS = {
-    "": ("description", "exclude", "imu", "labels", "segments", "table", "site"),
-    "imu": SOURCE_KEYS + ("sample_rate_hz", "time", "gyro", "acc", "temperature"),
-    "imu.time": ("column", "unit", "timing", "keeps_time", "max_interval_s", "rollover"),
-    "imu.gyro": ("output", "unit", "count", "scale", "offset", "accumulated", "rollover", "range", "x", "y", "z"),
-    "imu.temperature": ("column", "unit", "sparse", "scale", "offset"),
-    "labels": ("column", "ranges"),
-    "labels.ranges": ("from", "to", "label"),
-    "table": SOURCE_KEYS + ("sample_rate_hz", "time", "clock_offset_s", "clock_rate_ppm", "axes", "encoder_resolution",
-                            "round_to_count"),
-    "table.time": ("column", "unit", "timing", "rollover", "clock"),
-    "table.axes": ("name", "axis", "column", "unit", "command", "scale", "offset"),
-    "site": ("latitude_deg", "height_m", "gravity_mps2"),
-}
-KEYS["imu.acc"] = KEYS["imu.gyro"]
 
 
 @dataclass
@@ -150,21 +133,6 @@ def _rollover(t: dict, key: str, unit_si: float, where: str) -> float | None:
     return r * unit_si
 
 
-def _only(d: dict, table: str, where: str, name: str | None = None) -> None:
-    """Every key of *d*, the mapping's *table* (KEYS; *name*: as the user wrote it, e.g.
-    'table.axes[1]'), is one calbench reads; else one error naming it and the nearest known key."""
-    import difflib
-
-    known = KEYS[table]
-    for k in d:
-        if k not in known:
-            near = difflib.get_close_matches(k, known, n=1)
-            at = f"{name or table}.{k}" if table else k
-            raise MappingError(f"{where}: key {at!r} is not one calbench reads"
-                               + (f" (did you mean '{near[0]}'?)" if near else "")
-                               + f"; {f'[{name or table}]' if table else 'the top level'} takes: {', '.join(known)}")
-
-
 def _get(d: dict, key: str, where: str, expected: str, required: bool = True, default=None):
     if key not in d:
         if required:
@@ -259,7 +227,7 @@ def _source(d: dict, key: str, where: str, base: Path) -> Source:
 def _sensor(d: dict, key: str, where: str, kinds: dict, weight_units: dict, range_units: dict) -> Sensor:
     if not isinstance(d, dict):
         raise MappingError(f"{where}: key {key!r}: expected a table with output, unit, x, y, z")
-    _only(d, key, where)
+    check_keys(d, key, where)
     out = _unit(_get(d, "output", f"{where} [{key}]", f"one of {', '.join(kinds)}"), f"{key}.output", where, kinds)
     weight, unit = None, ""
     if out == "counts":
@@ -313,11 +281,11 @@ def load_mapping(path: str | Path) -> Mapping:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise MappingError(f"{where}: not a valid TOML file ({e})") from None
     base = p.parent
-    _only(d, "", where)
+    check_keys(d, "", where)
     imu = _get(d, "imu", where, "an [imu] table: the IMU's file and columns")
     if not isinstance(imu, dict):
         raise MappingError(f"{where}: key 'imu': expected a table")
-    _only(imu, "imu", where)
+    check_keys(imu, "imu", where)
     src = _source(imu, "imu", where, base)
     fs = _number(_get(imu, "sample_rate_hz", f"{where} [imu]", "the IMU's nominal sample rate [Hz]"),
                  "imu.sample_rate_hz", where, "a positive sample rate [Hz]")
@@ -326,7 +294,7 @@ def load_mapping(path: str | Path) -> Mapping:
     t = _get(imu, "time", f"{where} [imu]", "a [imu.time] table: column and unit")
     if not isinstance(t, dict):
         raise MappingError(f"{where}: key 'imu.time': expected a table with column and unit")
-    _only(t, "imu.time", where)
+    check_keys(t, "imu.time", where)
     time = _channel(_get(t, "column", f"{where} [imu.time]", "the time column"), "imu.time.column", where)
     tu = TIME_UNITS[_unit(t.get("unit", "s"), "imu.time.unit", where, TIME_UNITS)]
     timing = _unit(t.get("timing", "nominal"), "imu.time.timing", where, TIMINGS)
@@ -351,7 +319,7 @@ def load_mapping(path: str | Path) -> Mapping:
         td = imu["temperature"]
         if not isinstance(td, dict):
             raise MappingError(f"{where}: key 'imu.temperature': expected a table with column and unit")
-        _only(td, "imu.temperature", where)
+        check_keys(td, "imu.temperature", where)
         m.temperature = _channel(_get(td, "column", f"{where} [imu.temperature]", "the column"),
                                  "imu.temperature.column", where, td)
         m.temperature_unit = _unit(td.get("unit", "degC"), "imu.temperature.unit", where, TEMPERATURE_UNITS)
@@ -371,7 +339,7 @@ def load_mapping(path: str | Path) -> Mapping:
     site = d.get("site", {})
     if not isinstance(site, dict):
         raise MappingError(f"{where}: key 'site': expected a table")
-    _only(site, "site", where)
+    check_keys(site, "site", where)
     lat = _number(_get(site, "latitude_deg", f"{where} [site]", "the latitude [deg]"), "site.latitude_deg", where,
                   "a latitude in degrees")
     if not -90 <= lat <= 90:
@@ -393,7 +361,7 @@ def _labels(d: dict, m: Mapping, where: str) -> None:
     if lab is not None:
         if not isinstance(lab, dict):
             raise MappingError(f"{where}: key 'labels': expected a table with column or ranges")
-        _only(lab, "labels", where)
+        check_keys(lab, "labels", where)
         if "column" in lab:
             m.labels = _channel(lab["column"], "labels.column", where)
             if m.labels.sign < 0:
@@ -402,7 +370,7 @@ def _labels(d: dict, m: Mapping, where: str) -> None:
             k = f"labels.ranges[{i}]"
             if not isinstance(r, dict):
                 raise MappingError(f"{where}: key {k!r}: expected {{from, to, label}}")
-            _only(r, "labels.ranges", where, k)
+            check_keys(r, "labels.ranges", where, k)
             t0 = _number(_get(r, "from", f"{where} [{k}]", "the start [s, IMU clock]"), f"{k}.from", where, "a time [s]")
             t1 = _number(_get(r, "to", f"{where} [{k}]", "the end [s, IMU clock]"), f"{k}.to", where, "a time [s]")
             name = _get(r, "label", f"{where} [{k}]", "the label")
@@ -432,7 +400,7 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
         return
     if not isinstance(tab, dict):
         raise MappingError(f"{where}: key 'table': expected a table")
-    _only(tab, "table", where)
+    check_keys(tab, "table", where)
     unused = [k for k in SOURCE_KEYS if k in tab and k != "file"] if "file" not in tab else []
     if unused:
         raise MappingError(f"{where}: key 'table.{unused[0]}' describes a table file, but [table] names none (no "
@@ -443,7 +411,7 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
         tt = _get(tab, "time", f"{where} [table]", "a [table.time] table: the table file's time column and unit")
         if not isinstance(tt, dict):
             raise MappingError(f"{where}: key 'table.time': expected a table with column and unit")
-        _only(tt, "table.time", where)
+        check_keys(tt, "table.time", where)
         m.table_time = _channel(_get(tt, "column", f"{where} [table.time]", "the time column"), "table.time.column",
                                 where)
         m.table_time_si = TIME_UNITS[_unit(tt.get("unit", "s"), "table.time.unit", where, TIME_UNITS)]
@@ -480,7 +448,7 @@ def _table(d: dict, m: Mapping, where: str, base: Path) -> None:
         k = f"table.axes[{i}]"
         if not isinstance(a, dict):
             raise MappingError(f"{where}: key {k!r}: expected {{name, axis, column, unit}}")
-        _only(a, "table.axes", where, k)
+        check_keys(a, "table.axes", where, k)
         name = _get(a, "name", f"{where} [{k}]", "the axis name")
         vec = _get(a, "axis", f"{where} [{k}]", "the unit axis vector [x, y, z]")
         if not (isinstance(vec, list) and len(vec) == 3 and all(isinstance(x, (int, float)) for x in vec)):
