@@ -16,6 +16,7 @@ from components.logs.logfile import MeasurementLog
 from components.logs.lost_rows import leave_out_lost_rows
 from components.logs.mapping import AX, Mapping
 from components.logs.measurement import at_output_range
+from components.logs.sample_counter import sample_index, skips
 from components.logs.sources import Columns
 from components.logs.stamps import imu_stamps, table_stamps
 from components.logs.table_clock import angles_at, estimate_clock_offset, table_to_imu
@@ -55,15 +56,18 @@ def import_log(m: Mapping) -> Imported:
     cols = Columns(m.imu)
     lost = leave_out_lost_rows(cols, _imu_file_channels(m), notes)
     t, tick, max_int = imu_stamps(m, cols, notes)
+    index = sample_index(m, cols, notes)
+    skipped = skips(index)
     nominal = 1.0 / m.sample_rate_hz
     timing, fs = "nominal", m.sample_rate_hz
     # a sensor on a regular clock with rows lost: its stamps are regular but for the gaps, which
     # only measured timing has (the rates stay per the nominal interval: below)
-    holed = m.timing == "nominal" and lost is not None and bool(lost.any())
+    holed = m.timing == "nominal" and ((lost is not None and bool(lost.any()))
+                                       or (skipped is not None and bool(skipped.any())))
     logged = None  # the log's time where it is not the host's (a drift, the sensor keeping time)
     bow = None  # with a drift: the host's stamps less the sensor's grid at each sample
     if m.timing == "regularise":
-        reg = regularise(t, nominal, max_int)
+        reg = regularise(t, nominal, max_int, index)
         t = reg.time
         notes.append(f"time stamps regularised: {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz "
                      f"({(reg.rate_hz / m.sample_rate_hz - 1) * 1e6:+.3g} ppm from the nominal {m.sample_rate_hz:g}), "
@@ -89,7 +93,7 @@ def import_log(m: Mapping) -> Imported:
                                       if m.table_clock == "controller" else "are taken at the host's stamps of its samples"))
         # how far jitter stretches one interval, at most about (a clock's tick: at most a tick)
         reach = tick or 3 * math.sqrt(2) * reg.jitter_rms_s
-        if max_int - 1 / reg.rate_hz < reach:
+        if max_int - 1 / reg.rate_hz < reach and index is None:
             # a jittered interval then passes for a gap, and the runs between such gaps, chosen by
             # their long ends, fit a clock too fast, with samples a whole interval off (±0.3 ms
             # stamps of a 1 kHz sensor: one interval over the runs 90 ppm fast, each run's own
@@ -98,7 +102,17 @@ def import_log(m: Mapping) -> Imported:
             notes.append(f"warning: the stamps' jitter ({reg.jitter_rms_s * 1e6:.3g} us RMS) stretches an interval by up "
                          f"to ~{reach * 1e3:.3g} ms, past imu.time.max_interval_s ({max_int * 1e3:g} ms): jitter is taken "
                          "for gaps; " + (f"give a max_interval_s between {lo * 1e3:.3g} and {hi * 1e3:.3g} ms" if hi > lo
-                                         else "at this jitter no interval tells a lost sample from a late stamp"))
+                                         else "at this jitter no interval tells a lost sample from a late stamp")
+                         + " (a sample counter in the file tells: give [imu.counter])")
+        back = np.diff(t) <= 0
+        if back.any():
+            # grids of runs cut at jitter taken for gaps, each placed by its own stamps, overlap
+            i = int(np.argmax(back)) + 1
+            raise MappingError(f"{cols.where}: imu.time: the regular grids fitted to the stamps between what look like "
+                               f"gaps overlap at row {cols.file_row(i)} (the stamps' jitter {reg.jitter_rms_s * 1e6:.3g} "
+                               f"us RMS, imu.time.max_interval_s {max_int * 1e3:g} ms): at this jitter the stamps do not "
+                               "tell a lost sample from a late stamp; give [imu.counter] (the sensor's sample counter) "
+                               "if the file has one, else a max_interval_s that no late stamp reaches")
         if reg.runs > 1:
             timing = "measured"
         # the sensor's rates are per its own nominal interval: the fitted rate (the host's view of
@@ -110,10 +124,12 @@ def import_log(m: Mapping) -> Imported:
                      f"{nominal * 1e3:g} ms {np.sqrt(np.mean((d - nominal) ** 2)) * 1e6:.3g} us")
     elif holed:
         timing = "measured"
-        notes.append("nominal timing with lost rows: the log's timing is measured (the stamps say where the gaps "
+        notes.append("nominal timing with lost samples (lost rows, the counter skipping): the log's timing is measured (the stamps say where the gaps "
                      f"are), the rates increments over the nominal {nominal * 1e3:g} ms as on a nominal clock")
     # the samples after a gap: left out of the log and of the clock offset's match
     after_gap = gaps(t, max_int) if timing == "measured" else np.zeros(len(t), bool)
+    if skipped is not None:
+        _skips_are_gaps(skipped, after_gap, t, max_int, cols)
     n_gaps = int(after_gap.sum())
     if n_gaps:
         notes.append(f"{n_gaps} gap(s) longer than {max_int * 1e3:g} ms: the sample after each is left out")
@@ -170,11 +186,24 @@ def import_log(m: Mapping) -> Imported:
     return Imported(log, notes, clock.get("estimate"))
 
 
+def _skips_are_gaps(skipped: np.ndarray, after_gap: np.ndarray, t: np.ndarray, max_int: float, cols: Columns) -> None:
+    """Where the sample counter skips, the log's time must show a gap (the log carries lost
+    samples as gaps: the sample after one is left out); stamps taken as the samples' times that
+    do not (a host's late stamp before, an early one after) are one error naming the row."""
+    hidden = skipped & ~after_gap
+    if hidden.any():
+        i = int(np.argmax(hidden))
+        raise MappingError(f"{cols.where}: imu.counter.column: row {cols.file_row(i)}: the counter skips samples, but "
+                           f"the stamps are {(t[i] - t[i - 1]) * 1e3:.4g} ms apart, within imu.time.max_interval_s "
+                           f"({max_int * 1e3:g} ms): stamps that hide lost samples are not the samples' times; give "
+                           "imu.time.timing = 'regularise' (the samples placed by the counter)")
+
+
 def _imu_file_channels(m: Mapping) -> list:
     """(channel, mapping key) of the number columns of the IMU's file whose empty cell makes its
     row a lost packet: not the temperature, whose empty cells are more likely a temperature read
     less often than the samples (imu.temperature.sparse; without it such a cell is an error)."""
-    out = [(m.time, "imu.time.column")]
+    out = [(m.time, "imu.time.column")] + ([(m.counter, "imu.counter.column")] if m.counter is not None else [])
     out += [(ch, f"imu.{name}.{a}") for name, sensor in (("gyro", m.gyro), ("acc", m.acc))
             for ch, a in zip(sensor.axes, AX)]
     if m.table is None:

@@ -119,6 +119,11 @@ class Mapping:
     # than its samples stamped them, and a grid at table_rate_hz fitted to them replaces them
     table_timing: str = "measured"
     table_rate_hz: float | None = None
+    # a sample counter (a packet's sequence number): its column, its period where it rolls over,
+    # and the counts it advances by a sample
+    counter: Channel | None = None
+    counter_rollover: float | None = None
+    counter_step: int = 1
 
 
 def _rollover(t: dict, key: str, unit_si: float, where: str) -> float | None:
@@ -129,7 +134,7 @@ def _rollover(t: dict, key: str, unit_si: float, where: str) -> float | None:
     r = _number(t["rollover"], f"{key}.rollover", where, "the counter's period in its unit (e.g. 4294967296)")
     if not r > 0:
         raise MappingError(f"{where}: key '{key}.rollover' = {r!r}: expected the counter's period, a positive number "
-                           f"in {key}.unit")
+                           "in the column's unit")
     return r * unit_si
 
 
@@ -328,6 +333,7 @@ def load_mapping(path: str | Path) -> Mapping:
             raise MappingError(f"{where}: key 'imu.temperature.sparse' = {sparse!r}: expected true (read less often "
                                "than the samples: the cells between readings empty) or false")
         m.temperature_sparse = sparse
+    _counter(imu, m, where)
     _labels(d, m, where)
     _table(d, m, where, base)
     if keeps == "sensor" and m.table is not None and m.table_clock is None:
@@ -354,6 +360,25 @@ def load_mapping(path: str | Path) -> Mapping:
     m.description = desc
     m.keeps_time = keeps
     return m
+
+
+def _counter(imu: dict, m: Mapping, where: str) -> None:
+    """[imu.counter]: the sensor's sample counter (column, rollover: its period in counts, step:
+    the counts a sample advances it by, default 1)."""
+    if "counter" not in imu:
+        return
+    c = imu["counter"]
+    if not isinstance(c, dict):
+        raise MappingError(f"{where}: key 'imu.counter': expected a table with the counter's column")
+    check_keys(c, "imu.counter", where)
+    m.counter = _channel(_get(c, "column", f"{where} [imu.counter]", "the counter's column"), "imu.counter.column",
+                         where)
+    m.counter_rollover = _rollover(c, "imu.counter", 1.0, where)
+    step = c.get("step", 1)
+    if isinstance(step, bool) or not isinstance(step, int) or step < 1:
+        raise MappingError(f"{where}: key 'imu.counter.step' = {step!r}: expected the counts a sample advances the "
+                           "counter by, a whole number >= 1")
+    m.counter_step = step
 
 
 def _labels(d: dict, m: Mapping, where: str) -> None:

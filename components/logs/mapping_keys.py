@@ -8,7 +8,8 @@ from components.errors import MappingError
 SOURCE_KEYS = ("file", "format", "delimiter", "decimal", "skip_rows", "header", "lost_rows")
 KEYS = {
     "": ("description", "exclude", "imu", "labels", "segments", "table", "site"),
-    "imu": SOURCE_KEYS + ("sample_rate_hz", "time", "gyro", "acc", "temperature"),
+    "imu": SOURCE_KEYS + ("sample_rate_hz", "time", "counter", "gyro", "acc", "temperature"),
+    "imu.counter": ("column", "rollover", "step"),
     "imu.time": ("column", "unit", "timing", "keeps_time", "max_interval_s", "rollover"),
     "imu.gyro": ("output", "unit", "count", "scale", "offset", "accumulated", "rollover", "range", "x", "y", "z"),
     "imu.temperature": ("column", "unit", "sparse", "scale", "offset"),

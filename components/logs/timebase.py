@@ -65,15 +65,17 @@ def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
     return out
 
 
-def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regularised:
+def regularise(t: np.ndarray, nominal_dt: float, max_interval: float, index: np.ndarray | None = None) -> Regularised:
     """Stamps replaced by a regular grid (:func:`_regular`) and, where they bow away from it by more
     than their jitter, a smooth correction of it (components.logs.clock_drift): the grid is
     fitted again to the stamps less the correction, and the correction to what the new grid
     leaves, until no further correction beats none (at most four rounds; one grid joins the
-    runs through lost samples only once the bow no longer hides their whole intervals)."""
-    cut = np.nonzero(gaps(t, max_interval))[0]
+    runs through lost samples only once the bow no longer hides their whole intervals).
+    *index*: each sample's index on the sensor's clock, read from its sample counter; the grid is
+    then one line through the stamps at those indices (no gap guessed from the stamps)."""
+    cut = np.nonzero(gaps(t, max_interval) if index is None else np.diff(index, prepend=index[0]) > 1)[0]
     edges = np.concatenate([[0], cut, [len(t)]])
-    reg, residual = _regular(t, nominal_dt, edges)
+    reg, residual = _regular(t, nominal_dt, edges, index)
     u = t - float(t[0])
     drift = fit_drift(u, residual, nominal_dt)
     if drift is None:
@@ -82,7 +84,7 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regular
     correction = np.zeros(len(t))
     for _ in range(4):
         correction += drift.at(u)
-        reg, residual = _regular(t - correction, nominal_dt, edges)
+        reg, residual = _regular(t - correction, nominal_dt, edges, index)
         drift = fit_drift(u, residual, nominal_dt)
         if drift is None:
             break
@@ -94,7 +96,8 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float) -> Regular
     return Regularised(reg.time + correction, reg.rate_hz, rms, reg.runs, said, reg.time)
 
 
-def _regular(t: np.ndarray, nominal_dt: float, edges: np.ndarray) -> tuple[Regularised, np.ndarray]:
+def _regular(t: np.ndarray, nominal_dt: float, edges: np.ndarray,
+             index: np.ndarray | None = None) -> tuple[Regularised, np.ndarray]:
     """(the stamps *t* replaced by a regular grid in each run between the *edges* of the gaps, the
     stamps' residual against one grid through the runs where one was tried, else against the
     result). One interval for the whole log
@@ -110,15 +113,21 @@ def _regular(t: np.ndarray, nominal_dt: float, edges: np.ndarray) -> tuple[Regul
     ±0.3 ms), which a move's motion turns into misfit (χ²/dof 1.14 for 0.99 with 1 % lost). The
     grids are kept only where they fit the stamps as well as each run's own start, up to what
     fewer starts cost by chance (not so a clock that drifts against the host's)."""
-    run = np.repeat(np.arange(len(edges) - 1), np.diff(edges))
-    k = np.arange(len(t), dtype=float) - edges[:-1][run]  # index within the run
     t0 = float(t[0])
     u = t - t0  # from the first stamp: the sums of k·t of epoch stamps would lose their digits
+    runs = len(edges) - 1
+    if index is not None:
+        # the counter gives every sample's place on the sensor's clock: one line through them all
+        k = np.asarray(index, float)
+        d, start = _line(tuple(np.atleast_1d(np.sum(w)) for w in (np.ones(len(k)), k, k * k, u, k * u)), nominal_dt)
+        out = start[0] + d * k
+        return Regularised(t0 + out, 1.0 / d, math.sqrt(float(np.mean((u - out) ** 2))), runs), u - out
+    run = np.repeat(np.arange(len(edges) - 1), np.diff(edges))
+    k = np.arange(len(t), dtype=float) - edges[:-1][run]  # index within the run
     sums = tuple(np.bincount(run, w) for w in (None, k, k * k, u, k * u))
     d, start = _line(sums, nominal_dt)
     out = start[run] + d * k
     rms = math.sqrt(float(np.mean((u - out) ** 2)))
-    runs = len(edges) - 1
     if runs > 1:
         grid, offset = _grids(sums, start, d, rms)
         d1, grid_start = _line(tuple(np.bincount(grid, w) for w in _shifted(sums, offset)), nominal_dt)
