@@ -247,3 +247,27 @@ def test_lost_rows_in_parquet_nulls_and_mat_nans(example, tmp_path, layout):
     np.testing.assert_array_equal(back.time, log.time[~lost])
     np.testing.assert_allclose(back.gyro, log.gyro[~lost], rtol=1e-13, atol=1e-18)
     np.testing.assert_allclose(back.acc, log.acc[~lost], rtol=1e-13, atol=1e-15)
+
+
+def test_lost_rows_leave_text_columns_too(tmp_path):
+    """The time as the time of day and the segment labels (text, held as runs) lose the lost
+    rows with the numbers: every column of the log the same length, the labels the kept rows'."""
+    n = 2000
+    t = 8 * 3600 + np.arange(1, n + 1) * 0.005
+    lost = np.zeros(n, bool)
+    lost[[500, 501, 1200]] = True
+    lines = ["time,gx,gy,gz,ax,ay,az,lab"]
+    for i in range(n):
+        h, rem = divmod(t[i], 3600)
+        clock = f"{int(h):02d}:{int(rem // 60):02d}:{rem % 60:06.3f}"
+        lab = "p1" if i < 1000 else "p2"
+        lines.append(f"{clock},,,,,,,{lab}" if lost[i] else f"{clock},0.001,0.002,-0.001,0.01,0.02,1.0,{lab}")
+    (tmp_path / "rec.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "map.toml").write_text(
+        '[imu]\nfile = "rec.csv"\nsample_rate_hz = 200.0\nlost_rows = true\n[imu.time]\ncolumn = "time"\n'
+        + RATES + '[labels]\ncolumn = "lab"\n[segments]\np1 = {kind = "static"}\np2 = {kind = "static"}\n' + SITE)
+    assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "imported")]) == 0
+    back = read_log(tmp_path / "imported")
+    assert back.n == n - 3
+    np.testing.assert_allclose(back.time, t[~lost], rtol=0, atol=1e-6)
+    assert list(map(str, back.segment[[0, 997, 998, -1]])) == ["p1", "p1", "p2", "p2"]

@@ -124,8 +124,9 @@ def import_log(m: Mapping) -> Imported:
                      f"{nominal * 1e3:g} ms {np.sqrt(np.mean((d - nominal) ** 2)) * 1e6:.3g} us")
     elif holed:
         timing = "measured"
-        notes.append("nominal timing with lost samples (lost rows, the counter skipping): the log's timing is measured (the stamps say where the gaps "
-                     f"are), the rates increments over the nominal {nominal * 1e3:g} ms as on a nominal clock")
+        notes.append("nominal timing with lost samples (lost rows, the counter skipping): the log's timing is measured "
+                     "(the stamps say where the gaps are), the rates increments over the nominal "
+                     f"{nominal * 1e3:g} ms as on a nominal clock")
     # the samples after a gap: left out of the log and of the clock offset's match
     after_gap = gaps(t, max_int) if timing == "measured" else np.zeros(len(t), bool)
     if skipped is not None:

@@ -74,7 +74,8 @@ class Columns:
             except EmptyCell as e:
                 raise MappingError(f"{e}{'' if empty else self._lost_hint()}") from None
         if isinstance(a, SegmentLabels) and k is None:
-            return a  # text, as runs (one label a sample as an object array: 8 bytes a sample)
+            # text, as runs (one label a sample as an object array: 8 bytes a sample)
+            return a if self.kept is None else self._kept_rows(a, what, str(key))
         a = np.asarray(a)
         if k is not None:
             if a.ndim != 2 or not 0 <= k < a.shape[1]:
@@ -86,12 +87,13 @@ class Columns:
         if a.ndim != 1:
             raise MappingError(f"{self.where}: {what}: {key!r} has shape {a.shape}; expected one column (write "
                                f"'{key}:k' for column k)")
-        if self.kept is not None:
-            if len(a) != len(self.kept):
-                raise MappingError(f"{self.where}: {what}: {key!r} has {len(a)} rows; expected {len(self.kept)} as "
-                                   "the file's other columns")
-            a = a[self.kept]
-        return a
+        return a if self.kept is None else self._kept_rows(a, what, str(key))
+
+    def _kept_rows(self, a, what: str, key: str):
+        if len(a) != len(self.kept):
+            raise MappingError(f"{self.where}: {what}: {key!r} has {len(a)} rows; expected {len(self.kept)} as the "
+                               "file's other columns")
+        return a[self.kept]
 
     def values(self, ch: Channel, what: str, empty: bool = False) -> np.ndarray:
         """The column as float64, (raw − offset) × scale × sign; a non-number or non-finite value is
