@@ -103,3 +103,25 @@ def test_a_table_file_stamped_by_a_coarse_clock_is_regularised(example, tmp_path
     # the two imports' offsets, combined with the least squares' (σ 2.8 µs each), differ by their
     # errors; 1 µs moved a calibration by ~0.06 σ of the parameters'
     _calibrates_as(tmp_path, true_times, 0.05)
+
+
+def test_the_offset_at_the_table_s_first_sample_carries_the_rate_s_extrapolation(example, tmp_path, capsys):
+    """The table's controller 50 ppm fast: the rate between the clocks is fitted, and the offset
+    said at the table's first sample is the line's value there, extrapolated from where the moves
+    pin it. Its σ is at least the rate's σ times that lever, from the centroid of the offset's
+    information (the turn over an interval moves with the offset by the change of rate across it:
+    each sample weighted by its squared change of turn; 0.8 of it for that approximation). The
+    line's centre's σ alone was said, 25 us against a bound of 37, with the offset 44 us off."""
+    log, _ = example
+    fast = 50e-6
+    assert _import(tmp_path, log, 1, (log.time - BEHIND) * (1 + fast)) == 0
+    out = capsys.readouterr().out
+    got, sigma, line = _offset(out)
+    rate, s_rate = (float(v) * 1e-6 for v in re.search(r"the IMU's clock ([+-][\d.e+-]+) ± ([\d.e-]+) ppm against "
+                                                         r"the table's", out).groups())
+    truth = log.time[0] - (log.time[0] - BEHIND) * (1 + fast)
+    assert abs(got - truth) < 4 * sigma, line
+    assert abs(rate - (1 / (1 + fast) - 1)) < 4 * s_rate, line
+    change = np.sum([np.diff(log.gimbal[a], n=2, prepend=[log.gimbal[a][0]] * 2) ** 2 for a in AXES], axis=0)
+    centroid = float(np.sum(change * log.time) / np.sum(change))
+    assert sigma >= 0.8 * s_rate * (centroid - log.time[0]), (sigma, s_rate * (centroid - log.time[0]))

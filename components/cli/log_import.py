@@ -4,6 +4,7 @@ any units; separate IMU and table files on their own clocks) as a calbench-log/2
 from __future__ import annotations
 
 import argparse
+import math
 
 
 def _cmd_import(args: argparse.Namespace) -> int:
@@ -44,6 +45,11 @@ def refine_clock_offset(m, imp):
     from components.model.effects import DEFAULT_EFFECTS
 
     coarse, s_rate = imp.clock_offset.offset_s, imp.clock_offset.sigma_s
+    # the least squares shift the whole record alike: they add to what the match knows at the
+    # line's centre; where the offset is said (the table's first sample, often before the first
+    # move) the rate's and the curve's extrapolation stays as uncertain as the match says
+    beyond = imp.clock_offset.beyond_centre_s
+    s_centre = math.sqrt(max(s_rate**2 - beyond**2, 0.0))
     offset = coarse
     try:
         for _ in range(2):
@@ -52,14 +58,9 @@ def refine_clock_offset(m, imp):
             # the IMU's samples late by τ against the merged angles: the table's clock was taken
             # τ too late
             lsq, s_lsq = offset - float(fit.value[k]), float(fit.sigma[k])
-            w_rate, w_lsq = (1 / s_rate**2 if s_rate > 0 else 0.0), 1 / s_lsq**2
+            w_rate, w_lsq = (1 / s_centre**2 if s_centre > 0 else 0.0), 1 / s_lsq**2
             offset = (coarse * w_rate + lsq * w_lsq) / (w_rate + w_lsq)
-            sigma = (w_rate + w_lsq) ** -0.5
-            if imp.clock_offset.curve is not None:
-                # the least squares shift the whole record alike: where the offset is said (the
-                # table's first sample, often before the first move) the curve's extrapolation is
-                # as uncertain as the rates' match says, whatever the shift's σ
-                sigma = max(sigma, s_rate)
+            sigma = math.hypot((w_rate + w_lsq) ** -0.5, beyond)
             m.clock_offset, m.clock_rate, m.clock_curve = offset, imp.clock_offset.rate, imp.clock_offset.curve
             again = import_log(m)
             imp = type(imp)(again.log, [n for n in imp.notes if not n.startswith("clock offset")]

@@ -43,6 +43,9 @@ class ClockOffset:
     # IMU's clock, their variances), what a curve in the offset shows in (None: too few move)
     stretches: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     curve: ClockCurve | None = None  # the offset beyond its line, where the clocks' rate changes
+    # what the rate and the curve add to the σ at the table's first sample beyond the σ at the
+    # line's centre (where the moves are): a shift of the whole record known better leaves it
+    beyond_centre_s: float = 0.0
 
 
 def table_to_imu(tt: np.ndarray, offset: float, rate: float = 0.0, curve: ClockCurve | None = None) -> np.ndarray:
@@ -190,13 +193,18 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     # time, its terms beyond the line fitted with it on every moving interval while significant
     bent, bent_cov, curve = curved(lambda sel, x: refine(sel, x, with_rss=True), moving, start, rss, t_ref, scale,
                                    math.sqrt(cov[0, 0]), stretches)
+    # the offset is said at the table's first sample, often at rest before the first move and far
+    # from the line's centre: its σ there from every coefficient's, the rate's and the curve's
+    # (they extrapolate from where the moves show them; a rate of 0.001 ppm known to 0.001 ppm
+    # is 1 us at the start of a 36-minute record, which the centre's σ alone left out)
+    since = float(t_tab[0]) + float(line[0]) - t_ref
     if curve is not None:
         line, cov, held = bent[:2], bent_cov[:2, :2], tuple(curve.coefficients)
-        # the offset said at the table's first sample, often at rest before the first move: the
-        # curve's σ there from every coefficient's (it extrapolates where no move shows it)
-        since = float(t_tab[0]) + float(line[0]) - t_ref
         g = np.concatenate([[1.0, since], legendre_tail(since / scale, len(held))[0]])
-        edge_sigma = math.sqrt(float(g @ bent_cov @ g))
+        at_edge = float(g @ bent_cov @ g)
+    else:
+        g = np.array([1.0, since])[:len(line)]
+        at_edge = float(g @ cov[:len(line), :len(line)] @ g)
     d0, rate = float(line[0]), float(line[1]) if len(line) > 1 else 0.0
     full_line = (d0, rate, *held)
     half = t_res[0] + 0.5 * (t_res[-1] - t_res[0])
@@ -212,7 +220,7 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     sel = inside(full_line, moving)
     corr = float(np.corrcoef(gyro_turn(full_line, sel), turn_tab[sel])[0, 1]) if sel.sum() > 2 else float("nan")
     # what the halves disagree by is model error the white-residual σ does not hold
-    sigma = max(math.sqrt(cov[0, 0]), gap / 2, edge_sigma if curve is not None else 0.0)
+    sigma = max(math.sqrt(at_edge), gap / 2)
     # on the table's clock: table time = t - δ - r (t - t_ref) for IMU time t, so the IMU's clock
     # gains r / (1 - r) per table second, and at the table's first sample t0 it reads
     # (t0 + δ - r t_ref) / (1 - r)
@@ -223,7 +231,8 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         at_t0 += float(curve(t0 + at_t0))
         curve = dataclasses.replace(curve, zero_at=t0 + at_t0)
     return ClockOffset(at_t0, sigma, d1, d2, corr, rate / (1 - rate),
-                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0, stretches, curve)
+                       math.sqrt(cov[1, 1]) / (1 - rate) ** 2 if len(line) > 1 else 0.0, stretches, curve,
+                       math.sqrt(max(at_edge - float(cov[0, 0]), 0.0)))
 
 
 RATE_WINDOWS = 8  # the record in this many equal stretches, for the rate between the clocks and its σ
