@@ -59,8 +59,14 @@ With ``--lost-rows`` the logger writes each lost packet's row, its stamp and emp
 and the mapping says so (``lost_rows = true``): the import leaves them out, and everything after
 it must be the plain files' to the digit (the same samples, the same gaps).
 
+With ``--jitter-ms 2`` a USB host's stamps (an interval anywhere from 1 to 9 ms): no stamp tells a
+lost packet from a late one, and the import refuses the grids it would fit between intervals
+that look like gaps. ``--counter`` adds the sensor's 16-bit packet counter (the mapping's
+[imu.counter]), which places every sample: the loop must end where the plain files' does.
+
     python benchmarks/foreign_rig.py [--seeds 3] [--dir DIR] [--drift-ppm 20] [--table-ppm 30] [--grade tactical]
                                      [--thermal 20] [--registers] [--clip 50] [--lost-rows]
+                                     [--jitter-ms 2] [--counter]
 """
 from __future__ import annotations
 
@@ -182,7 +188,8 @@ def _toml(d: dict, prefix: str = "") -> str:
 
 def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float = 0.0, table_ppm: float = 0.0,
               host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, registers: bool = False,
-              clip_dps: float = 0.0, lost_rows: bool = False) -> float:
+              clip_dps: float = 0.0, lost_rows: bool = False, jitter_s: float = JITTER,
+              counter: bool = False) -> float:
     """The simulated log *sim* as the files of a foreign rig (module docstring), in *out*.
     ``drift_ppm``: the IMU's clock rate soaks by that much (towards it with a time constant of a
     quarter of the log, a crystal warming) against the host's and the table's, which keep time.
@@ -197,9 +204,12 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     rig writes what its registers hold (REGISTERS). ``clip_dps``: the gyros' output range [°/s]
     (0: none); the mapping map.toml gives it, map_unranged.toml is the same without. ``lost_rows``:
     the lost packets' rows are written, their stamps with empty or NaN counts (the mapping says
-    ``lost_rows = true``), instead of left out. Returns the true
+    ``lost_rows = true``), instead of left out. ``jitter_s``: the stamps' uniform jitter either
+    side; ``counter``: a 16-bit packet counter beside them (``seq``, every packet counted, the
+    lost ones too), which the mapping names ([imu.counter]). Returns the true
     clock offset (IMU time - table time at the
-    table's first sample; with the host drifting, the host's, which the import does not use)."""
+    table's first sample; with the host drifting, the host's, which the import does not use) and
+    every sample's true time on the IMU's clock as the log counts it."""
     log = read_log(sim)
     tau = log.time - log.time[0]
     soak = drift_ppm or host_drift_ppm
@@ -212,7 +222,7 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
         limit = math.radians(clip_dps) * log.dt
         gyro = np.clip(gyro, -limit, limit)
     counts = {s: PulseLogger(w, rng.random(3) * w).counts(v) for (s, w), v in zip(COUNTS.items(), (gyro, acc))}
-    stamps = np.round((host + rng.uniform(-JITTER, JITTER, log.n)) * 1e6)
+    stamps = np.round((host + rng.uniform(-JITTER, JITTER, log.n) * (jitter_s / JITTER)) * 1e6)
     g, a = counts["gyro"], counts["acc"]
     gyro_columns = np.column_stack([g[:, 2], g[:, 1], -g[:, 0]])
     origin = 0.0  # the IMU's time less the host's
@@ -224,14 +234,15 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     cols = [stamps, *gyro_columns.T, a[:, 0], a[:, 1], a[:, 2], log.temperature * 9 / 5 + 32]
     kept = rng.random(log.n) >= LOST
     kept[[0, -1]] = True
-    header = "stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F"
+    header = "stamp_us,gz_cnt,gy_cnt,gx_cnt,ax_cnt,ay_cnt,az_cnt,temp_F" + (",seq" if counter else "")
     rows = np.column_stack(cols)[kept]
+    seq = np.arange(log.n)[kept] % 65536
     # the temperature once a second, empty between, in the registers' file
     lines = [",".join("%d" % x for x in r[:7]) + "," + ("%.4f" % r[7] if not registers or i % 200 == 0 else "")
-             for i, r in enumerate(rows)]
+             + (",%d" % seq[i] if counter else "") for i, r in enumerate(rows)]
     if lost_rows:  # each lost packet's row: its stamp and empty cells, or NaN counts, in turn
         for k, i in enumerate(np.flatnonzero(~kept)):  # (in order: row i has every row before it placed)
-            lines.insert(i, "%d" % stamps[i] + ("," * 7 if k % 2 else ",nan" * 6 + ","))
+            lines.insert(i, "%d" % stamps[i] + ("," * 7 if k % 2 else ",nan" * 6 + ",") + ("," if counter else ""))
     (out / "imu.csv").write_text(header + "\n" + "\n".join(lines) + "\n")
     table_time = ((log.time if host_drift_ppm else host) - CLOCK) * (1 + table_ppm * 1e-6)
     if table_soak_ppm:
@@ -255,11 +266,13 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
             .replace('unit = "degF"', 'unit = "degF"\nsparse = true')
     if lost_rows:
         mapping = mapping.replace('file = "imu.csv"', 'file = "imu.csv"\nlost_rows = true')
+    if counter:
+        mapping = mapping.replace('[imu.gyro]', '[imu.counter]\ncolumn = "seq"\nrollover = 65536\n[imu.gyro]')
     if clip_dps:
         (out / "map_unranged.toml").write_text(mapping)
         mapping = mapping.replace('count = "1e-6 rad"', f'count = "1e-6 rad"\nrange = "{clip_dps:g} deg/s"')
     (out / "map.toml").write_text(mapping)
-    return float(host[0] + origin - table_time[0])
+    return float(host[0] + origin - table_time[0]), host + origin
 
 
 def calbench(*args: str, cwd: Path) -> str:
@@ -274,14 +287,15 @@ def calbench(*args: str, cwd: Path) -> str:
 
 def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0, grade: str = "navigation",
              host_drift_ppm: float = 0.0, table_soak_ppm: float = 0.0, thermal: float = 0.0,
-             registers: bool = False, clip_dps: float = 0.0, lost_rows: bool = False) -> dict:
+             registers: bool = False, clip_dps: float = 0.0, lost_rows: bool = False, jitter_s: float = JITTER,
+             counter: bool = False) -> dict:
     d.mkdir(parents=True, exist_ok=True)
     (d / "scenario.toml").write_text(scenario_text(seed, grade, thermal))
     calbench("simulate", "scenario.toml", "--out", "sim", cwd=d)
     rig = d / "rig"
     rig.mkdir(exist_ok=True)
-    true_offset = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm, host_drift_ppm,
-                            table_soak_ppm, registers, clip_dps, lost_rows)
+    true_offset, true_times = write_rig(d / "sim", rig, np.random.default_rng(seed), drift_ppm, table_ppm, host_drift_ppm,
+                            table_soak_ppm, registers, clip_dps, lost_rows, jitter_s, counter)
     truth = json.loads((d / "sim.truth.json").read_text())
     clipped = None
     if clip_dps:
@@ -292,6 +306,7 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
         clipped = {"named": re.findall(r"gyro_([xyz]) reads to the last digit", said),
                    "worst": max(((r["parameter"], r["error"] / r["sigma"]) for r in errors), key=lambda x: abs(x[1]))}
     said = calbench("import", "rig/map.toml", "--out", "imp", cwd=d)
+    grid_s, grid_ppm = _grid_error(read_log(d / "imp").time, true_times)
     m = re.search(r"clock offset table -> IMU ([+-][\d.]+) ± ([\d.]+) ms", said)
     offset, offset_sigma = float(m.group(1)) * 1e-3, float(m.group(2)) * 1e-3
     drift = re.search(r"bow up to ([\d.]+) ms .* rate moving over ([\d.]+) ppm", said)
@@ -334,7 +349,12 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
     # with the host drifting, the log's time is the sensor's clock (true time) from where the import
     # placed its first sample on the host's bowed stamps: the rate has its truth, the offset none here
     scored = not host_drift_ppm
+    # the import matches the table to the log's time: the truth on it, the IMU's grid off the
+    # true times by its stamps' least-squares scatter (0.3 us at ±0.3 ms jitter, several at ±2 ms)
+    true_offset += grid_s
+    true_rate += grid_ppm
     return {"seed": seed, "offset_z": (offset - true_offset) / offset_sigma if scored else None,
+            "grid": f"the log's time off the true times by {grid_s * 1e6:+.2f} us at the start, {grid_ppm:+.4f} ppm; ",
             "offset_sigma_us": offset_sigma * 1e6,
             "rate_said": rate and f"the clocks' rate {float(rate.group(1)):+.4f} ± {float(rate.group(2)):.2g} ppm "
                                   f"({(float(rate.group(1)) - true_rate) / float(rate.group(2)):+.2f} σ from the truth); ",
@@ -348,6 +368,16 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
             "dof": json.loads((d / f"model{k}.json").read_text())["fit"]["dof"],
             "rms_z": math.sqrt(sum(v * v for v in z.values()) / len(z)), "clipped": clipped,
             "worst": max(z.items(), key=lambda kv: abs(kv[1])), "n_params": len(z)}
+
+
+def _grid_error(log_time: np.ndarray, true_times: np.ndarray) -> tuple[float, float]:
+    """(the log's time less the true time at its first sample [s], the least-squares slope of
+    that difference [ppm]): the regular grid the import fitted to jittered stamps stands off the
+    true times by its fit's error, a line (a curve where it follows a drift)."""
+    i = np.clip(np.searchsorted(true_times, log_time), 1, len(true_times) - 1)
+    i -= (log_time - true_times[i - 1]) < (true_times[i] - log_time)
+    err = log_time - true_times[i]
+    return float(err[0]), float(np.polyfit(log_time - log_time[0], err, 1)[0]) * 1e6
 
 
 def _verdicts(r: dict) -> list[str]:
@@ -383,6 +413,9 @@ def main() -> int:
                          "many ug/K hidden besides (times the grade's scale; default 0: no warm-up)")
     ap.add_argument("--registers", action="store_true",
                     help=f"the rig writes what its registers hold: {REGISTERS} (the mapping says each)")
+    ap.add_argument("--jitter-ms", type=float, default=JITTER * 1e3, help="the host stamps' uniform jitter, either side")
+    ap.add_argument("--counter", action="store_true", help="a 16-bit packet counter in the IMU's file, named by the "
+                    "mapping (module docstring)")
     ap.add_argument("--lost-rows", action="store_true",
                     help="the lost packets written as rows of their stamps and empty or NaN counts (module docstring)")
     ap.add_argument("--clip", type=float, default=0.0, metavar="DEG_S",
@@ -395,7 +428,7 @@ def main() -> int:
         tmp = tempfile.TemporaryDirectory()
         a.dir = Path(tmp.name)
     print(f"foreign rig: {a.seeds} seed(s) from {a.first_seed}; pulse counts {COUNTS['gyro']:g} rad, "
-          f"{COUNTS['acc']:g} m/s; stamps ±{JITTER * 1e3:g} ms; {LOST:.1%} of the packets lost; table clock {CLOCK * 1e3:g} ms behind; "
+          f"{COUNTS['acc']:g} m/s; stamps ±{a.jitter_ms:g} ms; {LOST:.1%} of the packets lost; table clock {CLOCK * 1e3:g} ms behind; "
           f"hidden {HIDDEN[1]} under {a.grade}-grade coloured noise, 26-position schedule"
           + (f"; the IMU's clock rate soaking by {a.drift_ppm:g} ppm against the host's" if a.drift_ppm else "")
           + (f"; the host's clock rate soaking by {a.host_drift_ppm:g} ppm against the IMU's and the table "
@@ -407,13 +440,15 @@ def main() -> int:
              f"{THERMAL[2]} hidden besides" if a.thermal else "")
           + (f"; the rig's registers as they are: {REGISTERS}" if a.registers else "")
           + (f"; the gyros clipped at ±{a.clip:g} deg/s" if a.clip else "")
-          + ("; the lost packets written as rows of empty or NaN counts" if a.lost_rows else ""))
+          + ("; the lost packets written as rows of empty or NaN counts" if a.lost_rows else "")
+          + ("; a 16-bit packet counter in the IMU's file" if a.counter else ""))
     hidden = {HIDDEN[0]} | ({THERMAL[0]} if a.thermal else set())
     rows = []
     for k in range(a.seeds):
         t = time.perf_counter()
         r = one_seed(a.first_seed + k, a.dir / f"seed{a.first_seed + k}", a.drift_ppm, a.table_ppm, a.grade,
-                     a.host_drift_ppm, a.table_soak_ppm, a.thermal, a.registers, a.clip, a.lost_rows)
+                     a.host_drift_ppm, a.table_soak_ppm, a.thermal, a.registers, a.clip, a.lost_rows,
+                     a.jitter_ms * 1e-3, a.counter)
         rows.append(r)
         lo, hi = band99(r["dof"])
         fl = ", ".join(f"{f:.2f}" for f in r["floors"])
@@ -424,7 +459,7 @@ def main() -> int:
         clip = (f"clipped: named without the range {', '.join(c['named']) or 'none'} (largest error there "
                 f"{c['worst'][0]} {c['worst'][1]:+.3g} σ), with it {c['left_out']} samples left out and "
                 f"{', '.join(c['named_after']) or 'none'} named; " if c else "")
-        line = (f"seed {r['seed']}: {clip}{r['clocks_said'] or ''}{r['rate_said'] or ''}{offset} (σ {r['offset_sigma_us']:.1f} us); "
+        line = (f"seed {r['seed']}: {clip}{r['grid']}{r['clocks_said'] or ''}{r['rate_said'] or ''}{offset} (σ {r['offset_sigma_us']:.1f} us); "
                 f"verdicts {' then '.join(_verdicts(r)) or 'none'}, then {r['last_verdict'] or 'none'}; "
                 f"{HIDDEN[1]} {_estimate(r['k2'])}; {temp}acc floors {fl} {r['floor_unit']} (injected {r['floor_truth']:.3g}); final "
                 f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "
