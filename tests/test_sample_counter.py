@@ -37,35 +37,40 @@ def _write(path, log, kept, stamps, counter):
     path.write_text("\n".join(lines) + "\n")
 
 
-def _mapping(timing: str = "regularise", counter: bool = True) -> str:
+def _mapping(timing: str = "regularise", counter: bool = True, step: int = 1, rollover: int = 65536) -> str:
     axes = "".join(f'[[table.axes]]\nname = "{n}"\naxis = {v}\ncolumn = "{n}"\nunit = "deg"\n'
                    for n, v in (("outer", [0, 0, 1]), ("middle", [1, 0, 0]), ("inner", [0, 0, 1])))
     return ('[imu]\nfile = "rec.csv"\nsample_rate_hz = 200.0\n'
             f'[imu.time]\ncolumn = "t"\ntiming = "{timing}"\n'
-            + ('[imu.counter]\ncolumn = "seq"\nrollover = 65536\n' if counter else "")
+            + (f'[imu.counter]\ncolumn = "seq"\nrollover = {rollover}\n' + (f"step = {step}\n" if step > 1 else "")
+               if counter else "")
             + '[imu.gyro]\noutput = "rate"\nunit = "deg/s"\nx = "gx"\ny = "gy"\nz = "gz"\n'
             '[imu.acc]\noutput = "specific_force"\nunit = "g"\nx = "ax"\ny = "ay"\nz = "az"\n'
             '[table]\nencoder_resolution = "exact"\n' + axes + SITE)
 
 
-def _rig(log, seed=3):
+def _rig(log, seed=3, step=1, rollover=65536, start=40000):
     rng = np.random.default_rng(seed)
     kept = rng.random(log.n) >= 0.005
     kept[[0, -1]] = True
     stamps = log.time + rng.uniform(-JITTER, JITTER, log.n)
-    counter = (np.arange(log.n) + 40000) % 65536  # rolls over once
+    counter = (np.arange(log.n) * step + start) % rollover  # rolls over once
     return kept, stamps, counter
 
 
-def test_a_sample_counter_places_jittered_samples_and_names_the_lost(example, tmp_path, capsys):
+# a 16-bit packet counter; a 32-bit count of a 10 kHz clock, 50 a sample (as some IMUs stamp
+# their samples themselves), rolling over 1,000 samples in
+@pytest.mark.parametrize("step, rollover, start", [(1, 65536, 40000), (50, 2**32, 2**32 - 50_000)])
+def test_a_sample_counter_places_jittered_samples_and_names_the_lost(example, tmp_path, capsys, step, rollover, start):
     log = example
-    kept, stamps, counter = _rig(log)
+    kept, stamps, counter = _rig(log, step=step, rollover=rollover, start=start)
     _write(tmp_path / "rec.csv", log, kept, stamps, counter)
-    (tmp_path / "map.toml").write_text(_mapping())
+    (tmp_path / "map.toml").write_text(_mapping(step=step, rollover=rollover))
     assert main(["import", str(tmp_path / "map.toml"), "--out", str(tmp_path / "imported")]) == 0
     said = capsys.readouterr().out
     lost = int((~kept).sum())
-    assert re.search(rf"sample counter 'seq': {kept.sum()} samples over {log.n} counts \(rolled over 1 time\(s\)\); "
+    assert re.search(rf"sample counter 'seq': {kept.sum()} of the {log.n} samples it counted are in the file \(rolled "
+                     rf"over 1 time\(s\)\); "
                      rf"{lost} sample\(s\) lost", said), said
     assert "jitter is taken for gaps" not in said
     back = read_log(tmp_path / "imported")

@@ -59,6 +59,17 @@ def pulse_run():
     return run_scenario(scenario_from_dict(_scenario(), source="test_supplier_pulse"), progress=False)
 
 
+FITTED = ["gyro.bias", "acc.bias", "acc.sf"]
+
+
+@pytest.fixture(scope="module")
+def chosen_noise(pulse_run):
+    """The log's data and the noise calibrate chooses for it (identified around the counts' floor:
+    the slow part of two tests, computed once)."""
+    data = LogData.from_log(pulse_run.log)
+    return data, choose_noise(None, data, effects=FITTED)
+
+
 def test_the_counts_and_their_weight_reach_the_log(pulse_run):
     log = pulse_run.log
     assert log.gyro_output == log.acc_output == "counts"
@@ -71,12 +82,11 @@ def test_the_counts_and_their_weight_reach_the_log(pulse_run):
     assert per_s == pytest.approx(log.gravity, abs=6e-3)
 
 
-def test_the_calibration_finds_the_injected_biases_through_the_counts(pulse_run):
+def test_the_calibration_finds_the_injected_biases_through_the_counts(pulse_run, chosen_noise):
     truth = pulse_run.truth
     assert truth["not_injected"] == {"effects": [], "noise": ["gyro.noise.arw"], "seed": True}
     # as calibrate on the command line does: pulse counts bring their quantization as noise
-    data, effects = LogData.from_log(pulse_run.log), ["gyro.bias", "acc.bias", "acc.sf"]
-    noise, said, _ = choose_noise(None, data, effects=effects)
+    (data, (noise, said, _)), effects = chosen_noise, FITTED
     assert said.startswith("pulse counts: quantization from the count weights")
     fit = calibrate(data, effects, noise=noise)
     v, s = fit.values(), dict(zip(fit.parameters, fit.sigma))
@@ -231,7 +241,7 @@ def test_compare_on_counts_without_a_noise_model_keeps_the_quantization(pulse_ru
     assert 0 < c.chi2_per_dof < 2.0, c.chi2_per_dof
 
 
-def test_a_noise_free_pulse_outputs_noise_floor_is_its_counts(pulse_run):
+def test_a_noise_free_pulse_outputs_noise_floor_is_its_counts(chosen_noise):
     """This FMU takes no noise: its samples carry only the remainders of their counts, so a
     sample's residual at rest is of the order of w/√6 (two uniform remainders), and the
     per-sample noise floor compare reports must be that, not the white level the log lacks
@@ -239,9 +249,9 @@ def test_a_noise_free_pulse_outputs_noise_floor_is_its_counts(pulse_run):
     from components.diagnosis.compare import compare
     from components.model.result import result_from_fit
 
-    data, effects = LogData.from_log(pulse_run.log), ["gyro.bias", "acc.bias", "acc.sf"]
+    (data, chosen), effects = chosen_noise, FITTED
     for spec in (None, ["white"]):
-        noise, said, _ = choose_noise(spec, data, effects=effects)
+        noise, said, _ = chosen if spec is None else choose_noise(spec, data, effects=effects)
         model = result_from_fit(calibrate(data, effects, noise=noise), effects, data)
         c = compare(data, model, fitted_parameters=len(model.values), noise=noise)
         for ch, v in c.channels.items():

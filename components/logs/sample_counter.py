@@ -44,7 +44,7 @@ def sample_index(m: Mapping, cols: Columns, notes: list[str]) -> np.ndarray | No
                                         "e.g. 65536)" if m.counter_rollover is None else "")))
     skipped = np.diff(k) - 1
     lost = int(skipped.sum())
-    notes.append(f"sample counter {m.counter.column!r}: {len(k)} samples over {int(k[-1]) + 1} counts"
+    notes.append(f"sample counter {m.counter.column!r}: {len(k)} of the {int(k[-1]) + 1} samples it counted are in the file"
                  + (f" (rolled over {rolled} time(s))" if rolled else "")
                  + (f"; {lost} sample(s) lost in {int(np.count_nonzero(skipped))} gap(s), the most at once "
                     f"{int(skipped.max())}" if lost else "; none lost"))
