@@ -414,6 +414,8 @@ def main() -> int:
     ap.add_argument("--registers", action="store_true",
                     help=f"the rig writes what its registers hold: {REGISTERS} (the mapping says each)")
     ap.add_argument("--jitter-ms", type=float, default=JITTER * 1e3, help="the host stamps' uniform jitter, either side")
+    ap.add_argument("--gyro-count", type=float, help="the gyro pulse's weight [rad] instead of 1e-6 (1e-5: a ring-laser "
+                    "gyro's 2 arcsec; see foreign_rig_coarse_counts.txt)")
     ap.add_argument("--counter", action="store_true", help="a 16-bit packet counter in the IMU's file, named by the "
                     "mapping (module docstring)")
     ap.add_argument("--lost-rows", action="store_true",
@@ -421,6 +423,12 @@ def main() -> int:
     ap.add_argument("--clip", type=float, default=0.0, metavar="DEG_S",
                     help="the gyros' output range: their rate clipped at ±DEG_S before it is counted (module docstring)")
     a = ap.parse_args()
+    if a.gyro_count:
+        if a.registers or a.clip:
+            ap.error("--gyro-count: not with --registers or --clip (their mappings are written for 1e-6 rad)")
+        global MAPPING
+        COUNTS["gyro"] = a.gyro_count
+        MAPPING = MAPPING.replace('count = "1e-6 rad"', f'count = "{a.gyro_count:g} rad"')
     if a.drift_ppm and a.host_drift_ppm:
         ap.error("--drift-ppm and --host-drift-ppm: one clock drifts against the host's, the IMU's or the host's own")
     tmp = None
