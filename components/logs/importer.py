@@ -18,9 +18,9 @@ from components.logs.mapping import AX, Mapping
 from components.logs.measurement import at_output_range
 from components.logs.sample_counter import sample_index, skips
 from components.logs.sources import Columns
-from components.logs.stamps import imu_stamps, table_stamps
+from components.logs.stamps import imu_stamps, regular_grid, table_stamps
 from components.logs.table_clock import angles_at, estimate_clock_offset, table_to_imu
-from components.logs.timebase import gaps, regularise
+from components.logs.timebase import gaps
 
 
 @dataclass
@@ -67,7 +67,7 @@ def import_log(m: Mapping) -> Imported:
     logged = None  # the log's time where it is not the host's (a drift, the sensor keeping time)
     bow = None  # with a drift: the host's stamps less the sensor's grid at each sample
     if m.timing == "regularise":
-        reg = regularise(t, nominal, max_int, index)
+        reg = regular_grid(t, nominal, max_int, cols, "imu.time", index)
         t = reg.time
         notes.append(f"time stamps regularised: {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz "
                      f"({(reg.rate_hz / m.sample_rate_hz - 1) * 1e6:+.3g} ppm from the nominal {m.sample_rate_hz:g}), "
@@ -104,15 +104,6 @@ def import_log(m: Mapping) -> Imported:
                          "for gaps; " + (f"give a max_interval_s between {lo * 1e3:.3g} and {hi * 1e3:.3g} ms" if hi > lo
                                          else "at this jitter no interval tells a lost sample from a late stamp")
                          + " (a sample counter in the file tells: give [imu.counter])")
-        back = np.diff(t) <= 0
-        if back.any():
-            # grids of runs cut at jitter taken for gaps, each placed by its own stamps, overlap
-            i = int(np.argmax(back)) + 1
-            raise MappingError(f"{cols.where}: imu.time: the regular grids fitted to the stamps between what look like "
-                               f"gaps overlap at row {cols.file_row(i)} (the stamps' jitter {reg.jitter_rms_s * 1e6:.3g} "
-                               f"us RMS, imu.time.max_interval_s {max_int * 1e3:g} ms): at this jitter the stamps do not "
-                               "tell a lost sample from a late stamp; give [imu.counter] (the sensor's sample counter) "
-                               "if the file has one, else a max_interval_s that no late stamp reaches")
         if reg.runs > 1:
             timing = "measured"
         # the sensor's rates are per its own nominal interval: the fitted rate (the host's view of
@@ -207,15 +198,17 @@ def _imu_file_channels(m: Mapping) -> list:
     out = [(m.time, "imu.time.column")] + ([(m.counter, "imu.counter.column")] if m.counter is not None else [])
     out += [(ch, f"imu.{name}.{a}") for name, sensor in (("gyro", m.gyro), ("acc", m.acc))
             for ch, a in zip(sensor.axes, AX)]
-    if m.table is None:
-        out += [(a.channel, f"table.axes.{a.name}") for a in m.axes]
-        out += [(a.command, f"table.axes.{a.name}.command") for a in m.axes if a.command is not None]
-    return out
+    return out + (_axis_channels(m) if m.table is None else [])
 
 
 def _table_file_channels(m: Mapping) -> list:
     """(channel, mapping key) of every number column the import reads from the table's file."""
-    return ([(m.table_time, "table.time.column")] + [(a.channel, f"table.axes.{a.name}") for a in m.axes]
+    return [(m.table_time, "table.time.column")] + _axis_channels(m)
+
+
+def _axis_channels(m: Mapping) -> list:
+    """(channel, mapping key) of the table's angle and command columns, in whichever file they are."""
+    return ([(a.channel, f"table.axes.{a.name}") for a in m.axes]
             + [(a.command, f"table.axes.{a.name}.command") for a in m.axes if a.command is not None])
 
 

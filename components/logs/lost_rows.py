@@ -11,6 +11,7 @@ from components.errors import MappingError
 from components.logs.labels import SegmentLabels
 from components.logs.mapping import Channel
 from components.logs.sources import Columns
+from components.model.mask_runs import runs
 
 SHOWN_ROWS = 3
 
@@ -46,13 +47,9 @@ def leave_out_lost_rows(cols: Columns, channels: list[tuple[Channel, str]], note
                            f"(first in {', '.join(sorted(first, key=first.get))}); expected samples")
     rows = np.flatnonzero(lost)
     shown = ", ".join(str(r + 1) for r in rows[:SHOWN_ROWS]) + (", ..." if n > SHOWN_ROWS else "")
-    runs = int(np.count_nonzero(np.diff(np.concatenate([[False], lost]).astype(np.int8)) == 1))
+    starts, stops = runs(lost)
     notes.append(f"{cols.where}: {n} row(s) with an empty or NaN cell ({cols.source.key}.lost_rows; rows {shown}; "
-                 f"{runs} run(s), the longest {_longest_run(lost)}) taken for lost packets and left out: a gap each")
+                 f"{len(starts)} run(s), the longest {int(np.max(stops - starts))}) taken for lost packets and left "
+                 "out: a gap each")
     cols.leave_out(lost)
     return lost
-
-
-def _longest_run(mask: np.ndarray) -> int:
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return int(np.max(np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)))

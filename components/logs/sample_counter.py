@@ -9,7 +9,7 @@ import numpy as np
 from components.errors import MappingError
 from components.logs.mapping import Mapping
 from components.logs.sources import Columns
-from components.logs.timebase import unrolled
+from components.logs.timebase import index_gaps, unrolled
 
 KEY = "imu.counter.column"
 
@@ -53,4 +53,4 @@ def sample_index(m: Mapping, cols: Columns, notes: list[str]) -> np.ndarray | No
 
 def skips(index: np.ndarray | None) -> np.ndarray | None:
     """(N,) bool: the counter skipped samples before this one (None without a counter)."""
-    return None if index is None else np.diff(index, prepend=index[0]) > 1
+    return None if index is None else index_gaps(index)

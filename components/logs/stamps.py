@@ -61,12 +61,31 @@ def table_stamps(m: Mapping, tc: Columns, notes: list[str]) -> np.ndarray:
     nominal = 1.0 / m.table_rate_hz
     tick = stamp_resolution(tt, nominal)
     _check_rate(m, tt, nominal, tick, "table", m.table_time_si)
-    reg = regularise(tt, nominal, 1.5 * nominal + tick)
+    reg = regular_grid(tt, nominal, 1.5 * nominal + tick, tc, "table.time")
     notes.append(f"{tc.where}: table stamps regularised"
                  + (f" (a clock of {tick * 1e3:.4g} ms resolution, {float(np.mean(np.diff(tt) == 0)):.0%} of the "
                     "intervals zero)" if tick else "")
                  + f": {reg.runs} run(s), fitted rate {reg.rate_hz:.6f} Hz, stamps' RMS scatter {reg.jitter_rms_s * 1e3:.3g} ms")
     return reg.time
+
+
+def regular_grid(t: np.ndarray, nominal: float, max_interval: float, cols: Columns, key: str,
+                 index: np.ndarray | None = None):
+    """components.logs.timebase.regularise of the stamps *t* of *cols*' time column *key*, its
+    grid checked to advance: where jitter passes for gaps, the runs between them are placed by
+    their own stamps and their grids can overlap (a log with two samples at one time, refused
+    only by the log's own check, naming the log's sample). One error at the file's row, naming
+    the sample counter that tells lost samples from late stamps."""
+    reg = regularise(t, nominal, max_interval, index)
+    back = np.diff(reg.time) <= 0
+    if back.any():
+        i = int(np.argmax(back)) + 1
+        counter = "give [imu.counter] (the sensor's sample counter) if the file has one, else " if key == "imu.time" else ""
+        raise MappingError(f"{cols.where}: {key}: the regular grids fitted to the stamps between what look like gaps "
+                           f"overlap at row {cols.file_row(i)} (the stamps' jitter {reg.jitter_rms_s * 1e6:.3g} us RMS, "
+                           f"a gap beyond {max_interval * 1e3:g} ms): at this jitter the stamps do not tell a lost sample "
+                           f"from a late stamp; {counter}a max_interval_s that no late stamp reaches")
+    return reg
 
 
 def _in_order(t: np.ndarray, repeats: bool, where: str, key: str, rollover_s: float | None,

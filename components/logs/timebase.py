@@ -65,6 +65,12 @@ def gaps(t: np.ndarray, max_interval: float) -> np.ndarray:
     return out
 
 
+def index_gaps(index: np.ndarray) -> np.ndarray:
+    """(N,) bool: the sample's index on the sensor's clock (a sample counter's) skips samples
+    before it."""
+    return np.diff(index, prepend=index[0]) > 1
+
+
 def regularise(t: np.ndarray, nominal_dt: float, max_interval: float, index: np.ndarray | None = None) -> Regularised:
     """Stamps replaced by a regular grid (:func:`_regular`) and, where they bow away from it by more
     than their jitter, a smooth correction of it (components.logs.clock_drift): the grid is
@@ -73,7 +79,7 @@ def regularise(t: np.ndarray, nominal_dt: float, max_interval: float, index: np.
     runs through lost samples only once the bow no longer hides their whole intervals).
     *index*: each sample's index on the sensor's clock, read from its sample counter; the grid is
     then one line through the stamps at those indices (no gap guessed from the stamps)."""
-    cut = np.nonzero(gaps(t, max_interval) if index is None else np.diff(index, prepend=index[0]) > 1)[0]
+    cut = np.nonzero(gaps(t, max_interval) if index is None else index_gaps(index))[0]
     edges = np.concatenate([[0], cut, [len(t)]])
     reg, residual = _regular(t, nominal_dt, edges, index)
     u = t - float(t[0])
