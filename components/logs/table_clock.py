@@ -5,11 +5,16 @@ rate that changes, and the table's angles at the IMU's times.
   matching how far the plate turns with how far the gyros say it turned (the same motion,
   whatever the axes' mapping; the gyros' errors scale it by parts per thousand at most): a coarse
   shift from the cross-correlation of the two rate magnitudes (each IMU sample's rate at its
-  interval's middle), refined by Gauss–Newton on, per table interval while the table turns, the
-  gyros' turn over it (their running sum, a cubic through the ends of the IMU's intervals, at the
-  readings' times shifted by δ) minus the plate's turn between the readings as they are — the
-  encoder's counts are not smooth, the gyros' running sum is, so it is what is interpolated.
-  σ from that fit's residual and curvature, and at least half the difference of the offsets
+  interval's middle), refined by Gauss–Newton on, per table interval while the table's rate
+  changes (at a constant rate every shift turns the same), the gyros' turn over it (their running
+  sum, a cubic through the ends of the IMU's intervals, at the readings' times shifted by δ) minus
+  the plate's turn between the readings as they are — the encoder's counts are not smooth, the
+  gyros' running sum is, so it is what is interpolated. The step's slope in δ is taken from the
+  gyros' mean rates just outside the nodes each residual uses (an instrumental variable): the
+  residual's own slope carries the counts' rounding, whose interpolated size depends on where
+  between the IMU's samples δ puts the readings, and a least squares then follows that rather
+  than the motion (pulses of 2″: a false curve of 8 ms on the foreign rig).
+  σ from that fit's residual and slopes, and at least half the difference of the offsets
   fitted on the first and the second half (model error: both halves are reported). Two
   crystals also run at rates ppm apart: the rate between the clocks comes from a line through
   the offsets of stretches of the record, kept where it is significant against their scatter;
@@ -126,7 +131,11 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     plate = _plate(angles, axis_vectors)
     ends_a, ends_b = t_tab[:-k], t_tab[k:]
     turn_tab = _turn_angle(plate[:-k], plate[k:])
-    moving = turn_tab > 0.02 * (ends_b - ends_a)  # turning faster than ~1 deg/s
+    # the intervals that tell the shift: turning faster than ~1 deg/s, and its rate changing (at a
+    # constant rate every shift turns the same; there the turns' residual is only the counts'
+    # rounding, which at a constant rate repeats in a pattern: on a ring-laser gyro's counts a
+    # rotation test's four minutes pulled the offset by 1.5 ms)
+    moving = (turn_tab > 0.02 * (ends_b - ends_a)) & _changing_rate(t_tab, plate, k)
     t_node = np.concatenate([[t_imu[0] - dt_imu[0]], t_imu])  # the ends of the IMU's intervals
     # the gyros' running sum is smooth (its slope the rate): a cubic through the four ends of
     # their intervals around each time asked, where a line between two misses by α dt²/8 wherever
@@ -165,6 +174,28 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
     def residual(line, sel):
         return gyro_turn(line, sel) - turn_tab[sel]
 
+    def rate_change(line, sel):
+        # the residual's slope in the shift, from nodes the residual does not use (the instrument,
+        # _refine): the gyros' turn direction times their mean rate over INSTRUMENT_NODES intervals
+        # just after the later end's interpolation stencil less that just before the earlier's.
+        # A running sum's difference holds the rounding of its two ends only, so this one shares
+        # none with the residual's (a pulse count's, or white noise's summed increments)
+        ta, tb = on_imu(ends_a[sel], line), on_imu(ends_b[sel], line)
+        last = len(t_node) - 1
+        first_a = np.clip(np.searchsorted(t_node, ta) - 2, 0, last - 3)  # _cubic_at's stencils
+        first_b = np.clip(np.searchsorted(t_node, tb) - 2, 0, last - 3)
+        before = np.maximum(first_a - 1 - INSTRUMENT_NODES, 0), np.maximum(first_a - 1, 0)
+        after = np.minimum(first_b + 4, last), np.minimum(first_b + 4 + INSTRUMENT_NODES, last)
+
+        def mean_rate(lo, hi):
+            span = t_node[hi] - t_node[lo]
+            return np.where((span > 0)[:, None], running[hi] - running[lo], 0.0) / np.where(span > 0, span, 1.0)[:, None]
+
+        way = running[after[1]] - running[before[0]]
+        norm = np.linalg.norm(way, axis=1, keepdims=True)
+        way = np.where(norm > 0, way / np.where(norm > 0, norm, 1.0), 0.0)
+        return np.sum(way * (mean_rate(*after) - mean_rate(*before)), axis=1)
+
     def inside(line, sel):
         ta, tb = on_imu(ends_a, line), on_imu(ends_b, line)
         ok = sel & (ta >= t_node[0]) & (tb <= t_node[-1])
@@ -176,7 +207,8 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
         return ok
 
     def refine(sel, line, rate=None, with_rss=False):
-        return _refine(residual, inside, t_res, sel, line, t_ref, rate, held=held, scale=scale, with_rss=with_rss)
+        return _refine(residual, inside, t_res, sel, line, t_ref, rate, held=held, scale=scale, with_rss=with_rss,
+                       instrument=rate_change)
 
     line, cov = refine(moving, np.array([delta]))
     rated, stretches = _rate_from_windows(refine, t_res, moving, float(line[0]), t_ref)
@@ -235,7 +267,30 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
                        math.sqrt(max(at_edge - float(cov[0, 0]), 0.0)))
 
 
+# the instrument's mean rates each over this many IMU intervals beside an interval's stencils
+INSTRUMENT_NODES = 4
 RATE_WINDOWS = 8  # the record in this many equal stretches, for the rate between the clocks and its σ
+
+
+CHANGING_RATE = 0.01  # rad/s²: ~0.5 deg/s², the table's rate changing at least this fast tells a shift
+CHANGING_SPAN = 0.05  # s: the plate's mean rate over this long before and after each interval
+
+
+def _changing_rate(t_tab: np.ndarray, plate: np.ndarray, k: int) -> np.ndarray:
+    """(len(t_tab) − k,) bool: the table intervals (from a reading to the k-th after it) whose
+    plate's mean rate over CHANGING_SPAN after the interval differs from that before it by at
+    least CHANGING_RATE per second between the two (from the table's readings alone: the gyros'
+    counts decide nothing about which of their residuals are used)."""
+    n = len(t_tab)
+    m = max(1, int(round(CHANGING_SPAN / float(np.median(np.diff(t_tab))))))
+    i = np.arange(n - k)
+    a0, a1 = np.maximum(i - m, 0), i
+    b0, b1 = i + k, np.minimum(i + k + m, n - 1)
+    ok = (a1 > a0) & (b1 > b0)
+    before = _turn_angle(plate[a0], plate[a1]) / np.where(ok, t_tab[a1] - t_tab[a0], 1.0)
+    after = _turn_angle(plate[b0], plate[b1]) / np.where(ok, t_tab[b1] - t_tab[b0], 1.0)
+    apart = 0.5 * (t_tab[b0] + t_tab[b1] - t_tab[a0] - t_tab[a1])
+    return ok & (np.abs(after - before) >= CHANGING_RATE * np.where(ok, apart, 1.0))
 
 
 def _cubic_at(x: np.ndarray, y: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -320,14 +375,18 @@ def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
 
 
 def _refine(residual, inside, t_res, moving, line, t_ref, rate: float | None = None,
-            iterations: int = 15, held: tuple = (), scale: float = 1.0, with_rss: bool = False):
+            iterations: int = 15, held: tuple = (), scale: float = 1.0, with_rss: bool = False, instrument=None):
     """Gauss–Newton on the line (δ at *t_ref*[, rate[, the curve's coefficients of P_2(x), P_3(x), ...
     with x = (t − t_ref) / *scale*]]) over the *moving* table intervals that lie in the IMU's record
     under it (*inside*(line, moving)): *residual*(line, intervals), the gyros' turn less the
     table's; *t_res*, each interval's time on the IMU's clock (the rate's and the curve's time
     factors). (line, its covariance from the white residual[, the residual's sum of squares, the
     intervals in it]); a line of one number holds the rate at *rate* (0 if None) and the curve at
-    *held*."""
+    *held*. *instrument*(line, intervals), if given: a slope in the shift per interval whose noise
+    the residual does not share; the step then solves Sᵀ(r + J Δ) = 0 (an instrumental variable)
+    instead of the least squares' Jᵀ(r + J Δ) = 0, whose J carries the residual's own noise: where
+    that noise's size moves with the shift (a running count's rounding interpolated between
+    samples), Jᵀr follows it. Its covariance is then the sandwich (SᵀJ)⁻¹ SᵀS (JᵀS)⁻¹ σ²."""
     line = np.asarray(line, float).copy()
     fixed = 0.0 if rate is None else rate
     cov = np.full((len(line), len(line)), np.nan)
@@ -340,29 +399,37 @@ def _refine(residual, inside, t_res, moving, line, t_ref, rate: float | None = N
     for _ in range(iterations):
         sel = inside(full(line), moving)
         if sel.sum() < 10:
-            raise MappingError("clock offset: fewer than 10 moving table intervals overlap the IMU's record at the "
+            raise MappingError("clock offset: fewer than 10 table intervals whose rate changes overlap the IMU's record at the "
                                "estimated offset; give table.clock_offset_s")
         r = residual(full(line), sel)
         # the residual depends on the line through each interval's shift δ + rate (t - t_ref)
         nudge = np.zeros(len(line))
         nudge[0] = eps
         ds = (residual(full(line + nudge), sel) - residual(full(line - nudge), sel)) / (2 * eps)
-        cols = [ds] + ([ds * (t_res[sel] - t_ref)] if len(line) > 1 else [])
-        if len(line) > 2:
-            cols += list((ds[:, None] * legendre_tail((t_res[sel] - t_ref) / scale, len(line) - 2)).T)
-        J = np.column_stack(cols)
-        ok = np.isfinite(r) & np.all(np.isfinite(J), axis=1)
-        r, J = r[ok], J[ok]
-        info = J.T @ J
-        if not np.all(np.isfinite(info)) or np.linalg.det(info) <= 0:
+        J = _columns(ds, t_res[sel] - t_ref, len(line), scale)
+        S = J if instrument is None else _columns(instrument(full(line), sel), t_res[sel] - t_ref, len(line), scale)
+        ok = np.isfinite(r) & np.all(np.isfinite(J), axis=1) & np.all(np.isfinite(S), axis=1)
+        r, J, S = r[ok], J[ok], S[ok]
+        info = S.T @ J
+        if not np.all(np.isfinite(info)) or np.linalg.cond(info) > 1e12:
             break
-        stepv = -np.linalg.solve(info, J.T @ r)
+        stepv = -np.linalg.solve(info, S.T @ r)
         line += stepv
         rss, used = float(r @ r), len(r)  # at the line before this step (its last one: nearly the same)
-        cov = np.linalg.inv(info) * rss / max(len(r) - len(line), 1)
+        inv = np.linalg.inv(info)
+        cov = inv @ (S.T @ S) @ inv.T * rss / max(len(r) - len(line), 1)
         if np.all(np.abs(stepv) < 1e-3 * np.sqrt(np.diag(cov))):
             break
     return (line, cov, rss, used) if with_rss else (line, cov)
+
+
+def _columns(slope: np.ndarray, since: np.ndarray, n: int, scale: float) -> np.ndarray:
+    """(len(slope), n): the residual's slope in the shift times each of the line's *n* time factors
+    (1, the time *since* its centre, the curve's Legendre polynomials of since / *scale*)."""
+    cols = [slope] + ([slope * since] if n > 1 else [])
+    if n > 2:
+        cols += list((slope[:, None] * legendre_tail(since / scale, n - 2)).T)
+    return np.column_stack(cols)
 
 
 def angles_at(t: np.ndarray, t_tab: np.ndarray, angles: np.ndarray) -> np.ndarray:
