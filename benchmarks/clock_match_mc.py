@@ -7,6 +7,7 @@ and RMS 1: printed with the RMS's χ²(N) band (two-sided, 1 %), and the offsets
 the σ said.
 
     python benchmarks/clock_match_mc.py [--seeds 20] [--table-ppm 30] [--jitter-ms 0.3] [--counter]
+                                        [--gyro-count 1e-5]
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import foreign_rig  # noqa: E402
 from foreign_rig import _grid_error, calbench, scenario_text, write_rig  # noqa: E402
 
 from components.logs.logfile import read_log  # noqa: E402
@@ -58,9 +60,13 @@ def main() -> int:
     ap.add_argument("--table-ppm", type=float, default=30.0)
     ap.add_argument("--jitter-ms", type=float, default=0.3)
     ap.add_argument("--counter", action="store_true")
+    ap.add_argument("--gyro-count", type=float, help="the gyro pulse's weight [rad] instead of 1e-6")
     a = ap.parse_args()
+    if a.gyro_count:
+        foreign_rig.use_gyro_count(a.gyro_count)
     print(f"clock match over {a.seeds} seeds from {a.first_seed}: the foreign rig's files, the table's clock "
-          f"{a.table_ppm:g} ppm fast, stamps ±{a.jitter_ms:g} ms" + (", a packet counter" if a.counter else ""))
+          f"{a.table_ppm:g} ppm fast, stamps ±{a.jitter_ms:g} ms, gyro pulses of {foreign_rig.COUNTS['gyro']:g} rad"
+          + (", a packet counter" if a.counter else ""))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(a.seeds):

@@ -55,6 +55,11 @@ turns). The log is first imported with a mapping that does not say so and calibr
 must name the clipped channels (components.estimation.semantics); then the mapping gives
 ``range = "R deg/s"`` and the loop must end where the plain files' does.
 
+With ``--gyro-count W`` the gyros count pulses of W rad (1e-5: a ring-laser gyro's 2″): the
+counts then hide a gyro's white noise on some axes, calibrate warns and asks for it, and the loop
+gives what a user would, the datasheet's angle random walk (``--noise gyro.noise.arw=...``),
+beside every noise model it identifies.
+
 With ``--lost-rows`` the logger writes each lost packet's row, its stamp and empty or NaN counts,
 and the mapping says so (``lost_rows = true``): the import leaves them out, and everything after
 it must be the plain files' to the digit (the same samples, the same gaps).
@@ -275,6 +280,14 @@ def write_rig(sim: Path, out: Path, rng: np.random.Generator, drift_ppm: float =
     return float(host[0] + origin - table_time[0]), host + origin
 
 
+def use_gyro_count(weight: float) -> None:
+    """The rig's gyros count pulses of *weight* [rad] (1e-5: a ring-laser gyro's 2″), its mapping
+    says so."""
+    global MAPPING
+    COUNTS["gyro"] = weight
+    MAPPING = MAPPING.replace('count = "1e-6 rad"', f'count = "{weight:g} rad"')
+
+
 def calbench(*args: str, cwd: Path) -> str:
     """Run one command as a user does; its printed text (a failure stops the benchmark)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
@@ -316,6 +329,12 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
     # with a soak, at the record's middle (where the import says the rate of a curved offset)
     true_rate = (1 / (1 + table_ppm * 1e-6 + table_soak_ppm * 1e-6 * (1 - math.exp(-2))) - 1) * 1e6
     said = calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
+    # where calibrate warns that the pulse counts hide a gyro's white noise, the user gives it as it
+    # asks: the datasheet's angle random walk, with every noise model after
+    given = []
+    hidden_white = re.findall(r"no white-noise level on (gyro_[xyz])", said)
+    if hidden_white:
+        given = ["--noise", f"gyro.noise.arw={noise_spec(grade)['gyro.noise.arw']}"]
     if clipped is not None:
         left = re.search(r"gyro at its output range \(([^)]*)\): (\d+)", said)
         clipped.update(left_out=int(left.group(2)) if left else 0,
@@ -328,8 +347,8 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
         if k:
             # refitted under the noise identified around it (add kept the noise it was given)
             calbench("calibrate", "imp.csv", "--effects", ",".join(list(DEFAULT_EFFECTS) + verdicts),
-                     "--noise", f"noise{k}.json", "--out", f"model{k}.json", cwd=d)
-        calbench("diagnose", "imp.csv", "--model", f"model{k}.json", "--noise", f"noise{k}.json",
+                     "--noise", f"noise{k}.json", *given, "--out", f"model{k}.json", cwd=d)
+        calbench("diagnose", "imp.csv", "--model", f"model{k}.json", "--noise", f"noise{k}.json", *given,
                  "--json", f"diagnose{k}.json", cwd=d)
         diag = json.loads((d / f"diagnose{k}.json").read_text())
         if diag["verdict"] is None or len(verdicts) == MOST_ADDED:
@@ -339,7 +358,7 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
         t4n = diag["steps"][0].get("taken_for_noise") if diag["steps"] else None
         taken.append(t4n and f"{t4n['likelihood_ratio']:.1f} against {t4n['critical']:.1f}")
         calbench("add", "imp.csv", "--model", f"model{k}.json", "--effect", verdicts[-1], "--noise",
-                 f"noise{k}.json", "--out", f"model{k + 1}.json", cwd=d)
+                 f"noise{k}.json", *given, "--out", f"model{k + 1}.json", cwd=d)
         k += 1
     # the errors in σ as `calbench simulate --check` gives them (display units)
     errors = {r["parameter"]: r for r in errors_against_truth(CalibrationResult.load(d / f"model{k}.json"), truth)}
@@ -361,6 +380,8 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
             "clocks_said": (f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; " if drift else "")
                           + (f"the table clock's curve (degree {curve.group(3)}): its rate moving {curve.group(1)} ppm, "
                              f"its offset bowing {curve.group(2)} ms; " if curve else ""),
+            "given": f"white noise hidden by the counts on {', '.join(hidden_white)}: the datasheet's {given[1]} given; "
+                     if given else "",
             "verdicts": verdicts, "taken": taken, "last_verdict": diag["verdict"], "k2": errors.get(HIDDEN[1]),
             "temp": errors.get(THERMAL[1]),
             "floors": [noise[f"acc_{a}"].get("bias_instability", {}).get("value", 0.0) / scale for a in "xyz"],
@@ -426,9 +447,7 @@ def main() -> int:
     if a.gyro_count:
         if a.registers or a.clip:
             ap.error("--gyro-count: not with --registers or --clip (their mappings are written for 1e-6 rad)")
-        global MAPPING
-        COUNTS["gyro"] = a.gyro_count
-        MAPPING = MAPPING.replace('count = "1e-6 rad"', f'count = "{a.gyro_count:g} rad"')
+        use_gyro_count(a.gyro_count)
     if a.drift_ppm and a.host_drift_ppm:
         ap.error("--drift-ppm and --host-drift-ppm: one clock drifts against the host's, the IMU's or the host's own")
     tmp = None
@@ -468,7 +487,7 @@ def main() -> int:
                 f"{c['worst'][0]} {c['worst'][1]:+.3g} σ), with it {c['left_out']} samples left out and "
                 f"{', '.join(c['named_after']) or 'none'} named; " if c else "")
         line = (f"seed {r['seed']}: {clip}{r['grid']}{r['clocks_said'] or ''}{r['rate_said'] or ''}{offset} (σ {r['offset_sigma_us']:.1f} us); "
-                f"verdicts {' then '.join(_verdicts(r)) or 'none'}, then {r['last_verdict'] or 'none'}; "
+                f"{r['given']}verdicts {' then '.join(_verdicts(r)) or 'none'}, then {r['last_verdict'] or 'none'}; "
                 f"{HIDDEN[1]} {_estimate(r['k2'])}; {temp}acc floors {fl} {r['floor_unit']} (injected {r['floor_truth']:.3g}); final "
                 f"chi2/dof {r['chi2']:.3f} (99 % band {lo:.3f}-{hi:.3f}); {r['n_params']} parameters RMS z "
                 f"{r['rms_z']:.2f}, largest {r['worst'][0]} {r['worst'][1]:+.2f}")
