@@ -16,7 +16,9 @@ it is left out, the lost one's counts gone with it; no move fits in so few sampl
 over the whole: the blocks between two lost packets of a coarse count see a tick or two, and each
 piece's own rate was off by much of a count (2" gyro counts with 0.2 % of the packets lost: the
 gyros' block sums at χ²/dof 1.28 under their true noise). A longer gap ends the rest, each side
-read at its own rate. The phase after any gap is taken as new (block_noise).
+read at its own rate. Through a gap inside a rest the phase turns by the rest's rate over the
+gap's time (the lost packet's with it, which the log has no row for), which block_noise carries
+on; after a longer gap it is taken as new.
 
 The advance so read is taken as exact. Its error is one rate over the rest, a phase error growing
 with the lag, which no state of a linear filter carries; spread as a wander instead, it damped the
@@ -38,14 +40,17 @@ BRIDGED_GAP = 10  # samples: a rest's rate is read across a gap this short (the 
 
 
 def count_advance(data, rows: dict) -> dict:
-    """{"advance": (R,)} for the rows (block sums) *rows* of *data*
+    """{"advance": (R, 2)} for the rows (block sums) *rows* of *data*
     (components.estimation.log_data.LogData): each static block's input in the channel's unit
-    as its rest's tick rate gives it; NaN for moves and for channels that are not pulse outputs.
-    {} when no channel is a pulse output."""
+    as its rest's tick rate gives it, and the input through the gap before the row where the row
+    goes on the rest of the one before it (0 where they meet); NaN for moves, for rows that start
+    a rest (second column) and for channels that are not pulse outputs. {} when no channel is a
+    pulse output."""
     weights = [w if w else None for w in data.count_weight]
     if not any(weights):
         return {}
-    advance = np.full(len(rows["start"]), np.nan)
+    advance = np.full((len(rows["start"]), 2), np.nan)
+    time = getattr(data, "time", None)
     for ch in range(6):
         w = weights[0 if ch < 3 else 1]
         if w is None:
@@ -74,6 +79,20 @@ def count_advance(data, rows: dict) -> dict:
                 rate = whole + float(extra[f + 1:last + 1].sum()) / (last - f)
             else:
                 rate = float(counts.sum()) / (b - a)
-            advance[idx[h:e + 1]] = rate * (stop[h:e + 1] - start[h:e + 1]) * w
+            advance[idx[h:e + 1], 0] = rate * (stop[h:e + 1] - start[h:e + 1]) * w
+            advance[idx[h + 1:e + 1], 1] = rate * _samples_between(time, stop[h:e], start[h + 1:e + 1]) * w
             release(column)
     return {"advance": advance}
+
+
+def _samples_between(time, stops: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """How many sample intervals lie between each block's end (its last sample *stops* − 1) and
+    the next one's start (its first sample *starts*): by the log's times where it has them (a lost
+    packet has no row, but its interval passed), else by the samples' indices."""
+    gap = (starts - stops).astype(float)
+    if time is None or len(time) < 2 or not len(stops):
+        return gap
+    t = np.asarray(time, float)
+    dt = float(np.median(np.diff(t)))
+    # from the end of sample stop - 1 to the start of sample start (the end of start - 1 on the grid)
+    return np.maximum(np.rint((t[starts] - t[stops - 1]) / dt) - 1.0, gap)

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from components.model.count_remainder import kept_harmonics, remainder_form
+from components.model.count_remainder import kept_harmonics, remainder_carried, remainder_form
 from components.model.effects import DEG, DEG_H, UG
 from components.model.flicker import FLICKER_AVAR, flicker_terms, gm_avar
 from components.model.rest_wander import rest_spans, slow_wander_in_rest
@@ -421,9 +421,10 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
     per block (rest angles); ``span`` [s]: the log's duration (a floor without a range of its own
     is realised up to :func:`flicker_upper`, and the random walk's starting value has that much
     wander); ``t_lo`` [s]: the shortest time scale the flicker floor is realised from.
-    ``advance`` (B,): a pulse output's input over each block in the channel's unit (NaN where
-    not known: a move; components.estimation.count_phase); given, the quantization's remainder
-    turns through the rests (components.model.count_remainder)."""
+    ``advance`` (B,) or (B, 2): a pulse output's input over each block in the channel's unit (NaN
+    where not known: a move), and through the gap before it where it goes on a rest
+    (components.estimation.count_phase's second column; NaN: the phase is new after the gap);
+    given, the quantization's remainder turns through the rests (components.model.count_remainder)."""
     d = np.asarray(durations, float)
     nb = len(d)
     # what lies between a block's end and the next one's start: a state's transition spans both
@@ -451,29 +452,41 @@ def block_noise(ch: ChannelNoise, durations: np.ndarray, white_var: np.ndarray, 
         p0.append(K**2 * max(span, 1.0))
     Q = ch.quantization
     form = None
+    carry = joined.astype(float)  # how much of the remainder at a block's end the next one starts with
     if Q > 0 and advance is not None:
         count = Q * math.sqrt(12.0)
         advance = np.asarray(advance, float)
+        through = np.full(nb, np.nan)  # the input through the gap after each block, where the rest goes on
+        if advance.ndim == 2:
+            advance, through[:-1] = advance[:, 0], advance[1:, 1]
+        through = np.where(joined, np.nan, through)
+        # the white noise's spread through a gap: as over a block, for the gap's time
+        through_spread = np.asarray(white_var, float) / count**2 * after / d
         # the phase spread over a block: its white noise, and the slow terms' wander within the
         # rest beyond the rest's mean rate (which the tick-read advance holds); the wander only
         # adds, so where the white noise alone dithers every harmonic (fine counts) it is not needed
         spread = np.where(np.isfinite(advance), np.asarray(white_var, float) / count**2, np.nan)
         n = kept_harmonics(spread)
         if n:
-            spread = spread + slow_wander_in_rest(terms, ch.random_walk, d, rest_spans(d, advance, joined)) / count**2
+            on = joined | np.isfinite(through)  # the rest goes on after the block
+            spread = spread + slow_wander_in_rest(terms, ch.random_walk, d, rest_spans(d, advance, on)) / count**2
             n = kept_harmonics(spread)
         if n:
-            form = remainder_form(count, advance / count, spread, n, joined)
+            form = remainder_form(count, advance / count, spread, n, joined, through / count, through_spread)
             Q = math.sqrt(form.independent)
             rest += form.rest
+        if np.isfinite(through).any():
+            # the harmonics beyond those kept, through a short gap inside a rest: as much of the
+            # remainder as the gap's advance and noise leave (after a lost packet, most of it)
+            carry = np.where(np.isfinite(through), remainder_carried(n, through / count, through_spread), carry)
     if Q > 0:
         # the state is the remainder at the block's start; the new one (at its end) is the next
-        # state's process noise, unless a gap lies between, and enters this block's sum with the
-        # opposite sign
+        # state's process noise, unless a gap lies between (or, through a short one inside a rest,
+        # that much of it), and enters this block's sum with the opposite sign
         cols_phi.append(np.zeros((nb, 1)))
         cols_q.append(np.full((nb, 1), Q**2))
         cols_c.append(np.ones((nb, 1)))
-        cols_x.append(np.where(joined, -(Q**2), 0.0)[:, None])
+        cols_x.append((-carry * Q**2)[:, None])
         rest += Q**2
         p0.append(Q**2)
 
