@@ -51,6 +51,7 @@ def count_advance(data, rows: dict) -> dict:
         return {}
     advance = np.full((len(rows["start"]), 2), np.nan)
     time = getattr(data, "time", None)
+    interval = getattr(data, "sample_interval", None)  # (computed once; a long log's intervals are not made whole)
     for ch in range(6):
         w = weights[0 if ch < 3 else 1]
         if w is None:
@@ -80,19 +81,21 @@ def count_advance(data, rows: dict) -> dict:
             else:
                 rate = float(counts.sum()) / (b - a)
             advance[idx[h:e + 1], 0] = rate * (stop[h:e + 1] - start[h:e + 1]) * w
-            advance[idx[h + 1:e + 1], 1] = rate * _samples_between(time, stop[h:e], start[h + 1:e + 1]) * w
+            advance[idx[h + 1:e + 1], 1] = rate * _samples_between(time, interval, stop[h:e], start[h + 1:e + 1]) * w
             release(column)
     return {"advance": advance}
 
 
-def _samples_between(time, stops: np.ndarray, starts: np.ndarray) -> np.ndarray:
+def _samples_between(time, interval: float | None, stops: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """How many sample intervals lie between each block's end (its last sample *stops* − 1) and
-    the next one's start (its first sample *starts*): by the log's times where it has them (a lost
-    packet has no row, but its interval passed), else by the samples' indices."""
+    the next one's start (its first sample *starts*): by the log's *time* and its median
+    *interval* where it has them (a lost packet has no row, but its interval passed), else by the
+    samples' indices."""
     gap = (starts - stops).astype(float)
     if time is None or len(time) < 2 or not len(stops):
         return gap
-    t = np.asarray(time, float)
-    dt = float(np.median(np.diff(t)))
+    if interval is None:
+        interval = float(np.median(np.diff(np.asarray(time, float))))
     # from the end of sample stop - 1 to the start of sample start (the end of start - 1 on the grid)
-    return np.maximum(np.rint((t[starts] - t[stops - 1]) / dt) - 1.0, gap)
+    ends = np.asarray(time[starts], float) - np.asarray(time[stops - 1], float)
+    return np.maximum(np.rint(ends / interval) - 1.0, gap)

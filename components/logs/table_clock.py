@@ -191,10 +191,10 @@ def estimate_clock_offset(t_imu: np.ndarray, dt_imu: np.ndarray, gyro_inc: np.nd
             span = t_node[hi] - t_node[lo]
             return np.where((span > 0)[:, None], running[hi] - running[lo], 0.0) / np.where(span > 0, span, 1.0)[:, None]
 
-        way = running[after[1]] - running[before[0]]
-        norm = np.linalg.norm(way, axis=1, keepdims=True)
-        way = np.where(norm > 0, way / np.where(norm > 0, norm, 1.0), 0.0)
-        return np.sum(way * (mean_rate(*after) - mean_rate(*before)), axis=1)
+        turned = running[after[1]] - running[before[0]]  # (its direction: the turn's axis)
+        norm = np.linalg.norm(turned, axis=1, keepdims=True)
+        axis = np.where(norm > 0, turned / np.where(norm > 0, norm, 1.0), 0.0)
+        return np.sum(axis * (mean_rate(*after) - mean_rate(*before)), axis=1)
 
     def inside(line, sel):
         ta, tb = on_imu(ends_a, line), on_imu(ends_b, line)
