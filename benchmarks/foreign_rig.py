@@ -16,7 +16,9 @@ Per seed:
    segment labels, no encoder resolution stated.
 3. ``calbench import`` (the clock offset estimated), ``calibrate`` (a count log: the noise
    identified on the log), ``noise``, ``diagnose`` under the identified noise, ``add`` the
-   verdict, ``noise`` again around the corrected model, ``calibrate`` with it, ``diagnose``.
+   verdict, ``noise`` again around the corrected model, ``calibrate`` with it, ``diagnose``. A
+   verdict that is a noise term (``gyro.noise.bi``: the identified noise too simple) is added the
+   same way, and the model's own noise is kept from then on (identified again, the term would go).
 
 Printed per seed and summed: the clock offset's error in its σ; the verdicts in turn and the K2
 against the truth in σ; the accelerometer floors identified around the corrected model against
@@ -342,14 +344,21 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
     # the user's loop: the noise identified around the model, the diagnosis under it, the verdict
     # added, until nothing is missing (at most MOST_ADDED effects)
     verdicts, taken, k = [], [], 0
+    # after a noise term is added (a verdict such as gyro.noise.bi: the noise model too simple),
+    # the model's own noise from then on: identified again around the model, the term would go
+    kept_noise, last_noise = None, None
     while True:
-        calbench("noise", "imp.csv", "--model", f"model{k}.json", "--out", f"noise{k}.json", cwd=d)
-        if k:
-            # refitted under the noise identified around it (add kept the noise it was given)
-            calbench("calibrate", "imp.csv", "--effects", ",".join(list(DEFAULT_EFFECTS) + verdicts),
-                     "--noise", f"noise{k}.json", *given, "--out", f"model{k}.json", cwd=d)
-        calbench("diagnose", "imp.csv", "--model", f"model{k}.json", "--noise", f"noise{k}.json", *given,
-                 "--json", f"diagnose{k}.json", cwd=d)
+        if kept_noise is None:
+            last_noise = f"noise{k}.json"
+            calbench("noise", "imp.csv", "--model", f"model{k}.json", "--out", last_noise, cwd=d)
+            noise_args = ["--noise", last_noise, *given]
+            if k:
+                # refitted under the noise identified around it (add kept the noise it was given)
+                calbench("calibrate", "imp.csv", "--effects", ",".join(list(DEFAULT_EFFECTS) + verdicts),
+                         *noise_args, "--out", f"model{k}.json", cwd=d)
+        else:
+            noise_args = kept_noise
+        calbench("diagnose", "imp.csv", "--model", f"model{k}.json", *noise_args, "--json", f"diagnose{k}.json", cwd=d)
         diag = json.loads((d / f"diagnose{k}.json").read_text())
         if diag["verdict"] is None or len(verdicts) == MOST_ADDED:
             break
@@ -357,13 +366,15 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
         # named by the test of effects the identified noise took for noise (its likelihood ratio)
         t4n = diag["steps"][0].get("taken_for_noise") if diag["steps"] else None
         taken.append(t4n and f"{t4n['likelihood_ratio']:.1f} against {t4n['critical']:.1f}")
-        calbench("add", "imp.csv", "--model", f"model{k}.json", "--effect", verdicts[-1], "--noise",
-                 f"noise{k}.json", *given, "--out", f"model{k + 1}.json", cwd=d)
+        calbench("add", "imp.csv", "--model", f"model{k}.json", "--effect", verdicts[-1], *noise_args,
+                 "--out", f"model{k + 1}.json", cwd=d)
+        if ".noise." in verdicts[-1]:
+            kept_noise = ["--noise", f"model{k + 1}.json"]
         k += 1
     # the errors in σ as `calbench simulate --check` gives them (display units)
     errors = {r["parameter"]: r for r in errors_against_truth(CalibrationResult.load(d / f"model{k}.json"), truth)}
     z = {p: r["error"] / r["sigma"] for p, r in errors.items()}
-    noise = json.loads((d / f"noise{k}.json").read_text())["channels"]
+    noise = json.loads((d / last_noise).read_text())["channels"]
     _, _, unit, scale = TERMS["acc"]["bias_instability"]  # the floor's display unit and its SI size
     # with the host drifting, the log's time is the sensor's clock (true time) from where the import
     # placed its first sample on the host's bowed stamps: the rate has its truth, the offset none here
