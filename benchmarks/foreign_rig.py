@@ -360,7 +360,8 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
             noise_args = kept_noise
         calbench("diagnose", "imp.csv", "--model", f"model{k}.json", *noise_args, "--json", f"diagnose{k}.json", cwd=d)
         diag = json.loads((d / f"diagnose{k}.json").read_text())
-        if diag["verdict"] is None or len(verdicts) == MOST_ADDED:
+        # (a verdict named again after it was added: the add did not take the misfit, and a user stops there)
+        if diag["verdict"] is None or diag["verdict"] in verdicts or len(verdicts) == MOST_ADDED:
             break
         verdicts.append(diag["verdict"])
         # named by the test of effects the identified noise took for noise (its likelihood ratio)

@@ -348,3 +348,21 @@ def test_the_turning_filter_in_pieces_is_the_same_filter():
     whitener = ChannelWhitener(bn, 2)
     got = np.vstack([whitener(Y[a:b])[0] for a, b in ((0, 13), (13, 14), (14, 40))])
     assert np.array_equal(got, whiten_channel(Y, bn)[0])
+
+
+def test_what_a_gap_carries_of_the_remainder_beyond_the_kept_harmonics_is_their_damped_sum():
+    """remainder_carried's closed form (the sawtooth's autocovariance smoothed by the gap's phase
+    spread) against the sum it stands for, Σ_{n>kept} cos(2πn x) e^(−2π²n²s²) / n² over its
+    share Σ_{n>kept} 1/n², summed directly over 200,000 harmonics (the tail beyond them ~1e-5 of
+    the share at kept = 16): turns either side of whole counts, spreads from none to half a count."""
+    from components.model.count_remainder import remainder_carried
+
+    rng = np.random.default_rng(1)
+    x = rng.uniform(-3, 3, 200)
+    s2 = rng.choice([0, 1e-6, 1e-4, 1e-3, 5e-3, 0.009, 0.0101, 0.02, 0.1, 0.5], 200)
+    for kept in (0, 1, 3, 16):
+        n = np.arange(kept + 1, 200_001, dtype=float)
+        direct = np.array([(np.exp(-2 * math.pi**2 * s * n**2) * np.cos(2 * math.pi * t * n)) @ (1 / n**2)
+                           for t, s in zip(x, s2)]) / np.sum(1 / n**2)
+        assert np.max(np.abs(remainder_carried(kept, x, s2) - direct)) < 1e-4, kept
+    assert np.all(remainder_carried(2, np.array([np.nan]), np.array([0.0])) == 0.0)
