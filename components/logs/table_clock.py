@@ -375,18 +375,18 @@ def _coarse(t_mid, w_imu, t_tab, w_tab, dt, max_offset) -> float:
 
 
 def _refine(residual, inside, t_res, moving, line, t_ref, rate: float | None = None,
-            iterations: int = 15, held: tuple = (), scale: float = 1.0, with_rss: bool = False, instrument=None):
+            iterations: int = 15, held: tuple = (), scale: float = 1.0, with_rss: bool = False, *, instrument):
     """Gauss–Newton on the line (δ at *t_ref*[, rate[, the curve's coefficients of P_2(x), P_3(x), ...
     with x = (t − t_ref) / *scale*]]) over the *moving* table intervals that lie in the IMU's record
     under it (*inside*(line, moving)): *residual*(line, intervals), the gyros' turn less the
     table's; *t_res*, each interval's time on the IMU's clock (the rate's and the curve's time
     factors). (line, its covariance from the white residual[, the residual's sum of squares, the
     intervals in it]); a line of one number holds the rate at *rate* (0 if None) and the curve at
-    *held*. *instrument*(line, intervals), if given: a slope in the shift per interval whose noise
-    the residual does not share; the step then solves Sᵀ(r + J Δ) = 0 (an instrumental variable)
-    instead of the least squares' Jᵀ(r + J Δ) = 0, whose J carries the residual's own noise: where
-    that noise's size moves with the shift (a running count's rounding interpolated between
-    samples), Jᵀr follows it. Its covariance is then the sandwich (SᵀJ)⁻¹ SᵀS (JᵀS)⁻¹ σ²."""
+    *held*. *instrument*(line, intervals): a slope in the shift per interval whose noise the
+    residual does not share; the step solves Sᵀ(r + J Δ) = 0 (an instrumental variable), not the
+    least squares' Jᵀ(r + J Δ) = 0, whose J carries the residual's own noise: where that noise's
+    size moves with the shift (a running count's rounding interpolated between samples), Jᵀr
+    follows it. The covariance is the sandwich (SᵀJ)⁻¹ SᵀS (JᵀS)⁻¹ σ²."""
     line = np.asarray(line, float).copy()
     fixed = 0.0 if rate is None else rate
     cov = np.full((len(line), len(line)), np.nan)
@@ -407,7 +407,7 @@ def _refine(residual, inside, t_res, moving, line, t_ref, rate: float | None = N
         nudge[0] = eps
         ds = (residual(full(line + nudge), sel) - residual(full(line - nudge), sel)) / (2 * eps)
         J = _columns(ds, t_res[sel] - t_ref, len(line), scale)
-        S = J if instrument is None else _columns(instrument(full(line), sel), t_res[sel] - t_ref, len(line), scale)
+        S = _columns(instrument(full(line), sel), t_res[sel] - t_ref, len(line), scale)
         ok = np.isfinite(r) & np.all(np.isfinite(J), axis=1) & np.all(np.isfinite(S), axis=1)
         r, J, S = r[ok], J[ok], S[ok]
         info = S.T @ J

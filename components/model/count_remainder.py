@@ -124,8 +124,9 @@ def remainder_carried(kept: int, through: np.ndarray, spread: np.ndarray) -> np.
     The whole sum Σₙ cos(2πnx) e^(−2π²n²s²) / n² is the sawtooth's autocovariance π²(x² − |x| + 1/6)
     (x the turn's distance to the nearest whole count) smoothed by a Gaussian of variance s², in
     closed form while s is small beside a count; the kept harmonics are taken off it one by one.
-    (The noise likelihood builds this form ~10^5 times a `calbench noise`: a sum over thousands of
-    harmonics per gap made that command ten times slower.)"""
+    (Every whitening of a pulse log with lost packets builds it, and the noise terms' likelihood
+    in diagnose and add thousands of times: summed directly over 2,000 harmonics a gap it cost
+    ~5 ms a call and still missed ~1 % of the share at 16 kept.)"""
     through = np.asarray(through, float)
     out = np.zeros(len(through))
     on = np.flatnonzero(np.isfinite(through))
