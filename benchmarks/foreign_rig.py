@@ -334,7 +334,10 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
     # where calibrate warns that the pulse counts hide a gyro's white noise, the user gives it as it
     # asks: the datasheet's angle random walk, with every noise model after
     given = []
-    hidden_white = re.findall(r"no white-noise level on (gyro_[xyz])", said)
+    # (none found, or one identified within three of its σ of 0: either warning names the channels)
+    hidden_white = [ch for names in re.findall(r"(?:no white-noise level|white-noise level poorly read) on "
+                                               r"((?:gyro_[xyz](?:, )?)+)", said)
+                    for ch in names.split(", ") if ch]
     if hidden_white:
         given = ["--noise", f"gyro.noise.arw={noise_spec(grade)['gyro.noise.arw']}"]
     if clipped is not None:

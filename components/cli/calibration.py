@@ -33,9 +33,9 @@ def _print_result(res) -> None:
             note = chi2_band_note(f["chi2_per_dof"], f["dof"], above=True)
             if note:
                 print(f"note: {note}")
-            hidden = res.noise.get("no_white_level")
-            if hidden and f["chi2_per_dof"] > chi2_band(f["dof"])[1]:
-                print(hidden_white_warning(hidden))
+            if f["chi2_per_dof"] > chi2_band(f["dof"])[1]:
+                for line in white_level_warnings(res.noise.get("no_white_level"), res.noise.get("white_poorly_read")):
+                    print(line)
     if weak:
         print(f"weakly determined (sigma above 10 x the magnitude expected of an IMU of this noise grade): "
               f"{', '.join(sorted(weak))}")
@@ -45,13 +45,24 @@ def _print_result(res) -> None:
         print(line)
 
 
-def hidden_white_warning(channels: list[str]) -> str:
-    """The line for pulse channels without a white level when χ²/dof is above its band: the
-    counts hide the IMU's white level, and the floor that stood in for it is why."""
-    return (f"WARNING: no white-noise level on {', '.join(channels)}: the pulse counts are too coarse for this log "
-            "to show it, and none was taken, so the sigma are too small (by as much as chi2/dof says); give the "
-            "noise: --noise with the datasheet's terms (e.g. gyro.noise.arw='0.005 deg/sqrt(h)'), a grade, or a "
-            "noise file from a longer log of this IMU")
+GIVE_THE_NOISE = ("give the noise: --noise with the datasheet's terms (e.g. gyro.noise.arw='0.005 deg/sqrt(h)'), "
+                  "a grade, or a noise file from a longer log of this IMU")
+
+
+def white_level_warnings(hidden: list[str] | None, poorly_read: list[str] | None) -> list[str]:
+    """The lines for pulse channels whose white level the counts hide, when χ²/dof is above its
+    band: none found (a floor stood in for it), or one identified but not measured (below three
+    of its σ: read low, it weighs the channel too much). Either may be why."""
+    lines = []
+    if hidden:
+        lines.append(f"WARNING: no white-noise level on {', '.join(hidden)}: the pulse counts are too coarse for "
+                     "this log to show it, and none was taken, so the sigma are too small (by as much as chi2/dof "
+                     f"says); {GIVE_THE_NOISE}")
+    if poorly_read:
+        lines.append(f"WARNING: white-noise level poorly read on {', '.join(poorly_read)}: the pulse counts are too "
+                     "coarse for this log to measure it (identified within three of its sigma of 0), and a level "
+                     f"read low leaves the sigma too small (by as much as chi2/dof says); {GIVE_THE_NOISE}")
+    return lines
 
 
 def confounded_lines(det: dict, parameters) -> list[str]:

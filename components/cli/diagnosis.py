@@ -41,10 +41,11 @@ def _print_comparison(c, coloured: bool = False) -> None:
     if note:
         # too good to be true: the noise model, not the model, is what is wrong
         print(note)
-    if c.no_white_level and c.chi2_per_dof > chi2_band(c.dof)[1]:
-        from components.cli.calibration import hidden_white_warning
+    if c.chi2_per_dof > chi2_band(c.dof)[1]:
+        from components.cli.calibration import white_level_warnings
 
-        print(hidden_white_warning(c.no_white_level))
+        for line in white_level_warnings(c.no_white_level, c.white_poorly_read):
+            print(line)
     if c.misfits is not None:
         # only what is significant given how many cells were looked at (components.diagnosis.misfit)
         print("where it fails: " + "\n                ".join(c.misfits.lines()))

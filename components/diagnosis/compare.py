@@ -83,6 +83,8 @@ class Comparison:
     usable: np.ndarray | None = None
     # pulse channels without a white level (LogData.without_white_level)
     no_white_level: list = field(default_factory=list)
+    # pulse channels whose identified white level is not measured (LogData.white_poorly_read)
+    white_poorly_read: list = field(default_factory=list)
 
     def whitened_under(self, noise: NoiseModel | None) -> None:
         """Record the noise model the block residuals were whitened with (None: white noise)."""
@@ -103,7 +105,7 @@ class Comparison:
                 "channels": self.channels, "segments": self.per_segment,
                 "conditions": self.conditions,
                 "misfits": self.misfits.to_json() if self.misfits is not None else None,
-                "no_white_level": list(self.no_white_level)}
+                "no_white_level": list(self.no_white_level), "white_poorly_read": list(self.white_poorly_read)}
 
 
 def _blocks_rows(data: LogData, geo, blocks, residual, sigma, rest, chunk_s, noise: NoiseModel | None = None):
@@ -214,6 +216,7 @@ def assess(data: LogData, geo, plate: PlateAtSamples, pred: np.ndarray, *, fitte
                       dof, rows, usable=data.valid)
     comp.whitened_under(noise)
     comp.no_white_level = data.without_white_level(raw, noise)
+    comp.white_poorly_read = data.white_poorly_read(noise)
     locate(comp, data, plate, rows)
     return comp
 

@@ -37,7 +37,17 @@ from components.estimation.noise_likelihood import (
 )
 from components.estimation.whitening import channel_blocks
 from components.logs.spill import release
-from components.model.noise import AXES, CHANNELS, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, sensor_of, term_name
+from components.model.noise import (
+    AXES,
+    CHANNELS,
+    READ_SIGMAS,
+    TERM_OF_NAME,
+    TERMS,
+    ChannelNoise,
+    NoiseModel,
+    sensor_of,
+    term_name,
+)
 
 ALLAN_SAMPLES = 1 << 22  # static samples the Allan stage uses, at most (70 minutes at 1 kHz)
 
@@ -346,8 +356,13 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
     said = []
     if read_from_blocks:
+        # (a level within three σ of 0 is kept, as every sensor has white noise, but not measured:
+        # read low it leaves σ too small, and calibrate warns where χ²/dof then says so)
+        poor = [CHANNELS[k] for k, c in enumerate(out_channels)
+                if CHANNELS[k] in read_from_blocks and c.noise.white < READ_SIGMAS * c.sigma.get("white", 0.0)]
         said.append(f"white noise on {', '.join(read_from_blocks)} from the whole log's block sums (the static "
-                    "runs' Allan variance cannot show it beside the counts' quantization)")
+                    "runs' Allan variance cannot show it beside the counts' quantization)"
+                    + (f"; on {', '.join(poor)} within three of its σ of 0, poorly read" if poor else ""))
     if at_one_sigma:
         said.append(f"white noise on {', '.join(at_one_sigma)} read at the block sums' one-σ likelihood limit (beside "
                     "the floor or random walk they found, they do not bound it from below; on simulated coarse "

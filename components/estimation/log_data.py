@@ -124,6 +124,16 @@ class LogData:
         counted = np.repeat([w is not None and w > 0 for w in self.count_weight], 3)
         return [name for name, hidden in zip(CHANNELS, counted & ~(np.asarray(white) > 0)) if hidden]
 
+    def white_poorly_read(self, noise=None) -> list[str]:
+        """The channels of a pulse output whose white level *noise* (an identified model) holds
+        but did not measure (NoiseModel.white_poorly_read): the counts hide it nearly as much as
+        where none was found, and a level read low leaves σ too small. [] without a model."""
+        if noise is None:
+            return []
+        poor = noise.white_poorly_read()
+        counted = np.repeat([w is not None and w > 0 for w in self.count_weight], 3)
+        return [name for name, c in zip(CHANNELS, counted) if c and name in poor]
+
     @property
     def usable(self) -> np.ndarray:
         """(N,) bool: the samples that enter estimates."""

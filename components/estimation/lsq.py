@@ -58,6 +58,7 @@ class Fit:
     weak: list = field(default_factory=list)
     implausible: dict = field(default_factory=dict)
     hidden_white: list = field(default_factory=list)  # LogData.without_white_level
+    white_poorly_read: list = field(default_factory=list)  # LogData.white_poorly_read
 
     @property
     def sigma(self) -> np.ndarray:
@@ -212,6 +213,7 @@ def calibrate(data: LogData, effects: list[str], *, chunk_s: float = 1.0, quadra
               float(temperature_ref or 0.0), it, rows)
     fit.rest_sigma = q
     fit.hidden_white = no_white
+    fit.white_poorly_read = data.white_poorly_read(noise)
     fit.noise = noise if noise is not None and noise.coloured else None
     fit.determinability = det
     factor = grade_factor({"gyro": float(np.median(sg)) / np.sqrt(dt_mean), "acc": float(np.median(sa)) / np.sqrt(dt_mean)})

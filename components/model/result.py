@@ -177,6 +177,9 @@ def result_from_fit(fit, effects: list[str], data, log=None) -> CalibrationResul
     if getattr(fit, "hidden_white", None):
         # pulse channels without a white level: a numerical floor stood in (LogData.without_white_level)
         noise["no_white_level"] = list(fit.hidden_white)
+    if getattr(fit, "white_poorly_read", None):
+        # pulse channels whose identified white level is not measured (LogData.white_poorly_read)
+        noise["white_poorly_read"] = list(fit.white_poorly_read)
     if getattr(fit, "noise", None) is not None:
         noise["model"] = f"composite noise model ({fit.noise.source}): rows whitened with it"
         noise["composite"] = fit.noise.to_dict()
