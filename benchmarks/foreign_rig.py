@@ -58,9 +58,10 @@ must name the clipped channels (components.estimation.semantics); then the mappi
 ``range = "R deg/s"`` and the loop must end where the plain files' does.
 
 With ``--gyro-count W`` the gyros count pulses of W rad (1e-5: a ring-laser gyro's 2″): the
-counts then hide a gyro's white noise on some axes, calibrate warns and asks for it, and the loop
-gives what a user would, the datasheet's angle random walk (``--noise gyro.noise.arw=...``),
-beside every noise model it identifies.
+counts then hide a gyro's white noise on some axes (none found, or one read within three of its σ
+of 0), calibrate warns and asks for it, and the loop does what a user would: calibrates again with
+the datasheet's angle random walk held while the rest is identified (``--noise identify --noise
+gyro.noise.arw=...``), and holds it in each identification after (``calbench noise --noise``).
 
 With ``--lost-rows`` the logger writes each lost packet's row, its stamp and empty or NaN counts,
 and the mapping says so (``lost_rows = true``): the import leaves them out, and everything after
@@ -331,15 +332,17 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
     # with a soak, at the record's middle (where the import says the rate of a curved offset)
     true_rate = (1 / (1 + table_ppm * 1e-6 + table_soak_ppm * 1e-6 * (1 - math.exp(-2))) - 1) * 1e6
     said = calbench("calibrate", "imp.csv", "--out", "model0.json", cwd=d)
-    # where calibrate warns that the pulse counts hide a gyro's white noise, the user gives it as it
-    # asks: the datasheet's angle random walk, with every noise model after
+    # where calibrate warns that the pulse counts hide a gyro's white noise (none found, or one
+    # identified within three of its σ of 0), the user does as it asks: calibrates again with the
+    # datasheet's angle random walk held while the rest is identified, and holds it in every
+    # identification after
     given = []
-    # (none found, or one identified within three of its σ of 0: either warning names the channels)
     hidden_white = [ch for names in re.findall(r"(?:no white-noise level|white-noise level poorly read) on "
                                                r"((?:gyro_[xyz](?:, )?)+)", said)
                     for ch in names.split(", ") if ch]
     if hidden_white:
         given = ["--noise", f"gyro.noise.arw={noise_spec(grade)['gyro.noise.arw']}"]
+        calbench("calibrate", "imp.csv", "--noise", "identify", *given, "--out", "model0.json", cwd=d)
     if clipped is not None:
         left = re.search(r"gyro at its output range \(([^)]*)\): (\d+)", said)
         clipped.update(left_out=int(left.group(2)) if left else 0,
@@ -353,8 +356,8 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
     while True:
         if kept_noise is None:
             last_noise = f"noise{k}.json"
-            calbench("noise", "imp.csv", "--model", f"model{k}.json", "--out", last_noise, cwd=d)
-            noise_args = ["--noise", last_noise, *given]
+            calbench("noise", "imp.csv", "--model", f"model{k}.json", *given, "--out", last_noise, cwd=d)
+            noise_args = ["--noise", last_noise]
             if k:
                 # refitted under the noise identified around it (add kept the noise it was given)
                 calbench("calibrate", "imp.csv", "--effects", ",".join(list(DEFAULT_EFFECTS) + verdicts),
@@ -395,7 +398,7 @@ def one_seed(seed: int, d: Path, drift_ppm: float = 0.0, table_ppm: float = 0.0,
             "clocks_said": (f"the import: stamps bow {drift.group(1)} ms, rate moving {drift.group(2)} ppm; " if drift else "")
                           + (f"the table clock's curve (degree {curve.group(3)}): its rate moving {curve.group(1)} ppm, "
                              f"its offset bowing {curve.group(2)} ms; " if curve else ""),
-            "given": f"white noise hidden by the counts on {', '.join(hidden_white)}: the datasheet's {given[1]} given; "
+            "given": f"white noise hidden by the counts on {', '.join(hidden_white)}: the datasheet's {given[1]} held; "
                      if given else "",
             "verdicts": verdicts, "taken": taken, "last_verdict": diag["verdict"], "k2": errors.get(HIDDEN[1]),
             "temp": errors.get(THERMAL[1]),

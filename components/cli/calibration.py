@@ -45,8 +45,16 @@ def _print_result(res) -> None:
         print(line)
 
 
-GIVE_THE_NOISE = ("give the noise: --noise with the datasheet's terms (e.g. gyro.noise.arw='0.005 deg/sqrt(h)'), "
-                  "a grade, or a noise file from a longer log of this IMU")
+def give_the_noise(channels: list[str]) -> str:
+    """What to give for *channels* whose white level the counts hide: the datasheet's level, held
+    while the rest is identified (given after the identification alone, the slow terms stay those
+    read beside the level that was too low)."""
+    example = " --noise ".join(term for sensor, term in (("gyro", "gyro.noise.arw='0.005 deg/sqrt(h)'"),
+                                                         ("acc", "acc.noise.vrw='20 ug/sqrt(Hz)'"))
+                               if any(ch.startswith(sensor) for ch in channels))
+    return (f"give the datasheet's level, the rest identified beside it: --noise identify --noise {example} (or "
+            "calbench noise LOG --noise ... --out NOISE.json, then --noise NOISE.json), or a noise file from a longer "
+            "log of this IMU")
 
 
 def white_level_warnings(hidden: list[str] | None, poorly_read: list[str] | None) -> list[str]:
@@ -57,11 +65,11 @@ def white_level_warnings(hidden: list[str] | None, poorly_read: list[str] | None
     if hidden:
         lines.append(f"WARNING: no white-noise level on {', '.join(hidden)}: the pulse counts are too coarse for "
                      "this log to show it, and none was taken, so the sigma are too small (by as much as chi2/dof "
-                     f"says); {GIVE_THE_NOISE}")
+                     f"says); {give_the_noise(hidden)}")
     if poorly_read:
         lines.append(f"WARNING: white-noise level poorly read on {', '.join(poorly_read)}: the pulse counts are too "
                      "coarse for this log to measure it (identified within three of its sigma of 0), and a level "
-                     f"read low leaves the sigma too small (by as much as chi2/dof says); {GIVE_THE_NOISE}")
+                     f"read low leaves the sigma too small (by as much as chi2/dof says); {give_the_noise(poorly_read)}")
     return lines
 
 

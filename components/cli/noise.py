@@ -10,7 +10,7 @@ import numpy as np
 
 
 def _cmd_noise(args: argparse.Namespace) -> int:
-    from components.diagnosis.noise_choice import quantization_known, white_fit
+    from components.diagnosis.noise_choice import identification_known, white_fit
     from components.diagnosis.noise_id import identify_noise
     from components.errors import UserError
     from components.estimation.log_data import LogData
@@ -43,8 +43,15 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     else:
         model = white_fit(data, effects)
         print(f"residual of a white-noise fit of {', '.join(model.effects)} on this log")
+    bad = [spec for spec in args.noise or [] if "=" not in spec]
+    if bad:
+        raise UserError(f"noise: --noise {bad[0]!r}: expected a term given as NAME=VALUE (held while the rest is "
+                        "identified), e.g. gyro.noise.arw='0.002 deg/sqrt(h)'")
+    known = identification_known(data, args.noise)   # (a term's name, unit or value wrong: a UserError)
+    if args.noise:
+        print(f"held as given: {', '.join(args.noise)}")
     try:
-        ident = identify_noise(data, model, known=quantization_known(data), bootstrap=args.bootstrap,
+        ident = identify_noise(data, model, known=known, bootstrap=args.bootstrap,
                                **({"terms": terms} if terms else {}))
     except ValueError as e:
         raise UserError(f"noise: {args.log}: {e}") from None
@@ -98,6 +105,9 @@ def register(sub) -> None:
                                    "--effects on this log)")
     n.add_argument("--effects", help="effects of that default fit (default: bias, scale factor, misalignment)")
     n.add_argument("--terms", help="terms to look for, comma list of q, arw (vrw), bi, rrw (default: all)")
+    n.add_argument("--noise", action="append", metavar="NAME=VALUE",
+                   help="a term given (e.g. gyro.noise.arw='0.002 deg/sqrt(h)', a datasheet's ARW where pulse counts "
+                        "hide the white level), held at its value while the rest is identified; repeatable")
     n.add_argument("--bootstrap", type=int, default=30, help="parametric bootstrap replicates for the σ (30)")
     n.add_argument("--out", help="write the noise model (JSON) for --noise")
     from components.cli import json_option

@@ -9,7 +9,10 @@ Specifications, applied in order (``--noise`` on the command line, repeatable):
 - a ``.json`` file: a noise file (``calbench-noise/1``, written by ``calbench noise --out``) or a
   calibration result holding a composite model;
 - ``NAME=VALUE``: one term by hand, on top of what came before, e.g. ``acc.noise.bi=10 ug``,
-  ``gyro.noise.arw=0.002 deg/sqrt(h)``, ``acc.noise.q.x=1e-5`` (SI without a unit);
+  ``gyro.noise.arw=0.002 deg/sqrt(h)``, ``acc.noise.q.x=1e-5`` (SI without a unit); beside
+  ``identify`` each such term is also held at its value while the rest is identified (a
+  datasheet's ARW where pulse counts hide the white level: the slow terms are then read beside
+  the true level, not beside one read low and replaced after);
 - ``white``: white noise, its level from the data's sample-to-sample differences; on a pulse
   output, white noise plus the count weight's quantization as a term of its own (white_noise_model).
 
@@ -27,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from components.errors import UserError
-from components.model.noise import FORMAT, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, from_terms, grade
+from components.model.noise import AXES, FORMAT, TERM_OF_NAME, TERMS, ChannelNoise, NoiseModel, from_terms, grade
 from components.model.quantities import NOISE_TERM_UNITS, QuantityError, quantity
 
 WHITE = "white noise, its level from the static data's sample-to-sample differences"
@@ -53,6 +56,33 @@ def _term(spec: str) -> tuple[str, float]:
     if not (v >= 0 and math.isfinite(v)):
         raise UserError(f"--noise {spec!r}: expected a magnitude >= 0")
     return name, v
+
+
+def held_terms(specs) -> dict:
+    """Per channel (0-5) the noise terms the NAME=VALUE *specs* give (term -> SI magnitude; a
+    name without an axis on all three), for an identification to hold: the flicker range's
+    bounds are not terms of the fit and are left to be applied after it."""
+    held: dict = {}
+    for spec in specs or []:
+        if "=" not in spec:
+            continue
+        name, v = _term(spec.strip())
+        parts = name.split(".")
+        if parts[2] not in TERM_OF_NAME:
+            continue
+        off = 0 if parts[0] == "gyro" else 3
+        for a in ([AXES.index(parts[3])] if len(parts) == 4 else range(3)):
+            held.setdefault(off + a, {})[TERM_OF_NAME[parts[2]]] = v
+    return held
+
+
+def identification_known(data, specs=None) -> dict:
+    """Per channel the terms an identification of *data* holds: a pulse output's quantization
+    from its count weight, and the terms *specs* give by hand (held_terms), which win."""
+    known = {k: dict(v) for k, v in quantization_known(data).items()}
+    for k, terms in held_terms(specs).items():
+        known.setdefault(k, {}).update(terms)
+    return known
 
 
 def _is_float(s: str) -> bool:
@@ -142,20 +172,23 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
 
             base = model if model is not None else white_fit(data, effects)
             try:
-                ident = identify_noise(data, base, known=quantization_known(data), bootstrap=bootstrap)
+                ident = identify_noise(data, base, known=identification_known(data, specs), bootstrap=bootstrap)
             except ValueError as e:
                 raise UserError(f"--noise identify: {e}") from None
             noise = ident.model
             # what the identification could not do is said with it (a pulse log's default is
             # identified without being asked: the user would not otherwise learn of it)
-            said = [lead + IDENTIFIED + (f" (note: {ident.white_note})" if ident.white_note else "")]
+            held = [sp.strip() for sp in specs if "=" in sp]
+            said = [lead + IDENTIFIED + (f", {', '.join(held)} held as given" if held else "")
+                    + (f" (note: {ident.white_note})" if ident.white_note else "")]
         elif "=" in s:
             name, v = _term(s)
             try:
                 noise = from_terms({name: v}, noise, "given by hand")
             except ValueError as e:
                 raise UserError(f"--noise {spec!r}: {e}") from None
-            said.append(f"{name} = {v:.4g} (SI, given)")
+            if "identify" not in specs:   # (beside it: held, and said with it)
+                said.append(f"{name} = {v:.4g} (SI, given)")
             if TERM_OF_NAME.get(name.split(".")[2]) == "quantization":
                 quantized.add(name.split(".")[0])
         elif s.endswith(".json"):

@@ -266,7 +266,7 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
     # floor): the whole log's block sums show it as the scatter that accumulates over a rest where
     # the counts' remainder does not, so the likelihood stage measures it, as the scale of the
     # blocks' independent variance from the most the Allan variance allows (its ceiling)
-    hidden = [k for k in range(6) if not chans[k].white > 0]
+    hidden = [k for k in range(6) if not chans[k].white > 0 and "white" not in (known.get(k) or {})]
     if slow:
         white = np.array([c.white if k not in hidden else white_ceiling(fast[k].allan)
                           for k, c in enumerate(chans)]) * math.sqrt(dt)
@@ -285,7 +285,9 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
 
     def slow_channel(k: int, decided: dict | None = None, fits: dict | None = None) -> tuple[ChannelNoise, dict, dict]:
         b = channel_blocks(rows, k, dt, rows["y"], rows["H"], rows["weight"])
-        base = replace(chans[k], bias_instability=0.0, random_walk=0.0, gauss_markov=())
+        # (a slow term held at a given value stays in the base the others are fitted beside)
+        base = replace(chans[k], gauss_markov=(), **{t: 0.0 for t in ("bias_instability", "random_walk")
+                                                     if t not in (known.get(k) or {})})
         # (the count remainder as independent here, not turning: the advance read from the same
         # counts sets part of what the block sums show, and the white level the scale measures
         # came out low with it — gyro_x 4.7e-7 for 5.8e-7 on 2" counts, within 3σ on 12 of 20
@@ -314,7 +316,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
         sigma, present = dict(fast[k].sigma), list(fast[k].present)
         if rows is not None:  # the slow terms are the likelihood stage's, not the Allan stage's
             present = [t for t in present if t in ("quantization", "white")] + \
-                [t for t in slow_terms[k] if report[t]["present"]]
+                [t for t in slow_terms[k] if report[t]["present"]] + \
+                [t for t in ("bias_instability", "random_walk") if t in (known.get(k) or {})]
             sigma.update({t: report[t]["sigma"] for t in slow_terms[k]})
             if k in hidden:
                 ceiling = white[k] / math.sqrt(dt)  # (white_ceiling: no level above it)
