@@ -82,6 +82,25 @@ def test_bad_noise_specification_is_one_clear_error(spec, message, conformance, 
     assert rc == 2 and message in err and "Traceback" not in err, err
 
 
+@pytest.mark.parametrize("spec, message", [
+    ("acc.noise.bogus=1", "unknown term 'acc.noise.bogus'"),
+    ("acc.noise.bi.w=10 ug", "expected <gyro|acc>.noise.<arw|vrw|q|bi|rrw|bi_tau_min|bi_tau_max>[.x|.y|.z]"),
+    ("gyro.noise.arw=0.005", "a number without its unit"),
+    ("navigation", "expected a term given as NAME=VALUE"),
+])
+def test_a_bad_term_to_hold_is_one_clear_error(spec, message, conformance, tmp_path, capsys):
+    """A term held in an identification (calbench noise --noise, or beside --noise identify) is
+    checked as any term by hand: one error naming it, before the log is worked on."""
+    for args in (["noise", str(conformance / "example"), "--noise", spec],
+                 ["calibrate", str(conformance / "example"), "--out", str(tmp_path / "r.json"), "--noise", "identify",
+                  "--noise", spec]):
+        if args[0] == "calibrate" and "=" not in spec:
+            continue   # (a grade beside identify is a whole model, applied in order)
+        rc = main(args)
+        err = capsys.readouterr().err
+        assert rc == 2 and message in err and "Traceback" not in err, (args, err)
+
+
 def test_the_flicker_range_given_by_hand(conformance, tmp_path, capsys):
     """bi_tau_min / bi_tau_max [s] bound the bias instability's flicker range by hand, as a noise
     file's flicker_range_s does (bi_tau_max crashed; a range could be given only in a file): the

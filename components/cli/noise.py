@@ -10,7 +10,7 @@ import numpy as np
 
 
 def _cmd_noise(args: argparse.Namespace) -> int:
-    from components.diagnosis.noise_choice import identification_known, white_fit
+    from components.diagnosis.noise_choice import held_terms, identification_known, white_fit
     from components.diagnosis.noise_id import identify_noise
     from components.errors import UserError
     from components.estimation.log_data import LogData
@@ -19,6 +19,11 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     from components.model.noise import CHANNELS, TERM_OF_NAME, TERMS, sensor_of
     from components.model.result import CalibrationResult
 
+    bad = [spec for spec in args.noise or [] if "=" not in spec]
+    if bad:
+        raise UserError(f"noise: --noise {bad[0]!r}: expected a term given as NAME=VALUE (held while the rest is "
+                        "identified), e.g. gyro.noise.arw='0.002 deg/sqrt(h)'")
+    held_terms(args.noise)   # (a term's name, unit or value wrong: its UserError before the log is read)
     log = read_log(args.log, lean=True)
     if not log.has_table:
         raise UserError(f"noise: {args.log} has no table angles: noise identification works on the residual of a "
@@ -43,11 +48,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     else:
         model = white_fit(data, effects)
         print(f"residual of a white-noise fit of {', '.join(model.effects)} on this log")
-    bad = [spec for spec in args.noise or [] if "=" not in spec]
-    if bad:
-        raise UserError(f"noise: --noise {bad[0]!r}: expected a term given as NAME=VALUE (held while the rest is "
-                        "identified), e.g. gyro.noise.arw='0.002 deg/sqrt(h)'")
-    known = identification_known(data, args.noise)   # (a term's name, unit or value wrong: a UserError)
+    known = identification_known(data, args.noise)
     if args.noise:
         print(f"held as given: {', '.join(args.noise)}")
     try:

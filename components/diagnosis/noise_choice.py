@@ -67,6 +67,10 @@ def held_terms(specs) -> dict:
         if "=" not in spec:
             continue
         name, v = _term(spec.strip())
+        try:
+            from_terms({name: v})   # (its name checked as a model's term: .w or a fifth part, one error)
+        except ValueError as e:
+            raise UserError(f"--noise {spec!r}: {e}") from None
         parts = name.split(".")
         if parts[2] not in TERM_OF_NAME:
             continue
@@ -187,7 +191,7 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
                 noise = from_terms({name: v}, noise, "given by hand")
             except ValueError as e:
                 raise UserError(f"--noise {spec!r}: {e}") from None
-            if "identify" not in specs:   # (beside it: held, and said with it)
+            if not any(sp.strip() == "identify" for sp in specs):   # (beside it: held, and said with it)
                 said.append(f"{name} = {v:.4g} (SI, given)")
             if TERM_OF_NAME.get(name.split(".")[2]) == "quantization":
                 quantized.add(name.split(".")[0])
