@@ -376,7 +376,9 @@ def test_a_datasheet_level_is_held_while_the_rest_is_identified(hidden, tmp_path
     log_path, _, _, truth = hidden
     arw = ["--noise", "gyro.noise.arw=0.001 deg/sqrt(h)"]
     assert main(["noise", str(log_path), *arw, "--out", str(tmp_path / "n.json")]) == 0
-    assert "held as given: gyro.noise.arw=0.001 deg/sqrt(h)" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "held as given: gyro.noise.arw=0.001 deg/sqrt(h)" in out, out
+    assert any(line.startswith("gyro_x") and " arw " in line and "yes (held)" in line for line in out.splitlines()), out
     chans = json.loads((tmp_path / "n.json").read_text())["channels"]
     for ch in ("gyro_x", "gyro_y", "gyro_z"):
         assert chans[ch]["white"]["value"] == pytest.approx(ARW, rel=1e-12), chans[ch]

@@ -61,6 +61,7 @@ class ChannelIdentification:
     noise: ChannelNoise         # the final model of the channel (present terms only)
     sigma: dict                 # term -> σ of its magnitude
     present: list
+    held: tuple = ()            # terms held at a known value (a count weight's quantization, a term given)
 
 
 @dataclass
@@ -96,8 +97,9 @@ class NoiseIdentification:
                     iv = self.model.intervals.get(term_name(k, t))
                     within = f"  [{iv[0] / scale:.3g}, {iv[1] / scale:.3g}]" if iv else ""
                     sd = f"{s / scale:10.2g}" if np.isfinite(s) else f"{'-':>10s}"
+                    held = " (held)" if t in c.held else ""
                     lines.append(f"{c.name:8s} {vname.split('.', 2)[2]:18s} {v / scale:12.4g} {sd}  "
-                                 f"{dunit:14s} yes{within}{tested}")
+                                 f"{dunit:14s} yes{held}{within}{tested}")
                 else:
                     up = c.fast.upper.get(t) if t in c.fast.upper else None
                     if t in c.slow:
@@ -356,7 +358,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     # the ceiling; from below nothing but 0
                     white_interval[k] = (0.0, at_scale(ceiling, report.get("block_variance_upper_3sigma", math.nan)))
                     at_one_sigma.append(CHANNELS[k])
-        out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present))
+        out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present,
+                                                  tuple(known.get(k) or ())))
     said = []
     if read_from_blocks:
         # (a level within three σ of 0 is kept, as every sensor has white noise, but not measured:
