@@ -18,8 +18,9 @@ import pytest
 
 from components.estimation.count_phase import count_advance
 from components.estimation.whitening import whiten_channel
+from components.model.block_noise import block_noise
 from components.model.count_remainder import KEPT_DAMPING, kept_harmonics
-from components.model.noise import ChannelNoise, block_noise
+from components.model.noise import ChannelNoise
 
 W = 2.0  # one count (any unit)
 
@@ -213,7 +214,7 @@ def test_a_slow_terms_wander_within_the_rest_dithers_the_remainder(advance, gm_s
     harmonics damped by the white noise alone, the strong term's sawtooth is held too sure."""
     from types import SimpleNamespace
 
-    import components.model.noise as noise_model  # (where block_noise looks the wander up)
+    import components.model.block_noise as noise_model  # (where block_noise looks the wander up)
 
     rng = np.random.default_rng(11)
     rests, nb, per, white = 600, 30, 100, 0.03

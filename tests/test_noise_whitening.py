@@ -8,7 +8,8 @@ import pytest
 from scipy.linalg import cholesky, solve_triangular
 
 from components.estimation.whitening import ChannelWhitener, whiten_channel
-from components.model.noise import ChannelNoise, block_noise, flicker_upper
+from components.model.block_noise import block_noise, flicker_upper
+from components.model.noise import ChannelNoise
 
 
 def dense_covariance(ch: ChannelNoise, edges: np.ndarray, white_var: np.ndarray, span: float, t_lo: float,

@@ -31,7 +31,8 @@ from dataclasses import replace
 import numpy as np
 
 from components.estimation.whitening import whiten_channel
-from components.model.noise import ChannelNoise, block_noise
+from components.model.block_noise import block_noise
+from components.model.noise import ChannelNoise
 
 LR_CRITICAL = 5.4119  # χ²₁ 98 % point: the 1 % level of ½ χ²₀ + ½ χ²₁
 FLICKER_CORNER_TEST = 10.0  # [s] the floor's lower corner its presence is tested at
@@ -79,7 +80,7 @@ def restricted_loglik(ch: ChannelNoise, y: np.ndarray, H: np.ndarray, durations:
     """ℓ of one channel's rows under *ch* (see the module docstring); ``restricted=False``: the
     ordinary log-likelihood at the GLS estimate, −½ [log det C + min_θ ‖y − H θ‖²_C] (the one that
     compares models with different columns). ``advance``: a pulse output's count phase through
-    the rests, ``gaps`` [s]: what lies between the blocks (components.model.noise.block_noise)."""
+    the rests, ``gaps`` [s]: what lies between the blocks (components.model.block_noise)."""
     bn = block_noise(ch, durations, white_var, span, t_lo, advance, gaps)
     w, S = whiten_channel(np.column_stack([y, H]), bn)
     yw, Hw = w[:, 0], w[:, 1:]

@@ -2,7 +2,7 @@
 at a cost linear in the log's length.
 
 The block sums of one channel, in time order, are y_k = h_k θ + e_k with e_k correlated through
-the noise terms' states at the block boundaries (components.model.noise.BlockNoise). The
+the noise terms' states at the block boundaries (components.model.block_noise.BlockNoise). The
 Kalman filter of that state-space model turns them into innovations ν_k with variances S_k;
 ν_k / √S_k = (L⁻¹ y)_k for the Cholesky factor L of their covariance in time order, so applying
 the same (data-independent) filter to y and to every column of H gives the whitened rows whose
@@ -21,7 +21,8 @@ import numpy as np
 from components.errors import EstimationError
 from components.estimation.stacked_qr import StackedQR
 from components.logs.spill import gathered, pieces
-from components.model.noise import BlockNoise, NoiseModel, block_noise
+from components.model.block_noise import BlockNoise, block_noise
+from components.model.noise import NoiseModel
 
 
 def whiten_channel(values: np.ndarray, bn: BlockNoise) -> tuple[np.ndarray, np.ndarray]:
@@ -120,7 +121,7 @@ def channel_rows(rows: dict, channel: int) -> np.ndarray:
 
 def block_timing(rows: dict, idx: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """(durations, gaps) [s] of the rows *idx* (one channel's, in block order) for
-    components.model.noise.block_noise: each block's length and what lies between it and the
+    components.model.block_noise: each block's length and what lies between it and the
     block before (left-out samples, a dropped move; 0 for the first)."""
     start, stop = rows["start"][idx], rows["stop"][idx]
     gaps = np.zeros(len(idx))
@@ -134,7 +135,7 @@ def block_timing(rows: dict, idx: np.ndarray, dt: float) -> tuple[np.ndarray, np
 
 def advance_of(rows: dict, idx: np.ndarray) -> np.ndarray | None:
     """The advance of the rows *idx* (one channel's, in block order) for
-    components.model.noise.block_noise (a pulse output's count phase through its rests,
+    components.model.block_noise (a pulse output's count phase through its rests,
     components.estimation.count_phase), or None when the rows have none for that channel."""
     if "advance" not in rows:
         return None
