@@ -62,7 +62,7 @@ from pulse_counts import PulseLogger  # noqa: E402  (beside this script)
 from components.cli.demo import SCENARIO  # noqa: E402
 from components.diagnosis.compare import compare  # noqa: E402
 from components.diagnosis.diagnose import diagnose  # noqa: E402
-from components.diagnosis.noise_choice import quantization_known, white_noise_model  # noqa: E402
+from components.diagnosis.noise_choice import quantization_known, terms_by_channel, white_noise_model  # noqa: E402
 from components.diagnosis.noise_id import identify_noise  # noqa: E402
 from components.estimation.crb import cramer_rao  # noqa: E402
 from components.estimation.log_data import LogData  # noqa: E402
@@ -172,8 +172,13 @@ def analyse_null(job) -> dict:
         model = result_from_fit(calibrate(data, BASELINE), BASELINE, data)
         ident = identify_noise(data, model, known=quantization_known(data), bootstrap=10)
         analyses.append(("ident", ident.model, None, None))
-        # as choose_noise applies `--noise identify --noise gyro.noise.bi=…`: the terms over the identified model
-        analyses.append(("ident+ds", from_terms(datasheet, ident.model, "identified; gyro slow terms given"), None, None))
+        # as choose_noise applies `--noise identify --noise gyro.noise.bi=…`: the terms held while the rest is
+        # identified (before c85ff46: set over the model identified without them)
+        known = quantization_known(data)
+        for k, terms in terms_by_channel(datasheet).items():
+            known[k] = {**known.get(k, {}), **terms}
+        held = identify_noise(data, model, known=known, bootstrap=10)
+        analyses.append(("ident+ds", from_terms(datasheet, held.model, "identified; gyro slow terms given"), None, None))
     for name, nm, m, f in analyses:
         if m is None:
             f = calibrate(data, BASELINE, noise=nm)

@@ -60,9 +60,8 @@ def _term(spec: str) -> tuple[str, float]:
 
 def held_terms(specs) -> dict:
     """Per channel (0-5) the noise terms the NAME=VALUE *specs* give (term -> SI magnitude; a
-    name without an axis on all three), for an identification to hold: the flicker range's
-    bounds are not terms of the fit and are left to be applied after it."""
-    held: dict = {}
+    name without an axis on all three), for an identification to hold (terms_by_channel)."""
+    given = {}
     for spec in specs or []:
         if "=" not in spec:
             continue
@@ -71,12 +70,22 @@ def held_terms(specs) -> dict:
             from_terms({name: v})   # (its name checked as a model's term: .w or a fifth part, one error)
         except ValueError as e:
             raise UserError(f"--noise {spec!r}: {e}") from None
+        given[name] = v
+    return terms_by_channel(given)
+
+
+def terms_by_channel(terms: dict) -> dict:
+    """Per channel (0-5) the named *terms* (``{"gyro.noise.arw": N, "acc.noise.bi.y": B}``, SI) as
+    ChannelNoise fields: what an identification holds. The flicker range's bounds are not terms of
+    the fit and are left to be applied after it."""
+    held: dict = {}
+    for name, v in terms.items():
         parts = name.split(".")
         if parts[2] not in TERM_OF_NAME:
             continue
         off = 0 if parts[0] == "gyro" else 3
         for a in ([AXES.index(parts[3])] if len(parts) == 4 else range(3)):
-            held.setdefault(off + a, {})[TERM_OF_NAME[parts[2]]] = v
+            held.setdefault(off + a, {})[TERM_OF_NAME[parts[2]]] = float(v)
     return held
 
 
