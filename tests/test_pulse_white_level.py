@@ -297,7 +297,7 @@ def test_counts_that_hide_the_white_level_are_said_to(hidden, tmp_path, capsys):
 
 def test_a_white_level_read_low_within_its_sigma_is_said_to(hidden, tmp_path, capsys):
     """The block sums' reading of a white level the counts hide can land low within its wide σ
-    (the foreign rig's 2" gyros on one log: 0.34-0.71 of the truth at 0.9-2.6 of their σ, χ²/dof
+    (the foreign rig's 2" gyros on one log: 0.34-0.71 of the truth, 1.1-3.1 of their σ from 0, χ²/dof
     1.24) and nothing was said, as a level was found. Here the identified noise with its poorly
     read gyro levels at a tenth (their σ kept): χ²/dof above its band, and calibrate and compare
     name those channels as poorly read and say what to give; the same low levels claimed measured

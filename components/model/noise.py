@@ -148,7 +148,7 @@ class NoiseModel:
         :data:`READ_SIGMAS` of its σ, or bounded from above only (its interval from 0). Such a level
         is kept (every sensor has white noise) but the log did not measure it: beside a pulse
         output's quantization a level read low weighs the channel's block sums too much (the
-        foreign rig's 2" gyros, read at 0.34-0.71 of the truth at 0.9-2.6 of their σ: χ²/dof 1.24
+        foreign rig's 2" gyros, read at 0.34-0.71 of the truth, 1.1-3.1 of their σ from 0: χ²/dof 1.24
         with nothing said). A level given by hand has no σ and is never named."""
         out = []
         for k, (name, ch) in enumerate(zip(CHANNELS, self.channels)):
