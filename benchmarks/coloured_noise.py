@@ -62,7 +62,12 @@ from pulse_counts import PulseLogger  # noqa: E402  (beside this script)
 from components.cli.demo import SCENARIO  # noqa: E402
 from components.diagnosis.compare import compare  # noqa: E402
 from components.diagnosis.diagnose import diagnose  # noqa: E402
-from components.diagnosis.noise_choice import quantization_known, terms_by_channel, white_noise_model  # noqa: E402
+from components.diagnosis.noise_choice import (  # noqa: E402
+    identification_known,
+    quantization_known,
+    terms_by_channel,
+    white_noise_model,
+)
 from components.diagnosis.noise_id import identify_noise  # noqa: E402
 from components.estimation.crb import cramer_rao  # noqa: E402
 from components.estimation.log_data import LogData  # noqa: E402
@@ -174,10 +179,7 @@ def analyse_null(job) -> dict:
         analyses.append(("ident", ident.model, None, None))
         # as choose_noise applies `--noise identify --noise gyro.noise.bi=…`: the terms held while the rest is
         # identified (before c85ff46: set over the model identified without them)
-        known = quantization_known(data)
-        for k, terms in terms_by_channel(datasheet).items():
-            known[k] = {**known.get(k, {}), **terms}
-        held = identify_noise(data, model, known=known, bootstrap=10)
+        held = identify_noise(data, model, known=identification_known(data, terms_by_channel(datasheet)), bootstrap=10)
         analyses.append(("ident+ds", from_terms(datasheet, held.model, "identified; gyro slow terms given"), None, None))
     for name, nm, m, f in analyses:
         if m is None:

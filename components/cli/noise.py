@@ -23,7 +23,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     if bad:
         raise UserError(f"noise: --noise {bad[0]!r}: expected a term given as NAME=VALUE (held while the rest is "
                         "identified), e.g. gyro.noise.arw='0.002 deg/sqrt(h)'")
-    held_terms(args.noise)   # (a term's name, unit or value wrong: its UserError before the log is read)
+    held = held_terms(args.noise)   # (a term's name, unit or value wrong: its UserError before the log is read)
     log = read_log(args.log, lean=True)
     if not log.has_table:
         raise UserError(f"noise: {args.log} has no table angles: noise identification works on the residual of a "
@@ -48,7 +48,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     else:
         model = white_fit(data, effects)
         print(f"residual of a white-noise fit of {', '.join(model.effects)} on this log")
-    known = identification_known(data, args.noise)
+    known = identification_known(data, held)
     if args.noise:
         print(f"held as given: {', '.join(args.noise)}")
     try:

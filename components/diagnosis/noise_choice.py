@@ -89,11 +89,12 @@ def terms_by_channel(terms: dict) -> dict:
     return held
 
 
-def identification_known(data, specs=None) -> dict:
+def identification_known(data, held: dict | None = None) -> dict:
     """Per channel the terms an identification of *data* holds: a pulse output's quantization
-    from its count weight, and the terms *specs* give by hand (held_terms), which win."""
+    from its count weight, and the *held* terms (per channel, held_terms / terms_by_channel),
+    which win."""
     known = {k: dict(v) for k, v in quantization_known(data).items()}
-    for k, terms in held_terms(specs).items():
+    for k, terms in (held or {}).items():
         known.setdefault(k, {}).update(terms)
     return known
 
@@ -185,7 +186,8 @@ def choose_noise(specs: list[str] | None, data, model=None, effects=None, *, boo
 
             base = model if model is not None else white_fit(data, effects)
             try:
-                ident = identify_noise(data, base, known=identification_known(data, specs), bootstrap=bootstrap)
+                ident = identify_noise(data, base, known=identification_known(data, held_terms(specs)),
+                                       bootstrap=bootstrap)
             except ValueError as e:
                 raise UserError(f"--noise identify: {e}") from None
             noise = ident.model

@@ -40,7 +40,6 @@ from components.logs.spill import release
 from components.model.noise import (
     AXES,
     CHANNELS,
-    READ_SIGMAS,
     TERM_OF_NAME,
     TERMS,
     ChannelNoise,
@@ -360,12 +359,22 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     at_one_sigma.append(CHANNELS[k])
         out_channels.append(ChannelIdentification(CHANNELS[k], fast[k], report, ch, sigma, present,
                                                   tuple(known.get(k) or ())))
+    sig, iv = {}, {}
+    for k, c in enumerate(out_channels):
+        for t in c.present:
+            if t in TERMS[sensor_of(k)]:
+                name = term_name(k, t)
+                sig[name] = c.sigma.get(t, float("nan"))
+                if "interval" in c.slow.get(t, {}):  # a slow term present in the likelihood stage
+                    iv[name] = c.slow[t]["interval"]
+                elif t == "white" and k in white_interval:
+                    iv[name] = white_interval[k]
+    model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
     said = []
     if read_from_blocks:
         # (a level within three σ of 0 is kept, as every sensor has white noise, but not measured:
         # read low it leaves σ too small, and calibrate warns where χ²/dof then says so)
-        poor = [CHANNELS[k] for k, c in enumerate(out_channels)
-                if CHANNELS[k] in read_from_blocks and c.noise.white < READ_SIGMAS * c.sigma.get("white", 0.0)]
+        poor = [ch for ch in model_out.white_poorly_read() if ch in read_from_blocks]
         said.append(f"white noise on {', '.join(read_from_blocks)} from the whole log's block sums (the static "
                     "runs' Allan variance cannot show it beside the counts' quantization)"
                     + (f"; on {', '.join(poor)} within three of its σ of 0, poorly read" if poor else ""))
@@ -380,19 +389,8 @@ def identify_noise(data: LogData, model, *, known: dict | None = None, terms=BAS
                     "than a sample's noise hide it)" + ("" if rows is not None else ": the slow terms were not "
                     "estimated") + ", and σ that rest on it may be too small; give the noise with --noise (a "
                     "datasheet's terms, a grade or a noise file)")
-    sig, iv = {}, {}
-    for k, c in enumerate(out_channels):
-        for t in c.present:
-            if t in TERMS[sensor_of(k)]:
-                name = term_name(k, t)
-                sig[name] = c.sigma.get(t, float("nan"))
-                if "interval" in c.slow.get(t, {}):  # a slow term present in the likelihood stage
-                    iv[name] = c.slow[t]["interval"]
-                elif t == "white" and k in white_interval:
-                    iv[name] = white_interval[k]
     said += unlike_axes(out_channels, iv)
     notes += said
-    model_out = NoiseModel(tuple(c.noise for c in out_channels), "identified from this log's residual", sig, iv)
     return NoiseIdentification(model_out, out_channels, len(runs), notes, "; ".join(said) or None)
 
 

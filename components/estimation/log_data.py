@@ -121,8 +121,11 @@ class LogData:
         χ²/dof tells which (in its band, or far above it); calibrate and compare say so."""
         if noise is not None:
             white = np.maximum(white, noise.white_sigma(self.sample_interval))
-        counted = np.repeat([w is not None and w > 0 for w in self.count_weight], 3)
-        return [name for name, hidden in zip(CHANNELS, counted & ~(np.asarray(white) > 0)) if hidden]
+        return [name for name, hidden in zip(CHANNELS, self._counted() & ~(np.asarray(white) > 0)) if hidden]
+
+    def _counted(self) -> np.ndarray:
+        """(6,) bool: the channels of a pulse output."""
+        return np.repeat([w is not None and w > 0 for w in self.count_weight], 3)
 
     def white_poorly_read(self, noise=None) -> list[str]:
         """The channels of a pulse output whose white level *noise* (an identified model) holds
@@ -131,8 +134,7 @@ class LogData:
         if noise is None:
             return []
         poor = noise.white_poorly_read()
-        counted = np.repeat([w is not None and w > 0 for w in self.count_weight], 3)
-        return [name for name, c in zip(CHANNELS, counted) if c and name in poor]
+        return [name for name, c in zip(CHANNELS, self._counted()) if c and name in poor]
 
     @property
     def usable(self) -> np.ndarray:
